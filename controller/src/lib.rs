@@ -1,1 +1,152 @@
-//! placeholder
+//! Control laws for the tilting system: computed torque so that `beta_ddot = v` in every
+//! contact mode, a PD law on the arm angle, and the energy-based adaptation of the stiffness
+//! gain `K_P = K_P0 + k (E_av - E)` that stabilises the paper's tilting orbit.
+//!
+//! ```
+//! use tilting_controller::{ComputedTorque, ControlConfig};
+//! use tilting_plant::{Mode, State};
+//! let c = ComputedTorque::new(ControlConfig::default()).unwrap();
+//! let tau = c.torque(0.0, Mode::Flat, &State::new(0.0, 1.2, 0.0, 0.0));
+//! assert!(tau > 0.0); // pushes the arm back towards upright
+//! ```
+
+pub mod reference;
+
+pub use reference::Reference;
+
+use serde::{Deserialize, Serialize};
+use tilting_plant::dynamics::{energy_t, torque_for_beta_ddot_t, Trig};
+use tilting_plant::params::{finite, non_negative};
+use tilting_plant::{ConfigError, Mode, Params, State, TorqueLaw};
+
+/// Settings of the computed-torque PD controller with energy adaptation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ControlConfig {
+    /// Model parameters used for the inverse dynamics and the energy.
+    pub params: Params,
+    /// Base stiffness gain `K_P0` (1/s^2).
+    pub kp: f64,
+    /// Damping gain `K_D` (1/s).
+    pub kd: f64,
+    /// Energy adaptation gain `k` (1/(J s^2)); 0 disables the adaptation.
+    pub k: f64,
+    /// Average energy `E_av` (J) of the orbit to stabilise.
+    pub energy_avg: f64,
+    /// Desired arm trajectory.
+    pub reference: Reference,
+    /// Torque limit (N m): the torque is clipped to `[-limit, limit]`; `None` for no limit.
+    pub torque_limit: Option<f64>,
+}
+
+impl Default for ControlConfig {
+    /// The paper's gains `K_P = 100`, `K_D = 14.14`, no adaptation, hold upright, no limit.
+    fn default() -> Self {
+        Self {
+            params: Params::default(),
+            kp: 100.0,
+            kd: 14.14,
+            k: 0.0,
+            energy_avg: 0.0,
+            reference: Reference::Hold,
+            torque_limit: None,
+        }
+    }
+}
+
+impl ControlConfig {
+    /// Checks every field, naming the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.params.validate()?;
+        non_negative("kp", self.kp)?;
+        non_negative("kd", self.kd)?;
+        non_negative("k", self.k)?;
+        finite("energy_avg", self.energy_avg)?;
+        if let Reference::Sinusoid { amplitude, omega } = self.reference {
+            finite("amplitude", amplitude)?;
+            tilting_plant::params::positive("omega", omega)?;
+        }
+        if let Some(l) = self.torque_limit {
+            tilting_plant::params::positive("torque_limit", l)?;
+        }
+        Ok(())
+    }
+}
+
+/// The computed-torque PD law with energy adaptation. A pure function of `(t, q, x)`, so it
+/// serves both inside the integrator (continuous coupling) and once per sample (zero-order
+/// hold over the network).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComputedTorque {
+    cfg: ControlConfig,
+}
+
+impl ComputedTorque {
+    /// A controller with validated settings.
+    pub fn new(cfg: ControlConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        Ok(Self { cfg })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &ControlConfig {
+        &self.cfg
+    }
+
+    /// The adapted stiffness `K_P = K_P0 + k (E_av - E(x))` (1/s^2).
+    #[inline]
+    pub fn stiffness(&self, mode: Mode, x: &State) -> f64 {
+        self.stiffness_t(mode, x, &Trig::new(x))
+    }
+
+    #[inline]
+    fn stiffness_t(&self, mode: Mode, x: &State, tr: &Trig) -> f64 {
+        if self.cfg.k == 0.0 {
+            self.cfg.kp
+        } else {
+            self.cfg.kp
+                + self.cfg.k * (self.cfg.energy_avg - energy_t(&self.cfg.params, mode, x, tr))
+        }
+    }
+
+    /// The commanded arm acceleration `v = beta_d_ddot + K_D (beta_d_dot - beta_dot) +
+    /// K_P (beta_d - beta)` (rad/s^2).
+    #[inline]
+    pub fn acceleration(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        self.acceleration_t(t, mode, x, &Trig::new(x))
+    }
+
+    #[inline]
+    fn acceleration_t(&self, t: f64, mode: Mode, x: &State, tr: &Trig) -> f64 {
+        let (bd, bd_dot, bd_ddot) = self.cfg.reference.at(t);
+        bd_ddot + self.cfg.kd * (bd_dot - x[3]) + self.stiffness_t(mode, x, tr) * (bd - x[1])
+    }
+
+    /// The joint torque (N m): the inverse dynamics of `mode` applied to `v`, clipped to the
+    /// torque limit if one is set.
+    #[inline]
+    pub fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        self.torque_t(t, mode, x, &Trig::new(x))
+    }
+
+    #[inline]
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Trig) -> f64 {
+        let v = self.acceleration_t(t, mode, x, tr);
+        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v);
+        match self.cfg.torque_limit {
+            Some(l) => tau.clamp(-l, l),
+            None => tau,
+        }
+    }
+}
+
+impl TorqueLaw for ComputedTorque {
+    #[inline]
+    fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        ComputedTorque::torque(self, t, mode, x)
+    }
+
+    #[inline]
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, trig: &Trig) -> f64 {
+        ComputedTorque::torque_t(self, t, mode, x, trig)
+    }
+}

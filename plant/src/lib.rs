@@ -1,1 +1,43 @@
-//! placeholder
+//! Hybrid dynamics of the tilting system and its event-exact simulator.
+//!
+//! A foot plate that lies flat or tilts passively over its left or right edge, with an actuated
+//! arm on top (see `shared/MODEL.md` for the model and its conventions). The crate holds:
+//! - [`Params`]: masses and lengths, with the paper's defaults;
+//! - [`Mode`] and [`State`]: the hybrid state `(q, x)` with `x = (alpha, beta, alpha_dot,
+//!   beta_dot)` in rad and rad/s;
+//! - [`dynamics`]: equations of motion, ground force, ZMP, inverse dynamics;
+//! - [`kinematics`]: positions, energy, angular momentum, the mirror map;
+//! - [`impact`]: the landing map with the paper's and the striking-edge law;
+//! - [`ode`]: the DOP853 integrator with dense output;
+//! - [`hybrid`]: the simulator ([`Plant`]) with event location, impacts and faults.
+//!
+//! It knows nothing of networks: the `tilting-plant` binary wraps it in a zenoh node.
+//!
+//! ```
+//! use tilting_plant::{Plant, SimConfig, Mode, State};
+//! // Passive tilting: start tilted left with the arm upright and let go.
+//! let mut plant = Plant::new(SimConfig::default(), 0.0, Mode::Left,
+//!                            State::new(0.05, std::f64::consts::FRAC_PI_2, 0.0, 0.0)).unwrap();
+//! plant.advance_held(0.0, 0.1, &mut ()).unwrap();
+//! assert!(plant.state()[0] < 0.05); // gravity pulls the plate back
+//! ```
+
+pub mod dynamics;
+pub mod hybrid;
+pub mod impact;
+pub mod kinematics;
+pub mod mode;
+pub mod ode;
+pub mod params;
+
+pub use hybrid::{Fault, Observer, Plant, SimConfig, TiltPeak, TorqueLaw, Transition};
+pub use impact::ImpactLaw;
+pub use kinematics::{energy, mirror};
+pub use mode::Mode;
+pub use ode::Tolerance;
+pub use params::{ConfigError, Params};
+
+/// Continuous state `x = (alpha, beta, alpha_dot, beta_dot)`: plate tilt angle (rad, counter-
+/// clockwise positive), arm angle relative to the plate (rad, `pi/2` upright) and their rates
+/// (rad/s).
+pub type State = nalgebra::Vector4<f64>;

@@ -1,0 +1,180 @@
+//! Equations of motion of the three contact modes, the ground force, the ZMP and inverse
+//! dynamics (the computed-torque map).
+//!
+//! State `x = (alpha, beta, alpha_dot, beta_dot)` in rad and rad/s; torque `tau` in N m on the arm
+//! joint, positive accelerating `beta` positively. Tilted equations are those of a double
+//! pendulum about the pivot; the right tilt is the left one with `f -> -f`.
+
+use crate::{Mode, Params, State};
+
+/// Sines and cosines of one configuration, computed once and shared by every formula below
+/// (the right-hand side is evaluated about a thousand times per simulated second).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trig {
+    /// `sin alpha`
+    pub sa: f64,
+    /// `cos alpha`
+    pub ca: f64,
+    /// `sin beta`
+    pub sb: f64,
+    /// `cos beta`
+    pub cb: f64,
+    /// `sin(alpha + beta)`
+    pub sab: f64,
+    /// `cos(alpha + beta)`
+    pub cab: f64,
+}
+
+impl Trig {
+    /// The sines and cosines of `x`'s angles.
+    #[inline]
+    pub fn new(x: &State) -> Self {
+        let (sa, ca) = x[0].sin_cos();
+        let (sb, cb) = x[1].sin_cos();
+        Self {
+            sa,
+            ca,
+            sb,
+            cb,
+            sab: sa * cb + ca * sb,
+            cab: ca * cb - sa * sb,
+        }
+    }
+}
+
+/// Mass matrix entries `(M11, M12, M22)` of a tilted mode (kg m^2) at arm angle `beta`.
+/// For [`Mode::Flat`] these are the left-tilt values (the plate is held by the ground).
+#[inline]
+pub fn mass_matrix(p: &Params, mode: Mode, beta: f64) -> (f64, f64, f64) {
+    mass_matrix_cb(p, mode, beta.cos())
+}
+
+#[inline]
+fn mass_matrix_cb(p: &Params, mode: Mode, cb: f64) -> (f64, f64, f64) {
+    let sf = mode.signed_f(p.f);
+    let m11 = p.m_f * sf * sf + p.m_l * (sf * sf + 2.0 * sf * p.l * cb + p.l * p.l);
+    let m12 = p.m_l * p.l * (p.l + sf * cb);
+    let m22 = p.m_l * p.l * p.l;
+    (m11, m12, m22)
+}
+
+/// Coriolis, centrifugal and gravity terms `(h1, h2)` of a tilted mode (N m).
+#[inline]
+pub fn bias(p: &Params, mode: Mode, x: &State) -> (f64, f64) {
+    bias_t(p, mode, x, &Trig::new(x))
+}
+
+#[inline]
+fn bias_t(p: &Params, mode: Mode, x: &State, tr: &Trig) -> (f64, f64) {
+    let (ad, bd) = (x[2], x[3]);
+    let sf = mode.signed_f(p.f);
+    let ml = p.m_l;
+    let h1 = -ml * sf * p.l * tr.sb * (2.0 * ad * bd + bd * bd)
+        + p.total_mass() * p.g * sf * tr.ca
+        + ml * p.g * p.l * tr.cab;
+    let h2 = ml * p.l * (sf * tr.sb * ad * ad + p.g * tr.cab);
+    (h1, h2)
+}
+
+/// Accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under torque `tau`.
+#[inline]
+pub fn accelerations(p: &Params, mode: Mode, x: &State, tau: f64) -> (f64, f64) {
+    accelerations_t(p, mode, x, &Trig::new(x), tau)
+}
+
+/// [`accelerations`] with the sines and cosines already at hand.
+#[inline]
+pub fn accelerations_t(p: &Params, mode: Mode, x: &State, tr: &Trig, tau: f64) -> (f64, f64) {
+    match mode {
+        Mode::Flat => {
+            let bdd = (tau / (p.m_l * p.l) - p.g * tr.cb) / p.l;
+            (0.0, bdd)
+        }
+        _ => {
+            let (m11, m12, m22) = mass_matrix_cb(p, mode, tr.cb);
+            let (h1, h2) = bias_t(p, mode, x, tr);
+            let det = m11 * m22 - m12 * m12;
+            let r1 = -h1;
+            let r2 = tau - h2;
+            ((m22 * r1 - m12 * r2) / det, (m11 * r2 - m12 * r1) / det)
+        }
+    }
+}
+
+/// Time derivative of the state, `x_dot = f_q(x, tau)`.
+#[inline]
+pub fn rhs(p: &Params, mode: Mode, x: &State, tau: f64) -> State {
+    let (add, bdd) = accelerations(p, mode, x, tau);
+    State::new(x[2], x[3], add, bdd)
+}
+
+/// The torque (N m) that gives `beta_ddot = v` (rad/s^2) in `mode` at state `x`: the
+/// computed-torque (inverse dynamics) map. In a tilted mode `alpha_ddot` is eliminated with the
+/// first (unactuated) row of the equations of motion.
+#[inline]
+pub fn torque_for_beta_ddot(p: &Params, mode: Mode, x: &State, v: f64) -> f64 {
+    torque_for_beta_ddot_t(p, mode, x, &Trig::new(x), v)
+}
+
+/// [`torque_for_beta_ddot`] with the sines and cosines already at hand.
+#[inline]
+pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, x: &State, tr: &Trig, v: f64) -> f64 {
+    match mode {
+        Mode::Flat => p.m_l * p.l * (p.l * v + p.g * tr.cb),
+        _ => {
+            let (m11, m12, m22) = mass_matrix_cb(p, mode, tr.cb);
+            let (h1, h2) = bias_t(p, mode, x, tr);
+            let add = -(m12 * v + h1) / m11;
+            m12 * add + m22 * v + h2
+        }
+    }
+}
+
+/// Total energy `E = T + V` (J) from the mass matrix, with the sines and cosines at hand. Equal
+/// to [`crate::kinematics::energy`] (which works from the positions and velocities of the
+/// masses; the tests compare them).
+#[inline]
+pub fn energy_t(p: &Params, mode: Mode, x: &State, tr: &Trig) -> f64 {
+    let (ad, bd) = (x[2], x[3]);
+    let (m11, m12, m22) = mass_matrix_cb(p, mode, tr.cb);
+    let sf = mode.signed_f(p.f);
+    let t = 0.5 * (m11 * ad * ad + 2.0 * m12 * ad * bd + m22 * bd * bd);
+    let v = p.g * (p.total_mass() * sf * tr.sa + p.m_l * p.l * tr.sab);
+    t + v
+}
+
+/// Vertical ground (or pivot) reaction force `F_y` (N) given the accelerations: the total
+/// weight plus the masses times their vertical accelerations.
+#[inline]
+pub fn vertical_force(p: &Params, mode: Mode, x: &State, add: f64, bdd: f64) -> f64 {
+    let (a, b, ad, bd) = (x[0], x[1], x[2], x[3]);
+    let sf = mode.signed_f(p.f);
+    let (sa, ca) = a.sin_cos();
+    let (sab, cab) = (a + b).sin_cos();
+    let yf_dd = sf * (ca * add - sa * ad * ad);
+    let yl_dd = yf_dd + p.l * (cab * (add + bdd) - sab * (ad + bd) * (ad + bd));
+    p.total_mass() * p.g + p.m_f * yf_dd + p.m_l * yl_dd
+}
+
+/// Flat-mode support margins `(s_left, s_right)` (N m) for torque `tau`: `s_left = r_z F_y` and
+/// `s_right = (2 f - r_z) F_y`, with `r_z` the ZMP. Both are positive while the ZMP lies inside
+/// the support `[0, 2 f]`; the plate tilts left when `s_left` reaches 0 and right when
+/// `s_right` does. Written without the division so that they stay smooth when `F_y` is small.
+#[inline]
+pub fn support_margins(p: &Params, x: &State, tau: f64) -> (f64, f64) {
+    let fy = flat_vertical_force(p, x, tau);
+    (p.f * fy + tau, p.f * fy - tau)
+}
+
+/// Flat-mode vertical ground force `F_y` (N) under torque `tau`.
+#[inline]
+pub fn flat_vertical_force(p: &Params, x: &State, tau: f64) -> f64 {
+    let (_, bdd) = accelerations(p, Mode::Flat, x, tau);
+    vertical_force(p, Mode::Flat, x, 0.0, bdd)
+}
+
+/// Zero moment point `r_z = M_z / F_y` (m, world x) of the flat plate under torque `tau`.
+pub fn zmp(p: &Params, x: &State, tau: f64) -> f64 {
+    let fy = flat_vertical_force(p, x, tau);
+    p.f + tau / fy
+}

@@ -1,0 +1,609 @@
+//! The hybrid simulator: continuous flow in each contact mode, event location on the dense
+//! output, the landing impact, immediate re-tilt, a Zeno guard and faults.
+//!
+//! [`Plant`] owns the hybrid state `(t, q, x)` and the integrator's step-size memory, and
+//! advances either with a torque held over an interval (the zero-order hold of a sampled or
+//! networked controller: [`Plant::advance_held`]) or with a torque law evaluated inside the
+//! right-hand side ([`Plant::advance_continuous`], the paper's setting).
+
+use crate::dynamics::{accelerations_t, rhs, vertical_force, Trig};
+use crate::ode::{Dop853, OdeError, OdeStats, Tolerance};
+use crate::{ConfigError, ImpactLaw, Mode, Params, State};
+
+/// A torque law `tau(t, q, x)` (N m) evaluated inside the right-hand side. It must be a pure
+/// function of its arguments (the integrator evaluates it at trial states).
+pub trait TorqueLaw {
+    /// Joint torque (N m) at time `t` (s) in mode `mode` at state `x`.
+    fn torque(&self, t: f64, mode: Mode, x: &State) -> f64;
+
+    /// The same with the sines and cosines of `x` already computed; override to save them.
+    #[inline]
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, _trig: &Trig) -> f64 {
+        self.torque(t, mode, x)
+    }
+}
+
+impl<F: Fn(f64, Mode, &State) -> f64> TorqueLaw for F {
+    fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        self(t, mode, x)
+    }
+}
+
+/// A mode transition.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    /// Time of the event (s).
+    pub t: f64,
+    /// Mode before.
+    pub from: Mode,
+    /// Mode after.
+    pub to: Mode,
+    /// State just before.
+    pub x_before: State,
+    /// State just after (the impact map applied for a landing).
+    pub x_after: State,
+}
+
+/// The extreme tilt angle of one completed tilt.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TiltPeak {
+    /// Time of the extreme (s).
+    pub t: f64,
+    /// The tilt it belongs to ([`Mode::Left`] or [`Mode::Right`]).
+    pub mode: Mode,
+    /// The extreme `alpha` (rad): positive for a left tilt, negative for a right one.
+    pub alpha: f64,
+}
+
+/// Why a simulation stopped early. The model does not cover flight or a fall.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Fault {
+    /// The vertical contact force reached zero: the plate would leave the ground.
+    #[error("contact loss at t = {t:.9} s in mode {mode}: vertical contact force F_y = {force:.3e} N <= 0")]
+    ContactLoss {
+        /// Time (s).
+        t: f64,
+        /// Mode at the time.
+        mode: Mode,
+        /// The force (N).
+        force: f64,
+    },
+    /// The plate tipped past the fall angle.
+    #[error("fall at t = {t:.9} s: |alpha| reached {alpha:.4} rad (limit {limit:.4} rad)")]
+    Fall {
+        /// Time (s).
+        t: f64,
+        /// The tilt angle (rad).
+        alpha: f64,
+        /// The configured limit (rad).
+        limit: f64,
+    },
+    /// Too many mode transitions in too short a time.
+    #[error("Zeno guard at t = {t:.9} s: {events} transitions within {window:e} s")]
+    Zeno {
+        /// Time (s).
+        t: f64,
+        /// Transitions counted.
+        events: usize,
+        /// The window (s).
+        window: f64,
+    },
+    /// The torque was not a finite number.
+    #[error("non-finite torque {tau} at t = {t:.9} s")]
+    NonFiniteTorque {
+        /// Time (s).
+        t: f64,
+        /// The torque.
+        tau: f64,
+    },
+    /// The integrator failed.
+    #[error("integrator: {0}")]
+    Integrator(#[from] OdeError),
+}
+
+/// Receives what happens during a simulation. Every method has an empty default.
+pub trait Observer {
+    /// A mode transition happened.
+    fn transition(&mut self, _ev: &Transition) {}
+    /// A tilt ended (landing); this was its extreme angle.
+    fn tilt_peak(&mut self, _peak: &TiltPeak) {}
+    /// The state at the end of an accepted step or at an event (before the reset).
+    fn sample(&mut self, _t: f64, _mode: Mode, _x: &State) {}
+}
+
+impl Observer for () {}
+
+/// Settings of the hybrid simulator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimConfig {
+    /// Physical parameters.
+    pub params: Params,
+    /// Landing impact law.
+    pub impact: ImpactLaw,
+    /// Integrator tolerances.
+    pub tol: Tolerance,
+    /// `|alpha|` (rad) at which the plate counts as fallen; default `pi/2`.
+    pub fall_angle: f64,
+    /// Zeno guard: at most `zeno_events` transitions within `zeno_window` seconds.
+    pub zeno_events: usize,
+    /// Zeno guard window (s).
+    pub zeno_window: f64,
+    /// Largest integration step (s): bounds the spacing of [`Observer::sample`] calls.
+    pub h_max: f64,
+    /// Event times are located to this width (s).
+    pub event_tol: f64,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            params: Params::default(),
+            impact: ImpactLaw::Paper,
+            tol: Tolerance::default(),
+            fall_angle: std::f64::consts::FRAC_PI_2,
+            zeno_events: 16,
+            zeno_window: 1e-3,
+            h_max: f64::INFINITY,
+            event_tol: 1e-13,
+        }
+    }
+}
+
+impl SimConfig {
+    /// Checks every setting, naming the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        use crate::params::positive;
+        self.params.validate()?;
+        positive("rtol", self.tol.rtol)?;
+        positive("atol", self.tol.atol)?;
+        positive("fall_angle", self.fall_angle)?;
+        positive("zeno_window", self.zeno_window)?;
+        positive("event_tol", self.event_tol)?;
+        if !(self.h_max > 0.0) {
+            return Err(ConfigError::OutOfRange {
+                field: "h_max",
+                value: format!("{}", self.h_max),
+                allowed: "> 0 (infinite for none)",
+            });
+        }
+        if self.zeno_events < 2 {
+            return Err(ConfigError::OutOfRange {
+                field: "zeno_events",
+                value: self.zeno_events.to_string(),
+                allowed: ">= 2",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A torque held constant (zero-order hold).
+struct Held(f64);
+
+impl TorqueLaw for Held {
+    #[inline]
+    fn torque(&self, _t: f64, _mode: Mode, _x: &State) -> f64 {
+        self.0
+    }
+}
+
+/// Number of event functions per mode.
+const NG: usize = 4;
+
+/// Event function slots. Each is positive inside the mode and fires when it reaches zero from
+/// above.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Ev {
+    /// Flat: ZMP leaves through the left edge. Tilted: landing (`alpha` back to 0).
+    A,
+    /// Flat: ZMP leaves through the right edge. Tilted: extreme of `alpha` (not terminal).
+    B,
+    /// Vertical contact force.
+    Contact,
+    /// Tilted: fall angle.
+    Fall,
+}
+
+const EVS: [Ev; NG] = [Ev::A, Ev::B, Ev::Contact, Ev::Fall];
+
+/// The hybrid plant: state, mode, clock and integrator memory.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    cfg: SimConfig,
+    t: f64,
+    mode: Mode,
+    x: State,
+    stepper: Dop853,
+    /// Extreme of the tilt in progress, `(t, alpha)`.
+    extreme: Option<(f64, f64)>,
+    /// Times of the most recent transitions (ring buffer for the Zeno guard).
+    recent: Vec<f64>,
+    recent_next: usize,
+    transitions: u64,
+    tilts: u64,
+}
+
+impl Plant {
+    /// A plant at time `t0` (s) in `mode` with state `x0`. Flat mode forces `alpha = alpha_dot
+    /// = 0`; a tilted mode requires `alpha` on its own side (or zero).
+    pub fn new(cfg: SimConfig, t0: f64, mode: Mode, x0: State) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        for (field, v) in [
+            ("t0", t0),
+            ("alpha", x0[0]),
+            ("beta", x0[1]),
+            ("alpha_dot", x0[2]),
+            ("beta_dot", x0[3]),
+        ] {
+            crate::params::finite(field, v)?;
+        }
+        let mut x = x0;
+        match mode {
+            Mode::Flat => {
+                x[0] = 0.0;
+                x[2] = 0.0;
+            }
+            Mode::Left if x[0] < 0.0 => {
+                return Err(ConfigError::OutOfRange {
+                    field: "alpha",
+                    value: x[0].to_string(),
+                    allowed: ">= 0 in mode left",
+                })
+            }
+            Mode::Right if x[0] > 0.0 => {
+                return Err(ConfigError::OutOfRange {
+                    field: "alpha",
+                    value: x[0].to_string(),
+                    allowed: "<= 0 in mode right",
+                })
+            }
+            _ => {}
+        }
+        if x[0].abs() >= cfg.fall_angle {
+            return Err(ConfigError::OutOfRange {
+                field: "alpha",
+                value: x[0].to_string(),
+                allowed: "|alpha| below the fall angle",
+            });
+        }
+        let mut stepper = Dop853::new(cfg.tol);
+        stepper.h_max = cfg.h_max;
+        Ok(Self {
+            cfg,
+            t: t0,
+            mode,
+            x,
+            stepper,
+            extreme: None,
+            recent: vec![f64::NEG_INFINITY; cfg.zeno_events],
+            recent_next: 0,
+            transitions: 0,
+            tilts: 0,
+        })
+    }
+
+    /// Current time (s).
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+    /// Current mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+    /// Current state `(alpha, beta, alpha_dot, beta_dot)`.
+    pub fn state(&self) -> State {
+        self.x
+    }
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.cfg
+    }
+    /// Integrator work counters.
+    pub fn stats(&self) -> OdeStats {
+        self.stepper.stats
+    }
+    /// Mode transitions so far.
+    pub fn transitions(&self) -> u64 {
+        self.transitions
+    }
+    /// Completed tilts (landings) so far.
+    pub fn tilts(&self) -> u64 {
+        self.tilts
+    }
+
+    /// Advances to `t_target` (s) with the torque `tau` (N m) held constant (zero-order hold).
+    /// In the flat mode the support is checked at once, so a torque step that moves the ZMP
+    /// outside the plate tilts it at the current instant.
+    pub fn advance_held<O: Observer>(
+        &mut self,
+        tau: f64,
+        t_target: f64,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        if !tau.is_finite() {
+            return Err(Fault::NonFiniteTorque { t: self.t, tau });
+        }
+        self.integrate(&Held(tau), t_target, obs)
+    }
+
+    /// Advances to `t_target` (s) with the torque law evaluated inside the right-hand side.
+    pub fn advance_continuous<L: TorqueLaw, O: Observer>(
+        &mut self,
+        law: &L,
+        t_target: f64,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        self.integrate(law, t_target, obs)
+    }
+
+    /// Event function values at state `x` with derivative `xd = f_q(x, tau)` in the current
+    /// mode. Everything is read off `(x, xd)`: in the flat mode the torque is recovered from
+    /// `beta_ddot` by inverting the flat equation, so the torque law is not evaluated again.
+    #[inline]
+    fn events(&self, x: &State, xd: &State) -> [f64; NG] {
+        let p = &self.cfg.params;
+        let fy = vertical_force(p, self.mode, x, xd[2], xd[3]);
+        match self.mode {
+            Mode::Flat => {
+                let tau = p.m_l * p.l * (p.l * xd[3] + p.g * x[1].cos());
+                [p.f * fy + tau, p.f * fy - tau, fy, 1.0]
+            }
+            m => {
+                let s = if m == Mode::Left { 1.0 } else { -1.0 };
+                [s * x[0], s * x[2], fy, self.cfg.fall_angle - s * x[0]]
+            }
+        }
+    }
+
+    /// Does event `i` need the derivative (and so a right-hand-side evaluation)?
+    #[inline]
+    fn needs_derivative(&self, i: usize) -> bool {
+        self.mode == Mode::Flat || i == 2
+    }
+
+    fn record_transition<O: Observer>(
+        &mut self,
+        to: Mode,
+        x_after: State,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        let ev = Transition {
+            t: self.t,
+            from: self.mode,
+            to,
+            x_before: self.x,
+            x_after,
+        };
+        obs.transition(&ev);
+        self.mode = to;
+        self.x = x_after;
+        self.transitions += 1;
+        let n = self.recent.len();
+        let oldest = self.recent[self.recent_next];
+        self.recent[self.recent_next] = self.t;
+        self.recent_next = (self.recent_next + 1) % n;
+        if self.t - oldest < self.cfg.zeno_window {
+            return Err(Fault::Zeno {
+                t: self.t,
+                events: n,
+                window: self.cfg.zeno_window,
+            });
+        }
+        Ok(())
+    }
+
+    /// In the flat mode: checks the contact force and the ZMP for the current torque and tilts
+    /// at once if the ZMP lies outside the support.
+    fn settle<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        tau_of: &T,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        if self.mode != Mode::Flat {
+            return Ok(());
+        }
+        let tau = tau_of.torque(self.t, self.mode, &self.x);
+        if !tau.is_finite() {
+            return Err(Fault::NonFiniteTorque { t: self.t, tau });
+        }
+        let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
+        let g = self.events(&self.x, &xd);
+        if g[2] <= 0.0 {
+            return Err(Fault::ContactLoss {
+                t: self.t,
+                mode: self.mode,
+                force: g[2],
+            });
+        }
+        if g[0] < 0.0 {
+            self.start_tilt(Mode::Left, obs)?;
+        } else if g[1] < 0.0 {
+            self.start_tilt(Mode::Right, obs)?;
+        }
+        Ok(())
+    }
+
+    fn start_tilt<O: Observer>(&mut self, to: Mode, obs: &mut O) -> Result<(), Fault> {
+        let mut x = self.x;
+        x[0] = 0.0;
+        x[2] = 0.0;
+        self.extreme = None;
+        self.record_transition(to, x, obs)
+    }
+
+    fn land<O: Observer>(&mut self, obs: &mut O) -> Result<(), Fault> {
+        let from = self.mode;
+        if let Some((t, alpha)) = self.extreme.take() {
+            obs.tilt_peak(&TiltPeak {
+                t,
+                mode: from,
+                alpha,
+            });
+        }
+        self.tilts += 1;
+        let mut xm = self.x;
+        xm[0] = 0.0; // located to round-off; the impact happens on the ground
+        let x_after = self.cfg.impact.apply(&self.cfg.params, from, &xm);
+        self.record_transition(Mode::Flat, x_after, obs)
+    }
+
+    fn integrate<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        tau_of: &T,
+        t_target: f64,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        self.settle(tau_of, obs)?;
+        let p = self.cfg.params;
+        while self.t < t_target {
+            let mode = self.mode;
+            let mut f = |t: f64, x: &State| {
+                let tr = Trig::new(x);
+                let tau = tau_of.torque_t(t, mode, x, &tr);
+                let (add, bdd) = accelerations_t(&p, mode, x, &tr, tau);
+                State::new(x[2], x[3], add, bdd)
+            };
+            let mut f0 = f(self.t, &self.x);
+            let mut g0 = self.events(&self.x, &f0);
+            let mut terminal = None;
+            while self.t < t_target {
+                let step = self.stepper.step(&mut f, self.t, &self.x, &f0, t_target)?;
+                let g1 = self.events(&step.y1, step.f1());
+                let fired = (0..NG).filter(|&i| crossed(g0[i], g1[i]));
+                if fired.clone().next().is_none() {
+                    self.t = step.t1;
+                    self.x = step.y1;
+                    f0 = *step.f1();
+                    g0 = g1;
+                    obs.sample(self.t, mode, &self.x);
+                    continue;
+                }
+                let dense = self.stepper.dense(&mut f, &step);
+                let mut roots = [(f64::INFINITY, Ev::A); NG];
+                let mut n_roots = 0;
+                for i in fired {
+                    let gi = |t: f64| {
+                        let x = dense.eval(t);
+                        let xd = if self.needs_derivative(i) {
+                            f(t, &x)
+                        } else {
+                            x
+                        };
+                        self.events(&x, &xd)[i]
+                    };
+                    let r = locate(&gi, step.t0, g0[i], step.t1, g1[i], self.cfg.event_tol);
+                    roots[n_roots] = (r, EVS[i]);
+                    n_roots += 1;
+                }
+                let roots = &mut roots[..n_roots];
+                roots.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let first_terminal = roots
+                    .iter()
+                    .find(|(_, e)| mode == Mode::Flat || *e != Ev::B)
+                    .copied();
+                for &(tr, e) in roots.iter() {
+                    if e == Ev::B && mode != Mode::Flat {
+                        if first_terminal.is_some_and(|(tt, _)| tt < tr) {
+                            continue;
+                        }
+                        let a = dense.eval(tr)[0];
+                        if self.extreme.is_none_or(|(_, old)| a.abs() > old.abs()) {
+                            self.extreme = Some((tr, a));
+                        }
+                    }
+                }
+                match first_terminal {
+                    Some((tr, e)) => {
+                        self.t = tr;
+                        self.x = dense.eval(tr);
+                        obs.sample(self.t, mode, &self.x);
+                        terminal = Some(e);
+                        break;
+                    }
+                    None => {
+                        self.t = step.t1;
+                        self.x = step.y1;
+                        f0 = *step.f1();
+                        g0 = g1;
+                        obs.sample(self.t, mode, &self.x);
+                    }
+                }
+            }
+            match (terminal, mode) {
+                (None, _) => {}
+                (Some(Ev::Contact), m) => {
+                    let tau = tau_of.torque(self.t, m, &self.x);
+                    let xd = rhs(&p, m, &self.x, tau);
+                    return Err(Fault::ContactLoss {
+                        t: self.t,
+                        mode: m,
+                        force: self.events(&self.x, &xd)[2],
+                    });
+                }
+                (Some(Ev::Fall), _) => {
+                    return Err(Fault::Fall {
+                        t: self.t,
+                        alpha: self.x[0],
+                        limit: self.cfg.fall_angle,
+                    });
+                }
+                (Some(Ev::A), Mode::Flat) => self.start_tilt(Mode::Left, obs)?,
+                (Some(Ev::B), Mode::Flat) => self.start_tilt(Mode::Right, obs)?,
+                (Some(Ev::A), _) => {
+                    self.land(obs)?;
+                    self.settle(tau_of, obs)?;
+                }
+                (Some(Ev::B), _) => unreachable!("alpha extremes are not terminal"),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Did event `e` fire between two successive values? Each fires when it reaches zero from
+/// above; a tilt starts with `alpha = alpha_dot = 0`, so the landing and extreme functions start
+/// at exactly zero and must first become positive: a landing never fires at a tilt's start.
+#[inline]
+fn crossed(g0: f64, g1: f64) -> bool {
+    g0 > 0.0 && g1 <= 0.0
+}
+
+/// Locates the zero of `g` in `[a, b]` with `g(a) > 0 >= g(b)` to width `tol` by the Illinois
+/// variant of regula falsi, with a bisection every fourth trial so the bracket always shrinks.
+/// Returns the right end of the final bracket, so the state there is already past the event.
+fn locate<G: Fn(f64) -> f64>(
+    g: &G,
+    mut a: f64,
+    mut ga: f64,
+    mut b: f64,
+    mut gb: f64,
+    tol: f64,
+) -> f64 {
+    let mut last_side = 0i8;
+    for iter in 0..300 {
+        if b - a <= tol.max(4.0 * f64::EPSILON * b.abs()) {
+            break;
+        }
+        let mut c = (a * gb - b * ga) / (gb - ga);
+        if iter % 8 == 7 || !(c > a && c < b) {
+            c = 0.5 * (a + b);
+        }
+        let gc = g(c);
+        if gc > 0.0 {
+            a = c;
+            ga = gc;
+            if last_side == 1 {
+                gb *= 0.5;
+            }
+            last_side = 1;
+        } else {
+            b = c;
+            gb = gc;
+            if last_side == -1 {
+                ga *= 0.5;
+            }
+            last_side = -1;
+        }
+    }
+    b
+}

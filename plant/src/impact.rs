@@ -1,0 +1,68 @@
+//! The landing impact: the map `h` from the state just before the plate hits the ground to the
+//! state just after.
+
+use crate::dynamics::mass_matrix;
+use crate::{Mode, Params, State};
+use serde::{Deserialize, Serialize};
+use std::str::FromStr;
+
+/// Which angular momentum the landing conserves. After the impact the plate is at rest
+/// (`alpha = alpha_dot = 0`) and `beta` is continuous; only `beta_dot` jumps:
+/// `beta_dot+ = beta_dot- + c(beta) alpha_dot-`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImpactLaw {
+    /// The paper's law (the default): angular momentum about the pivot edge, i.e. the momentum
+    /// conjugate to `alpha`, is kept: `c = M11 / M12`.
+    #[default]
+    Paper,
+    /// The textbook rocking-block law: angular momentum about the edge that strikes the ground,
+    /// `c = (m_l l^2 - (m_f + m_l) f^2) / (m_l l (l - f cos beta))` (with `f -> -f` from the
+    /// right).
+    StrikingEdge,
+}
+
+impl ImpactLaw {
+    /// `"paper"` or `"striking-edge"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ImpactLaw::Paper => "paper",
+            ImpactLaw::StrikingEdge => "striking-edge",
+        }
+    }
+
+    /// The coefficient `c(beta)` for a landing from the tilted mode `from`.
+    pub fn coefficient(self, p: &Params, from: Mode, beta: f64) -> f64 {
+        let sf = from.signed_f(p.f);
+        match self {
+            ImpactLaw::Paper => {
+                let (m11, m12, _) = mass_matrix(p, from, beta);
+                m11 / m12
+            }
+            ImpactLaw::StrikingEdge => {
+                (p.m_l * p.l * p.l - p.total_mass() * p.f * p.f)
+                    / (p.m_l * p.l * (p.l - sf * beta.cos()))
+            }
+        }
+    }
+
+    /// The impact map `h`: the flat-mode state just after a landing from `from` with the
+    /// pre-impact state `x`.
+    pub fn apply(self, p: &Params, from: Mode, x: &State) -> State {
+        let c = self.coefficient(p, from, x[1]);
+        State::new(0.0, x[1], 0.0, x[3] + c * x[2])
+    }
+}
+
+impl FromStr for ImpactLaw {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "paper" => Ok(ImpactLaw::Paper),
+            "striking-edge" => Ok(ImpactLaw::StrikingEdge),
+            other => Err(format!(
+                "invalid impact law `{other}`: must be paper or striking-edge"
+            )),
+        }
+    }
+}
