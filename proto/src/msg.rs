@@ -1,0 +1,569 @@
+//! Messages exchanged by plant, controller and planner.
+//!
+//! Units: angles rad, rates rad/s, torques N·m, times plant seconds (simulated time since the
+//! plant started, not wall-clock), energies J. Frames: `alpha` is the plate tilt angle,
+//! counter-clockwise positive (`> 0` only when tilted over the left edge, `< 0` only over the
+//! right edge); `beta` is the arm angle relative to the plate, `pi/2` upright, counter-clockwise
+//! positive; `tau` is the joint torque on `beta`, positive accelerates `beta` positively.
+//! Continuous states are ordered `(alpha, beta, alpha_dot, beta_dot)`.
+//!
+//! Enumerations travel as `u8` so that a peer in any language can read them; each message's
+//! `validate()` checks every float is finite and every enumeration is in range, and names the
+//! offending field and the allowed range in its error. Field order is the wire order: do not
+//! reorder fields (see `docs/protocol.md`).
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+use thiserror::Error;
+
+/// A message field that is out of its allowed range.
+///
+/// The `Display` text reads `Message.field = value ...; allowed: ...`.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ValidationError {
+    /// A float field is NaN or infinite.
+    #[error("{message}.{field} = {value} is not finite; allowed: any finite f64")]
+    NotFinite {
+        /// Message type name, e.g. `"PlantState"`.
+        message: &'static str,
+        /// Field name, e.g. `"alpha"` or `"x_after[1]"`.
+        field: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
+    /// A numeric field (float or enumeration byte) is outside its allowed range.
+    #[error("{message}.{field} = {value} is out of range; allowed: {allowed}")]
+    OutOfRange {
+        /// Message type name.
+        message: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// The rejected value (enumeration bytes are converted exactly).
+        value: f64,
+        /// Human-readable allowed range, e.g. `"0..=2 (0 flat, 1 left, 2 right)"`.
+        allowed: &'static str,
+    },
+    /// A string field is longer than its cap.
+    #[error("{message}.{field} is {len} bytes long; allowed: at most {max} bytes of UTF-8")]
+    TooLong {
+        /// Message type name.
+        message: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// Length in bytes.
+        len: usize,
+        /// Cap in bytes.
+        max: usize,
+    },
+}
+
+fn finite(message: &'static str, field: &'static str, value: f64) -> Result<(), ValidationError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(ValidationError::NotFinite {
+            message,
+            field,
+            value,
+        })
+    }
+}
+
+fn at_most(
+    message: &'static str,
+    field: &'static str,
+    value: u8,
+    max: u8,
+    allowed: &'static str,
+) -> Result<(), ValidationError> {
+    if value <= max {
+        Ok(())
+    } else {
+        Err(ValidationError::OutOfRange {
+            message,
+            field,
+            value: f64::from(value),
+            allowed,
+        })
+    }
+}
+
+/// Checks `ok(value)` for an already finite float.
+fn range(
+    message: &'static str,
+    field: &'static str,
+    value: f64,
+    ok: bool,
+    allowed: &'static str,
+) -> Result<(), ValidationError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ValidationError::OutOfRange {
+            message,
+            field,
+            value,
+            allowed,
+        })
+    }
+}
+
+const MODE_RANGE: &str = "0..=2 (0 flat, 1 left, 2 right)";
+
+/// Discrete contact mode `q`; a `u8` on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum Mode {
+    /// `q = 0`: the plate lies flat, `alpha = alpha_dot = 0`.
+    Flat = 0,
+    /// `q = 1`: tilted over the left edge, `alpha > 0`.
+    Left = 1,
+    /// `q = 2`: tilted over the right edge, `alpha < 0`.
+    Right = 2,
+}
+
+/// A byte or name that is not a [`Mode`].
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum ModeError {
+    /// The wire byte is above 2.
+    #[error("mode {0} is out of range; allowed: 0..=2 (0 flat, 1 left, 2 right)")]
+    OutOfRange(u8),
+    /// The name is not one of `flat`, `left`, `right`.
+    #[error("unknown mode {0:?}; allowed: \"flat\", \"left\", \"right\"")]
+    UnknownName(String),
+}
+
+impl Mode {
+    /// The wire byte (and the paper's index `q`).
+    pub const fn as_u8(self) -> u8 {
+        self as u8
+    }
+
+    /// `"flat"`, `"left"` or `"right"`.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Mode::Flat => "flat",
+            Mode::Left => "left",
+            Mode::Right => "right",
+        }
+    }
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Mode {
+    type Err = ModeError;
+
+    /// Parses exactly `"flat"`, `"left"` or `"right"`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "flat" => Ok(Mode::Flat),
+            "left" => Ok(Mode::Left),
+            "right" => Ok(Mode::Right),
+            _ => Err(ModeError::UnknownName(s.to_owned())),
+        }
+    }
+}
+
+impl TryFrom<u8> for Mode {
+    type Error = ModeError;
+
+    fn try_from(q: u8) -> Result<Self, Self::Error> {
+        match q {
+            0 => Ok(Mode::Flat),
+            1 => Ok(Mode::Left),
+            2 => Ok(Mode::Right),
+            _ => Err(ModeError::OutOfRange(q)),
+        }
+    }
+}
+
+impl From<Mode> for u8 {
+    fn from(mode: Mode) -> u8 {
+        mode.as_u8()
+    }
+}
+
+/// Plant state sample, published by the plant once per control period; 49 bytes on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlantState {
+    /// Sample number, strictly increasing from 0 for one plant run.
+    pub seq: u64,
+    /// Plant time of the sample, s.
+    pub time: f64,
+    /// Plate tilt angle, rad, counter-clockwise positive.
+    pub alpha: f64,
+    /// Arm angle relative to the plate, rad, `pi/2` upright.
+    pub beta: f64,
+    /// Plate tilt rate, rad/s.
+    pub alpha_dot: f64,
+    /// Arm angular rate relative to the plate, rad/s.
+    pub beta_dot: f64,
+    /// Contact mode, a [`Mode`] byte (0 flat, 1 left, 2 right).
+    pub mode: u8,
+}
+
+impl PlantState {
+    /// Exact wire size in bytes.
+    pub const SIZE: usize = 49;
+
+    /// Checks every float is finite and `mode` is in `0..=2`.
+    pub fn validate(&self) -> Result<(), ValidationError> {
+        const M: &str = "PlantState";
+        finite(M, "time", self.time)?;
+        finite(M, "alpha", self.alpha)?;
+        finite(M, "beta", self.beta)?;
+        finite(M, "alpha_dot", self.alpha_dot)?;
+        finite(M, "beta_dot", self.beta_dot)?;
+        at_most(M, "mode", self.mode, 2, MODE_RANGE)
+    }
+}
+
+/// Torque answer of the controller to one [`PlantState`]; 16 bytes on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TorqueCommand {
+    /// The `seq` of the [`PlantState`] this command answers.
+    pub seq: u64,
+    /// Joint torque on `beta`, N·m.
+    pub tau: f64,
+}
+
+impl TorqueCommand {
+    /// Exact wire size in bytes.
+    pub const SIZE: usize = 16;
+
+    /// Checks `tau` is finite.
+    pub fn validate(&self) -> Result<(), ValidationError> {
+        finite("TorqueCommand", "tau", self.tau)
+    }
+}
+
+const X_BEFORE: [&str; 4] = ["x_before[0]", "x_before[1]", "x_before[2]", "x_before[3]"];
+const X_AFTER: [&str; 4] = ["x_after[0]", "x_after[1]", "x_after[2]", "x_after[3]"];
+
+/// A discrete transition of the hybrid plant (tilt start, landing with impact); 82 bytes.
+///
+/// States are `[alpha, beta, alpha_dot, beta_dot]` in rad and rad/s, just before and just after
+/// the transition (equal across a tilt start; related by the impact map across a landing).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ModeEvent {
+    /// `seq` of the last [`PlantState`] published before the event.
+    pub seq: u64,
+    /// Plant time of the event, s.
+    pub time: f64,
+    /// Mode before the event, a [`Mode`] byte.
+    pub from: u8,
+    /// Mode after the event, a [`Mode`] byte.
+    pub to: u8,
+    /// State `[alpha, beta, alpha_dot, beta_dot]` just before the event.
+    pub x_before: [f64; 4],
+    /// State `[alpha, beta, alpha_dot, beta_dot]` just after the event.
+    pub x_after: [f64; 4],
+}
+
+impl ModeEvent {
+    /// Exact wire size in bytes.
+    pub const SIZE: usize = 82;
+
+    /// Checks every float is finite and `from`, `to` are in `0..=2`.
+    pub fn validate(&self) -> Result<(), ValidationError> {
+        const M: &str = "ModeEvent";
+        finite(M, "time", self.time)?;
+        at_most(M, "from", self.from, 2, MODE_RANGE)?;
+        at_most(M, "to", self.to, 2, MODE_RANGE)?;
+        for (field, &value) in X_BEFORE.iter().zip(&self.x_before) {
+            finite(M, field, value)?;
+        }
+        for (field, &value) in X_AFTER.iter().zip(&self.x_after) {
+            finite(M, field, value)?;
+        }
+        Ok(())
+    }
+}
+
+/// Plant health and counters, published by the plant at a low rate; variable size.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    /// `seq` of the last published [`PlantState`].
+    pub seq: u64,
+    /// Plant time, s.
+    pub time: f64,
+    /// Run state: [`Status::STARTING`], [`Status::RUNNING`], [`Status::SAFE_MODE`],
+    /// [`Status::FAULTED`] or [`Status::STOPPED`].
+    pub state: u8,
+    /// Current contact mode, a [`Mode`] byte.
+    pub mode: u8,
+    /// Number of tilts (flat to left or right) since start.
+    pub tilts: u64,
+    /// Number of control periods (state samples) since start.
+    pub steps: u64,
+    /// Torque commands received, valid or not.
+    pub torques_received: u64,
+    /// Torque commands dropped because they did not decode or validate.
+    pub torques_dropped: u64,
+    /// Valid torque commands ignored because their `seq` was not the latest state.
+    pub torques_stale: u64,
+    /// Control periods whose torque did not arrive before the deadline.
+    pub deadline_misses: u64,
+    /// Times the watchdog put the plant into safe mode (no torque for too long).
+    pub watchdog_trips: u64,
+    /// Median period jitter, µs.
+    pub jitter_p50_us: f64,
+    /// 99th percentile of period jitter, µs.
+    pub jitter_p99_us: f64,
+    /// Largest period overrun since start, µs.
+    pub max_overrun_us: f64,
+    /// Fault description, empty if none; at most [`Status::MAX_FAULT_LEN`] bytes of UTF-8.
+    pub fault: String,
+}
+
+impl Status {
+    /// `state`: starting up, not yet stepping.
+    pub const STARTING: u8 = 0;
+    /// `state`: stepping normally.
+    pub const RUNNING: u8 = 1;
+    /// `state`: stepping with a safe fallback torque (controller missing or late).
+    pub const SAFE_MODE: u8 = 2;
+    /// `state`: stopped on a fault described in `fault`.
+    pub const FAULTED: u8 = 3;
+    /// `state`: stopped on request.
+    pub const STOPPED: u8 = 4;
+    /// Cap on `fault`, bytes.
+    pub const MAX_FAULT_LEN: usize = 1024;
+    /// Wire size with an empty `fault`, bytes.
+    pub const MIN_SIZE: usize = 106;
+    /// Largest valid wire size, bytes.
+    pub const MAX_SIZE: usize = Self::MIN_SIZE + Self::MAX_FAULT_LEN;
+
+    /// Sets `fault`, truncated to at most [`Status::MAX_FAULT_LEN`] bytes on a UTF-8 character
+    /// boundary, so the message always validates.
+    pub fn set_fault(&mut self, fault: &str) {
+        let mut end = fault.len().min(Self::MAX_FAULT_LEN);
+        while !fault.is_char_boundary(end) {
+            end -= 1;
+        }
+        self.fault.clear();
+        self.fault.push_str(&fault[..end]);
+    }
+
+    /// Checks every float is finite, `state` in `0..=4`, `mode` in `0..=2` and `fault` is at most
+    /// [`Status::MAX_FAULT_LEN`] bytes.
+    pub fn validate(&self) -> Result<(), ValidationError> {
+        const M: &str = "Status";
+        finite(M, "time", self.time)?;
+        at_most(
+            M,
+            "state",
+            self.state,
+            Self::STOPPED,
+            "0..=4 (0 starting, 1 running, 2 safe mode, 3 faulted, 4 stopped)",
+        )?;
+        at_most(M, "mode", self.mode, 2, MODE_RANGE)?;
+        finite(M, "jitter_p50_us", self.jitter_p50_us)?;
+        finite(M, "jitter_p99_us", self.jitter_p99_us)?;
+        finite(M, "max_overrun_us", self.max_overrun_us)?;
+        if self.fault.len() > Self::MAX_FAULT_LEN {
+            return Err(ValidationError::TooLong {
+                message: M,
+                field: "fault",
+                len: self.fault.len(),
+                max: Self::MAX_FAULT_LEN,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Reference trajectory and controller gains, published by the planner; 57 bytes.
+///
+/// The controller tracks `beta_d(t) = pi/2 + amplitude sin(omega t)` (sinusoid) or
+/// `beta_d = pi/2` (hold) with `v = beta_d_ddot + kd (beta_d_dot - beta_dot) + K_P (beta_d - beta)`,
+/// `K_P = kp + k (energy_avg - E(t))`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Reference {
+    /// [`Reference::HOLD`] or [`Reference::SINUSOID`].
+    pub kind: u8,
+    /// Sinusoid amplitude `A`, rad (ignored for hold).
+    pub amplitude: f64,
+    /// Sinusoid angular frequency `w`, rad/s; `> 0` for a sinusoid.
+    pub omega: f64,
+    /// Nominal proportional gain `K_P0`, 1/s²; `>= 0`.
+    pub kp: f64,
+    /// Derivative gain `K_D`, 1/s; `>= 0`.
+    pub kd: f64,
+    /// Energy adaptation gain `k`, 1/(J s²); `>= 0` (0 disables adaptation).
+    pub k: f64,
+    /// Target average energy `E_av`, J.
+    pub energy_avg: f64,
+    /// Symmetric torque saturation, N·m; `>= 0`, 0 = no limit.
+    pub torque_limit: f64,
+}
+
+impl Reference {
+    /// `kind`: hold `beta_d = pi/2`.
+    pub const HOLD: u8 = 0;
+    /// `kind`: `beta_d = pi/2 + amplitude sin(omega t)`.
+    pub const SINUSOID: u8 = 1;
+    /// Exact wire size in bytes.
+    pub const SIZE: usize = 57;
+
+    /// Checks `kind` in `0..=1`, every float finite, `kp, kd, k, torque_limit >= 0`, and
+    /// `omega > 0` for a sinusoid.
+    pub fn validate(&self) -> Result<(), ValidationError> {
+        const M: &str = "Reference";
+        at_most(
+            M,
+            "kind",
+            self.kind,
+            Self::SINUSOID,
+            "0..=1 (0 hold, 1 sinusoid)",
+        )?;
+        finite(M, "amplitude", self.amplitude)?;
+        finite(M, "omega", self.omega)?;
+        finite(M, "kp", self.kp)?;
+        finite(M, "kd", self.kd)?;
+        finite(M, "k", self.k)?;
+        finite(M, "energy_avg", self.energy_avg)?;
+        finite(M, "torque_limit", self.torque_limit)?;
+        if self.kind == Self::SINUSOID {
+            range(
+                M,
+                "omega",
+                self.omega,
+                self.omega > 0.0,
+                "> 0 rad/s for a sinusoid",
+            )?;
+        }
+        range(M, "kp", self.kp, self.kp >= 0.0, ">= 0 1/s^2")?;
+        range(M, "kd", self.kd, self.kd >= 0.0, ">= 0 1/s")?;
+        range(M, "k", self.k, self.k >= 0.0, ">= 0 1/(J s^2)")?;
+        range(
+            M,
+            "torque_limit",
+            self.torque_limit,
+            self.torque_limit >= 0.0,
+            ">= 0 N·m (0 = no limit)",
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mode_conversions() {
+        for (m, b, s) in [
+            (Mode::Flat, 0u8, "flat"),
+            (Mode::Left, 1, "left"),
+            (Mode::Right, 2, "right"),
+        ] {
+            assert_eq!(m.as_u8(), b);
+            assert_eq!(u8::from(m), b);
+            assert_eq!(m.as_str(), s);
+            assert_eq!(m.to_string(), s);
+            assert_eq!(Mode::try_from(b), Ok(m));
+            assert_eq!(s.parse::<Mode>(), Ok(m));
+        }
+        for b in 3..=255u8 {
+            assert_eq!(Mode::try_from(b), Err(ModeError::OutOfRange(b)));
+        }
+        let text = Mode::try_from(3).unwrap_err().to_string();
+        assert!(text.contains('3') && text.contains("0..=2"), "{text}");
+        for bad in ["", "Flat", "LEFT", " right", "2", "up"] {
+            let err = bad.parse::<Mode>().unwrap_err();
+            assert_eq!(err, ModeError::UnknownName(bad.to_owned()));
+            assert!(err.to_string().contains("\"flat\", \"left\", \"right\""));
+        }
+    }
+
+    #[test]
+    fn set_fault_truncates_on_char_boundary() {
+        let mut s = Status {
+            seq: 0,
+            time: 0.0,
+            state: Status::FAULTED,
+            mode: 0,
+            tilts: 0,
+            steps: 0,
+            torques_received: 0,
+            torques_dropped: 0,
+            torques_stale: 0,
+            deadline_misses: 0,
+            watchdog_trips: 0,
+            jitter_p50_us: 0.0,
+            jitter_p99_us: 0.0,
+            max_overrun_us: 0.0,
+            fault: String::new(),
+        };
+        s.set_fault("short");
+        assert_eq!(s.fault, "short");
+        // 'é' is 2 bytes: 1023 ASCII + 'é' would straddle the cap.
+        let long = format!("{}é{}", "a".repeat(1023), "b".repeat(100));
+        s.set_fault(&long);
+        assert_eq!(s.fault.len(), 1023);
+        assert!(s.validate().is_ok());
+        s.set_fault(&"x".repeat(5000));
+        assert_eq!(s.fault.len(), Status::MAX_FAULT_LEN);
+        assert!(s.validate().is_ok());
+        s.fault.push('x');
+        let err = s.validate().unwrap_err();
+        assert_eq!(
+            err,
+            ValidationError::TooLong {
+                message: "Status",
+                field: "fault",
+                len: 1025,
+                max: 1024
+            }
+        );
+    }
+
+    #[test]
+    fn reference_ranges() {
+        let ok = Reference {
+            kind: Reference::SINUSOID,
+            amplitude: 0.33,
+            omega: 5.0,
+            kp: 100.0,
+            kd: 14.14,
+            k: 0.0,
+            energy_avg: 30.0,
+            torque_limit: 0.0,
+        };
+        assert!(ok.validate().is_ok());
+        // Hold ignores omega's sign but not its finiteness.
+        let hold = Reference {
+            kind: Reference::HOLD,
+            omega: 0.0,
+            ..ok
+        };
+        assert!(hold.validate().is_ok());
+        let cases: [(Reference, &str); 7] = [
+            (Reference { omega: 0.0, ..ok }, "omega"),
+            (Reference { omega: -1.0, ..ok }, "omega"),
+            (Reference { kp: -1e-9, ..ok }, "kp"),
+            (Reference { kd: -1.0, ..ok }, "kd"),
+            (Reference { k: -0.5, ..ok }, "k"),
+            (
+                Reference {
+                    torque_limit: -2.0,
+                    ..ok
+                },
+                "torque_limit",
+            ),
+            (Reference { kind: 2, ..ok }, "kind"),
+        ];
+        for (r, field) in cases {
+            match r.validate() {
+                Err(ValidationError::OutOfRange { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
+    }
+}
