@@ -15,11 +15,11 @@
 //!
 //! ```
 //! use tilting_plant::{Plant, SimConfig, Mode, State};
-//! // Passive tilting: start tilted left with the arm upright and let go.
-//! let mut plant = Plant::new(SimConfig::default(), 0.0, Mode::Left,
-//!                            State::new(0.05, std::f64::consts::FRAC_PI_2, 0.0, 0.0)).unwrap();
-//! plant.advance_held(0.0, 0.1, &mut ()).unwrap();
-//! assert!(plant.state()[0] < 0.05); // gravity pulls the plate back
+//! // Passive tilting: tilted 0.3 rad over the left edge, the arm leaning left and swinging.
+//! let x0 = State::new(0.3, 2.0, 0.0, 2.0);
+//! let mut plant = Plant::new(SimConfig::default(), 0.0, Mode::Left, x0).unwrap();
+//! plant.advance_held(0.0, 0.05, &mut ()).unwrap(); // tau = 0 N m for 50 ms
+//! assert!(plant.state()[0] < 0.3); // gravity pulls the plate back down
 //! ```
 
 pub mod dynamics;

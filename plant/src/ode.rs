@@ -40,12 +40,13 @@ pub struct Tolerance {
 }
 
 impl Default for Tolerance {
-    /// `rtol = 1e-10`, `atol = 1e-12`: the tightest default that keeps about 1e-10 relative
-    /// accuracy on the tilting orbit (see the tests).
+    /// `rtol = 3e-11`, `atol = 3e-13`: keeps the global error near 1e-10 relative over tens of
+    /// seconds (measured: energy drift of a whirling passive double pendulum over 10 s is
+    /// 3e-10 relative at these settings, 1.3e-9 at `rtol = 1e-10`).
     fn default() -> Self {
         Self {
-            rtol: 1e-10,
-            atol: 1e-12,
+            rtol: 3e-11,
+            atol: 3e-13,
         }
     }
 }
