@@ -1,1 +1,510 @@
-//! placeholder
+//! Zenoh plumbing shared by the tilting nodes: command-line flags and session configuration,
+//! typed publishing, decoding with drop counting and rate-limited logging, and peer presence
+//! through liveliness tokens.
+//!
+//! The wire format itself lives in `tilting-proto`; this crate only moves its bytes.
+//!
+//! # Session defaults
+//!
+//! Without `--zenoh-config`, [`open_session`] builds a configuration that works on a machine
+//! without multicast and never joins a stranger's zenoh network by accident:
+//!
+//! - `mode = "peer"`: no router is needed;
+//! - multicast scouting off; gossip scouting on, so peers that each know only the plant's
+//!   endpoint still find each other (each advertises its own listening endpoint);
+//! - explicit endpoints, loopback by default: the plant listens on `tcp/127.0.0.1:7447`
+//!   ([`DEFAULT_PLANT_ENDPOINT`]); the other nodes connect there and listen on an ephemeral
+//!   loopback port (`tcp/127.0.0.1:0`) for the gossip mesh. `--listen` and `--connect` replace
+//!   these defaults (repeat the flag for several endpoints);
+//! - `scouting/delay` [`OPEN_WAIT_MS`]: `open` returns as soon as the configured peers are
+//!   connected and their declarations received, and waits at most that long for them;
+//! - connect retries start after 100 ms and back off to 1 s, so a node started before its
+//!   peer connects within a second of the peer's start;
+//! - timestamping off.
+//!
+//! With `--zenoh-config FILE` the file is the whole configuration (zenoh's JSON5 format); only
+//! explicit `--listen`/`--connect` flags are applied on top of it.
+
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+use std::borrow::Cow;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use tilting_proto::{codec, DecodeError, Keys, Message};
+use zenoh::pubsub::Publisher;
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::{Sample, SampleKind};
+use zenoh::{Config, Session, Wait};
+
+pub use tilting_proto;
+pub use zenoh;
+
+/// Port of the plant's default listening endpoint.
+pub const DEFAULT_PORT: u16 = 7447;
+
+/// Where the plant listens, and the others connect, by default.
+pub const DEFAULT_PLANT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
+
+/// Default listening endpoint of the nodes other than the plant: an ephemeral loopback port.
+pub const DEFAULT_PEER_LISTEN: &str = "tcp/127.0.0.1:0";
+
+/// Longest time (ms) `open` waits for the configured peers to connect (`scouting/delay`).
+pub const OPEN_WAIT_MS: u64 = 1000;
+
+/// Which node opens the session: selects the default endpoints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// Listens on [`DEFAULT_PLANT_ENDPOINT`], connects nowhere.
+    Plant,
+    /// Connects to [`DEFAULT_PLANT_ENDPOINT`], listens on [`DEFAULT_PEER_LISTEN`].
+    Peer,
+}
+
+/// Zenoh and naming flags shared by every tilting binary (flatten into a clap parser).
+#[derive(Debug, Clone, Default, PartialEq, Eq, clap::Args)]
+pub struct ZenohArgs {
+    /// Robot name: keys are `tilting/{robot}/...`; only [A-Za-z0-9_-].
+    #[arg(long, default_value = tilting_proto::keys::DEFAULT_ROBOT, value_name = "NAME")]
+    pub robot: String,
+    /// Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable; replaces the default:
+    /// tcp/127.0.0.1:7447 for the plant, tcp/127.0.0.1:0 for the other nodes).
+    #[arg(long = "listen", value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// Zenoh endpoint to connect to (repeatable; replaces the default: none for the plant,
+    /// tcp/127.0.0.1:7447 for the other nodes).
+    #[arg(long = "connect", value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+    /// Zenoh configuration file (JSON5) used instead of the built-in defaults; --listen and
+    /// --connect still apply on top of it.
+    #[arg(long = "zenoh-config", value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
+}
+
+impl ZenohArgs {
+    /// Arguments for `robot` with explicit endpoints (for tests and tools).
+    pub fn new(robot: &str, listen: &[&str], connect: &[&str]) -> Self {
+        Self {
+            robot: robot.to_owned(),
+            listen: listen.iter().map(|s| s.to_string()).collect(),
+            connect: connect.iter().map(|s| s.to_string()).collect(),
+            zenoh_config: None,
+        }
+    }
+
+    /// The validated key expressions of `--robot`.
+    pub fn keys(&self) -> anyhow::Result<Keys> {
+        Keys::new(&self.robot).map_err(|e| anyhow::anyhow!("--robot: {e}"))
+    }
+
+    /// The zenoh configuration these flags describe (see the crate documentation).
+    pub fn config(&self, role: Role) -> anyhow::Result<Config> {
+        let json = |v: &[String]| serde_json::to_string(v).expect("strings serialize");
+        let mut cfg = match &self.zenoh_config {
+            Some(path) => Config::from_file(path)
+                .map_err(|e| anyhow::anyhow!("--zenoh-config {}: {e}", path.display()))?,
+            None => {
+                let (listen, connect): (Vec<String>, Vec<String>) = match role {
+                    Role::Plant => (vec![DEFAULT_PLANT_ENDPOINT.into()], vec![]),
+                    Role::Peer => (
+                        vec![DEFAULT_PEER_LISTEN.into()],
+                        vec![DEFAULT_PLANT_ENDPOINT.into()],
+                    ),
+                };
+                let mut cfg = Config::default();
+                let settings = [
+                    ("mode", "\"peer\"".to_owned()),
+                    ("scouting/multicast/enabled", "false".to_owned()),
+                    ("scouting/gossip/enabled", "true".to_owned()),
+                    ("scouting/delay", OPEN_WAIT_MS.to_string()),
+                    ("timestamping/enabled", "false".to_owned()),
+                    (
+                        "connect/retry",
+                        "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}"
+                            .to_owned(),
+                    ),
+                    ("listen/endpoints", json(&listen)),
+                    ("connect/endpoints", json(&connect)),
+                ];
+                for (key, value) in settings {
+                    cfg.insert_json5(key, &value)
+                        .map_err(|e| anyhow::anyhow!("zenoh config {key} = {value}: {e}"))?;
+                }
+                cfg
+            }
+        };
+        if !self.listen.is_empty() {
+            cfg.insert_json5("listen/endpoints", &json(&self.listen))
+                .map_err(|e| anyhow::anyhow!("--listen {:?}: {e}", self.listen))?;
+        }
+        if !self.connect.is_empty() {
+            cfg.insert_json5("connect/endpoints", &json(&self.connect))
+                .map_err(|e| anyhow::anyhow!("--connect {:?}: {e}", self.connect))?;
+        }
+        Ok(cfg)
+    }
+}
+
+/// Opens a zenoh session configured by `args` for `role`.
+pub async fn open_session(args: &ZenohArgs, role: Role) -> anyhow::Result<Session> {
+    let cfg = args.config(role)?;
+    let t0 = Instant::now();
+    let session = zenoh::open(cfg)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot open the zenoh session: {e}"))?;
+    tracing::debug!(
+        zid = %session.zid(),
+        elapsed_ms = t0.elapsed().as_millis() as u64,
+        "zenoh session open"
+    );
+    Ok(session)
+}
+
+/// Builds the tracing subscriber of a binary: logs to stderr, filter from `RUST_LOG` or
+/// `default_filter` (e.g. `"warn,tilting_plant=info,tilting_net=info"`).
+pub fn init_tracing(default_filter: &str) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default_filter));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+/// A publisher of one message type on one key.
+#[derive(Debug)]
+pub struct TypedPublisher<T: Message> {
+    publisher: Publisher<'static>,
+    _t: std::marker::PhantomData<fn(&T)>,
+}
+
+/// Quality of service of a [`TypedPublisher`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Qos {
+    /// The control loop (state, torque): real-time priority, sent at once (express, no
+    /// batching), blocking rather than dropping when the link is congested.
+    Control,
+    /// Events and status: data priority, blocking rather than dropping.
+    Data,
+}
+
+impl<T: Message> TypedPublisher<T> {
+    /// Declares a publisher on `key` with the given quality of service.
+    pub async fn declare(session: &Session, key: &str, qos: Qos) -> anyhow::Result<Self> {
+        let (priority, express) = match qos {
+            Qos::Control => (Priority::RealTime, true),
+            Qos::Data => (Priority::Data, false),
+        };
+        let publisher = session
+            .declare_publisher(key.to_owned())
+            .congestion_control(CongestionControl::Block)
+            .priority(priority)
+            .express(express)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot declare a publisher on {key}: {e}"))?;
+        Ok(Self {
+            publisher,
+            _t: std::marker::PhantomData,
+        })
+    }
+
+    /// Encodes and publishes `msg` (synchronously: usable from any thread, including zenoh
+    /// callbacks and the plant's pacing thread). Does not validate.
+    pub fn put(&self, msg: &T) -> anyhow::Result<()> {
+        let mut buf = [0u8; 1280];
+        let n = codec::encode_into(msg, &mut buf[..T::MAX_WIRE_SIZE]);
+        self.put_raw(&buf[..n])
+    }
+
+    /// Publishes raw bytes on this publisher's key (tests use it to send garbage).
+    pub fn put_raw(&self, bytes: &[u8]) -> anyhow::Result<()> {
+        self.publisher
+            .put(bytes)
+            .wait()
+            .map_err(|e| anyhow::anyhow!("put on {}: {e}", self.publisher.key_expr()))
+    }
+
+    /// The key expression.
+    pub fn key(&self) -> &str {
+        self.publisher.key_expr().as_str()
+    }
+
+    /// Does any subscriber currently match this publisher?
+    pub fn has_subscribers(&self) -> bool {
+        self.publisher
+            .matching_status()
+            .wait()
+            .map(|s| s.matching())
+            .unwrap_or(false)
+    }
+}
+
+/// Counts the payloads received on one key and the ones dropped, and logs drops at a bounded
+/// rate: the first with its full error at once, then at most one line per
+/// [`DropCounter::LOG_INTERVAL`] with the number dropped since the last line and the latest
+/// error.
+#[derive(Debug)]
+pub struct DropCounter {
+    key: String,
+    received: AtomicU64,
+    dropped: AtomicU64,
+    log: Mutex<LogState>,
+}
+
+#[derive(Debug, Default)]
+struct LogState {
+    last: Option<Instant>,
+    suppressed: u64,
+}
+
+impl DropCounter {
+    /// Shortest interval between two log lines of one counter.
+    pub const LOG_INTERVAL: Duration = Duration::from_secs(1);
+
+    /// A counter for payloads on `key`.
+    pub fn new(key: &str) -> Self {
+        Self {
+            key: key.to_owned(),
+            received: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            log: Mutex::new(LogState::default()),
+        }
+    }
+
+    /// The key expression this counter watches.
+    pub fn key(&self) -> &str {
+        &self.key
+    }
+
+    /// Payloads received, valid or not.
+    pub fn received(&self) -> u64 {
+        self.received.load(Ordering::Relaxed)
+    }
+
+    /// Payloads dropped because they did not decode or validate.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Decodes `bytes` as a `T`: counts the payload, and on failure counts the drop, logs at the
+    /// bounded rate and returns `None`.
+    pub fn decode<T: Message>(&self, bytes: &[u8]) -> Option<T> {
+        self.received.fetch_add(1, Ordering::Relaxed);
+        match codec::decode::<T>(bytes) {
+            Ok(msg) => Some(msg),
+            Err(err) => {
+                self.record_drop(&err);
+                None
+            }
+        }
+    }
+
+    /// Decodes the payload of a zenoh sample (see [`DropCounter::decode`]).
+    pub fn decode_sample<T: Message>(&self, sample: &Sample) -> Option<T> {
+        let bytes: Cow<'_, [u8]> = sample.payload().to_bytes();
+        self.decode(&bytes)
+    }
+
+    /// Counts a drop for a reason found by the caller (e.g. a reply error) and logs it at the
+    /// bounded rate.
+    pub fn record_drop(&self, err: &dyn std::fmt::Display) {
+        let total = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+        let mut log = self.log.lock().unwrap_or_else(|e| e.into_inner());
+        let now = Instant::now();
+        match log.last {
+            Some(last) if now.duration_since(last) < Self::LOG_INTERVAL => log.suppressed += 1,
+            None => {
+                tracing::warn!(key = %self.key, total, "dropped an invalid payload: {err}");
+                log.last = Some(now);
+            }
+            Some(_) => {
+                let n = log.suppressed + 1;
+                tracing::warn!(
+                    key = %self.key,
+                    total,
+                    "dropped {n} invalid payloads since the last report; latest: {err}"
+                );
+                log.last = Some(now);
+                log.suppressed = 0;
+            }
+        }
+    }
+}
+
+/// Decodes a whole payload outside any counter (tests, tools).
+pub fn decode<T: Message>(bytes: &[u8]) -> Result<T, DecodeError> {
+    codec::decode(bytes)
+}
+
+/// How many liveliness tokens matching one key are alive, kept up to date by a liveliness
+/// subscriber (with history, so tokens declared before the subscriber count too).
+#[derive(Debug, Default)]
+pub struct Presence {
+    count: AtomicI64,
+    changes: AtomicU64,
+}
+
+impl Presence {
+    /// Is at least one token alive?
+    pub fn alive(&self) -> bool {
+        self.count.load(Ordering::Acquire) > 0
+    }
+
+    /// Number of appearances and disappearances seen so far.
+    pub fn changes(&self) -> u64 {
+        self.changes.load(Ordering::Acquire)
+    }
+}
+
+/// Watches the liveliness tokens on `key`; `on_change(alive)` runs (on a zenoh thread) each
+/// time the presence changes between none and some. Keep the returned subscriber alive.
+pub async fn watch_presence<F>(
+    session: &Session,
+    key: &str,
+    on_change: F,
+) -> anyhow::Result<(Arc<Presence>, zenoh::pubsub::Subscriber<()>)>
+where
+    F: Fn(bool) + Send + Sync + 'static,
+{
+    let presence = Arc::new(Presence::default());
+    let p = presence.clone();
+    let key_owned = key.to_owned();
+    let sub = session
+        .liveliness()
+        .declare_subscriber(key.to_owned())
+        .history(true)
+        .callback(move |sample: Sample| {
+            let (before, after) = match sample.kind() {
+                SampleKind::Put => {
+                    let b = p.count.fetch_add(1, Ordering::AcqRel);
+                    (b, b + 1)
+                }
+                SampleKind::Delete => {
+                    let b = p.count.fetch_sub(1, Ordering::AcqRel);
+                    if b <= 0 {
+                        // A delete without a put (history raced the subscription): clamp.
+                        p.count.fetch_add(1, Ordering::AcqRel);
+                        (0, 0)
+                    } else {
+                        (b, b - 1)
+                    }
+                }
+            };
+            if (before > 0) != (after > 0) {
+                p.changes.fetch_add(1, Ordering::AcqRel);
+                tracing::info!(
+                    key = %key_owned,
+                    "peer {}",
+                    if after > 0 { "alive" } else { "gone" }
+                );
+                on_change(after > 0);
+            }
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot watch liveliness on {key}: {e}"))?;
+    Ok((presence, sub))
+}
+
+/// Declares this node's liveliness token on `key` (keep it alive for the node's lifetime).
+pub async fn declare_token(
+    session: &Session,
+    key: &str,
+) -> anyhow::Result<zenoh::liveliness::LivelinessToken> {
+    session
+        .liveliness()
+        .declare_token(key.to_owned())
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot declare the liveliness token {key}: {e}"))
+}
+
+/// A multi-threaded tokio runtime with 2 workers, the one every node uses (zenoh does not
+/// support the current-thread flavour).
+pub fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot build the tokio runtime")
+}
+
+/// Resolves at Ctrl-C (SIGINT) or SIGTERM.
+pub async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        let mut term = match signal(SignalKind::terminate()) {
+            Ok(s) => s,
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+                return;
+            }
+        };
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tilting_proto::TorqueCommand;
+
+    #[test]
+    fn default_config_is_loopback_peer_without_multicast() {
+        let args = ZenohArgs::new("demo", &[], &[]);
+        let cfg = args.config(Role::Plant).unwrap();
+        assert_eq!(cfg.get_json("mode").unwrap(), "\"peer\"");
+        assert_eq!(cfg.get_json("scouting/multicast/enabled").unwrap(), "false");
+        assert!(cfg
+            .get_json("listen/endpoints")
+            .unwrap()
+            .contains("tcp/127.0.0.1:7447"));
+        let cfg = args.config(Role::Peer).unwrap();
+        assert!(cfg
+            .get_json("connect/endpoints")
+            .unwrap()
+            .contains("tcp/127.0.0.1:7447"));
+        let args = ZenohArgs::new("demo", &["tcp/127.0.0.1:17001"], &["tcp/127.0.0.1:17002"]);
+        let cfg = args.config(Role::Peer).unwrap();
+        assert!(cfg.get_json("listen/endpoints").unwrap().contains("17001"));
+        assert!(cfg.get_json("connect/endpoints").unwrap().contains("17002"));
+        assert!(!cfg
+            .get_json("connect/endpoints")
+            .unwrap()
+            .contains("7447\""));
+    }
+
+    #[test]
+    fn bad_robot_and_endpoint_are_errors() {
+        assert!(ZenohArgs::new("a/b", &[], &[]).keys().is_err());
+        assert!(ZenohArgs::new("demo", &["not an endpoint"], &[])
+            .config(Role::Plant)
+            .is_err());
+    }
+
+    #[test]
+    fn drop_counter_counts() {
+        let c = DropCounter::new("k");
+        assert!(c.decode::<TorqueCommand>(&[1, 2, 3]).is_none());
+        let mut bad = codec::encode(&TorqueCommand { seq: 1, tau: 0.0 });
+        bad[8..16].copy_from_slice(&f64::NAN.to_le_bytes());
+        assert!(c.decode::<TorqueCommand>(&bad).is_none());
+        let good = codec::encode(&TorqueCommand { seq: 1, tau: 0.5 });
+        assert_eq!(c.decode::<TorqueCommand>(&good).unwrap().tau, 0.5);
+        for _ in 0..1000 {
+            assert!(c.decode::<TorqueCommand>(&[0; 48]).is_none());
+        }
+        assert_eq!(c.received(), 1003);
+        assert_eq!(c.dropped(), 1002);
+    }
+}
