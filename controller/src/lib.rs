@@ -15,7 +15,7 @@ pub mod reference;
 pub use reference::Reference;
 
 use serde::{Deserialize, Serialize};
-use tilting_plant::dynamics::{energy_t, torque_for_beta_ddot_t, Trig};
+use tilting_plant::dynamics::{energy_t, torque_for_beta_ddot_t, Terms};
 use tilting_plant::params::{finite, non_negative};
 use tilting_plant::{ConfigError, Mode, Params, State, TorqueLaw};
 
@@ -95,11 +95,11 @@ impl ComputedTorque {
     /// The adapted stiffness `K_P = K_P0 + k (E_av - E(x))` (1/s^2).
     #[inline]
     pub fn stiffness(&self, mode: Mode, x: &State) -> f64 {
-        self.stiffness_t(mode, x, &Trig::new(x))
+        self.stiffness_t(mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
     #[inline]
-    fn stiffness_t(&self, mode: Mode, x: &State, tr: &Trig) -> f64 {
+    fn stiffness_t(&self, mode: Mode, x: &State, tr: &Terms) -> f64 {
         if self.cfg.k == 0.0 {
             self.cfg.kp
         } else {
@@ -112,11 +112,11 @@ impl ComputedTorque {
     /// K_P (beta_d - beta)` (rad/s^2).
     #[inline]
     pub fn acceleration(&self, t: f64, mode: Mode, x: &State) -> f64 {
-        self.acceleration_t(t, mode, x, &Trig::new(x))
+        self.acceleration_t(t, mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
     #[inline]
-    fn acceleration_t(&self, t: f64, mode: Mode, x: &State, tr: &Trig) -> f64 {
+    fn acceleration_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let (bd, bd_dot, bd_ddot) = self.cfg.reference.at(t);
         bd_ddot + self.cfg.kd * (bd_dot - x[3]) + self.stiffness_t(mode, x, tr) * (bd - x[1])
     }
@@ -125,13 +125,13 @@ impl ComputedTorque {
     /// torque limit if one is set.
     #[inline]
     pub fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
-        self.torque_t(t, mode, x, &Trig::new(x))
+        self.torque_t(t, mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
     #[inline]
-    fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Trig) -> f64 {
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let v = self.acceleration_t(t, mode, x, tr);
-        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v);
+        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, tr, v);
         match self.cfg.torque_limit {
             Some(l) => tau.clamp(-l, l),
             None => tau,
@@ -146,7 +146,12 @@ impl TorqueLaw for ComputedTorque {
     }
 
     #[inline]
-    fn torque_t(&self, t: f64, mode: Mode, x: &State, trig: &Trig) -> f64 {
-        ComputedTorque::torque_t(self, t, mode, x, trig)
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, params: &Params, terms: &Terms) -> f64 {
+        if *params == self.cfg.params {
+            ComputedTorque::torque_t(self, t, mode, x, terms)
+        } else {
+            // The controller's model differs from the plant's: use its own terms.
+            ComputedTorque::torque(self, t, mode, x)
+        }
     }
 }

@@ -42,6 +42,31 @@ impl Trig {
     }
 }
 
+/// Everything the right-hand side, the inverse dynamics and the energy share at one state:
+/// the sines and cosines, the mass matrix and the bias terms, computed once per evaluation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Terms {
+    /// Sines and cosines.
+    pub trig: Trig,
+    /// Mass matrix `(M11, M12, M22)` (kg m^2); the left-tilt values in the flat mode.
+    pub m: (f64, f64, f64),
+    /// Bias `(h1, h2)` (N m).
+    pub h: (f64, f64),
+}
+
+impl Terms {
+    /// The terms of `mode` at state `x`.
+    #[inline]
+    pub fn new(p: &Params, mode: Mode, x: &State) -> Self {
+        let trig = Trig::new(x);
+        Self {
+            trig,
+            m: mass_matrix_cb(p, mode, trig.cb),
+            h: bias_t(p, mode, x, &trig),
+        }
+    }
+}
+
 /// Mass matrix entries `(M11, M12, M22)` of a tilted mode (kg m^2) at arm angle `beta`.
 /// For [`Mode::Flat`] these are the left-tilt values (the plate is held by the ground).
 #[inline]
@@ -79,20 +104,20 @@ fn bias_t(p: &Params, mode: Mode, x: &State, tr: &Trig) -> (f64, f64) {
 /// Accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under torque `tau`.
 #[inline]
 pub fn accelerations(p: &Params, mode: Mode, x: &State, tau: f64) -> (f64, f64) {
-    accelerations_t(p, mode, x, &Trig::new(x), tau)
+    accelerations_t(p, mode, &Terms::new(p, mode, x), tau)
 }
 
-/// [`accelerations`] with the sines and cosines already at hand.
+/// [`accelerations`] with the shared terms already at hand.
 #[inline]
-pub fn accelerations_t(p: &Params, mode: Mode, x: &State, tr: &Trig, tau: f64) -> (f64, f64) {
+pub fn accelerations_t(p: &Params, mode: Mode, tm: &Terms, tau: f64) -> (f64, f64) {
     match mode {
         Mode::Flat => {
-            let bdd = (tau / (p.m_l * p.l) - p.g * tr.cb) / p.l;
+            let bdd = (tau / (p.m_l * p.l) - p.g * tm.trig.cb) / p.l;
             (0.0, bdd)
         }
         _ => {
-            let (m11, m12, m22) = mass_matrix_cb(p, mode, tr.cb);
-            let (h1, h2) = bias_t(p, mode, x, tr);
+            let (m11, m12, m22) = tm.m;
+            let (h1, h2) = tm.h;
             let det = m11 * m22 - m12 * m12;
             let r1 = -h1;
             let r2 = tau - h2;
@@ -113,33 +138,33 @@ pub fn rhs(p: &Params, mode: Mode, x: &State, tau: f64) -> State {
 /// first (unactuated) row of the equations of motion.
 #[inline]
 pub fn torque_for_beta_ddot(p: &Params, mode: Mode, x: &State, v: f64) -> f64 {
-    torque_for_beta_ddot_t(p, mode, x, &Trig::new(x), v)
+    torque_for_beta_ddot_t(p, mode, &Terms::new(p, mode, x), v)
 }
 
-/// [`torque_for_beta_ddot`] with the sines and cosines already at hand.
+/// [`torque_for_beta_ddot`] with the shared terms already at hand.
 #[inline]
-pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, x: &State, tr: &Trig, v: f64) -> f64 {
+pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, tm: &Terms, v: f64) -> f64 {
     match mode {
-        Mode::Flat => p.m_l * p.l * (p.l * v + p.g * tr.cb),
+        Mode::Flat => p.m_l * p.l * (p.l * v + p.g * tm.trig.cb),
         _ => {
-            let (m11, m12, m22) = mass_matrix_cb(p, mode, tr.cb);
-            let (h1, h2) = bias_t(p, mode, x, tr);
+            let (m11, m12, m22) = tm.m;
+            let (h1, h2) = tm.h;
             let add = -(m12 * v + h1) / m11;
             m12 * add + m22 * v + h2
         }
     }
 }
 
-/// Total energy `E = T + V` (J) from the mass matrix, with the sines and cosines at hand. Equal
+/// Total energy `E = T + V` (J) from the mass matrix, with the shared terms at hand. Equal
 /// to [`crate::kinematics::energy`] (which works from the positions and velocities of the
 /// masses; the tests compare them).
 #[inline]
-pub fn energy_t(p: &Params, mode: Mode, x: &State, tr: &Trig) -> f64 {
+pub fn energy_t(p: &Params, mode: Mode, x: &State, tm: &Terms) -> f64 {
     let (ad, bd) = (x[2], x[3]);
-    let (m11, m12, m22) = mass_matrix_cb(p, mode, tr.cb);
+    let (m11, m12, m22) = tm.m;
     let sf = mode.signed_f(p.f);
     let t = 0.5 * (m11 * ad * ad + 2.0 * m12 * ad * bd + m22 * bd * bd);
-    let v = p.g * (p.total_mass() * sf * tr.sa + p.m_l * p.l * tr.sab);
+    let v = p.g * (p.total_mass() * sf * tm.trig.sa + p.m_l * p.l * tm.trig.sab);
     t + v
 }
 

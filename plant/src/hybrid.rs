@@ -6,7 +6,7 @@
 //! networked controller: [`Plant::advance_held`]) or with a torque law evaluated inside the
 //! right-hand side ([`Plant::advance_continuous`], the paper's setting).
 
-use crate::dynamics::{accelerations_t, rhs, vertical_force, Trig};
+use crate::dynamics::{accelerations_t, rhs, vertical_force, Terms};
 use crate::ode::{Dop853, OdeError, OdeStats, Tolerance};
 use crate::{ConfigError, ImpactLaw, Mode, Params, State};
 
@@ -16,9 +16,11 @@ pub trait TorqueLaw {
     /// Joint torque (N m) at time `t` (s) in mode `mode` at state `x`.
     fn torque(&self, t: f64, mode: Mode, x: &State) -> f64;
 
-    /// The same with the sines and cosines of `x` already computed; override to save them.
+    /// The same with the shared terms of `x` (sines, cosines, mass matrix, bias) already
+    /// computed; override to save recomputing them.
     #[inline]
-    fn torque_t(&self, t: f64, mode: Mode, x: &State, _trig: &Trig) -> f64 {
+    /// `params` are the plant's, with which `terms` were computed.
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, _params: &Params, _terms: &Terms) -> f64 {
         self.torque(t, mode, x)
     }
 }
@@ -458,9 +460,9 @@ impl Plant {
         while self.t < t_target {
             let mode = self.mode;
             let mut f = |t: f64, x: &State| {
-                let tr = Trig::new(x);
-                let tau = tau_of.torque_t(t, mode, x, &tr);
-                let (add, bdd) = accelerations_t(&p, mode, x, &tr, tau);
+                let tm = Terms::new(&p, mode, x);
+                let tau = tau_of.torque_t(t, mode, x, &p, &tm);
+                let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
                 State::new(x[2], x[3], add, bdd)
             };
             let mut f0 = f(self.t, &self.x);
