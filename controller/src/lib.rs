@@ -10,6 +10,8 @@
 //! assert!(tau > 0.0); // pushes the arm back towards upright
 //! ```
 
+#[cfg(feature = "node")]
+pub mod node;
 pub mod reference;
 
 pub use reference::Reference;

@@ -27,6 +27,8 @@ pub mod hybrid;
 pub mod impact;
 pub mod kinematics;
 pub mod mode;
+#[cfg(feature = "node")]
+pub mod node;
 pub mod ode;
 pub mod params;
 

@@ -1,0 +1,402 @@
+//! The `tilting-controller` node: answers every `PlantState` with the computed-torque law.
+//!
+//! For each valid state received on `tilting/{robot}/plant/state` it computes
+//! `tau = ComputedTorque::torque(state.time, mode, x)` and publishes
+//! `TorqueCommand { seq: state.seq, tau }` on `tilting/{robot}/controller/torque` at once, from
+//! the subscriber's callback (no queue, no extra thread hop).
+//!
+//! The law starts from the flags (`--kp`, `--kd`, `--k`, `--energy-avg`, `--reference`,
+//! `--torque-limit`, `--params`). A valid `Reference` on `tilting/{robot}/planner/reference`
+//! replaces its gains and reference (the model parameters stay those of `--params`), unless
+//! `--ignore-planner`. A controller started after the planner still gets the reference: it
+//! queries the planner's queryable on the same key at start-up and each time a planner's
+//! liveliness token (`tilting/{robot}/alive/planner`) appears. Invalid payloads are dropped,
+//! counted and logged at a bounded rate; a non-finite torque is never published.
+//!
+//! At Ctrl-C or SIGTERM the node prints a JSON summary of its counters on stdout.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
+use tilting_plant::{Mode, Params, State};
+use tilting_proto::{Keys, PlantState, TorqueCommand};
+
+use crate::{ComputedTorque, ControlConfig, Reference};
+
+/// Flags of `tilting-controller`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    name = "tilting-controller",
+    version,
+    about = "Computed-torque PD controller with energy adaptation: answers every plant state with a torque over zenoh",
+    after_help = "At Ctrl-C/SIGTERM a JSON summary of the counters is printed on stdout."
+)]
+pub struct ControllerArgs {
+    /// Zenoh and naming flags.
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Base stiffness K_P0 (1/s^2)
+    #[arg(long, default_value_t = 100.0)]
+    pub kp: f64,
+    /// Damping K_D (1/s)
+    #[arg(long, default_value_t = 14.14)]
+    pub kd: f64,
+    /// Energy adaptation gain k (1/(J s^2)); 0 = off
+    #[arg(long, default_value_t = 500.0)]
+    pub k: f64,
+    /// Target average energy E_av (J) of the adaptation
+    #[arg(long, default_value_t = 19.9588180580)]
+    pub energy_avg: f64,
+    /// Desired arm trajectory: hold or sinusoid:A,w (A in rad, w in rad/s)
+    #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
+    pub reference: Reference,
+    /// Symmetric torque saturation (N m); 0 = none
+    #[arg(long, default_value_t = 0.0, value_name = "NM")]
+    pub torque_limit: f64,
+    /// Model parameters of the inverse dynamics (TOML: m_f, m_l, l, f, g); default: the paper's
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// Keep the law of the flags: ignore references published by a planner
+    #[arg(long)]
+    pub ignore_planner: bool,
+}
+
+impl ControllerArgs {
+    /// The controller settings the flags describe.
+    pub fn control_config(&self) -> anyhow::Result<ControlConfig> {
+        let params = match &self.params {
+            Some(p) => Params::from_toml_file(p)?,
+            None => Params::default(),
+        };
+        anyhow::ensure!(
+            self.torque_limit.is_finite() && self.torque_limit >= 0.0,
+            "--torque-limit must be >= 0 (0 = none), got {}",
+            self.torque_limit
+        );
+        let cfg = ControlConfig {
+            params,
+            kp: self.kp,
+            kd: self.kd,
+            k: self.k,
+            energy_avg: self.energy_avg,
+            reference: self.reference,
+            torque_limit: (self.torque_limit > 0.0).then_some(self.torque_limit),
+        };
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
+
+/// The controller settings described by a planner's `Reference`, with the model `params`.
+pub fn config_from_reference(
+    params: Params,
+    r: &tilting_proto::Reference,
+) -> Result<ControlConfig, tilting_plant::ConfigError> {
+    let cfg = ControlConfig {
+        params,
+        kp: r.kp,
+        kd: r.kd,
+        k: r.k,
+        energy_avg: r.energy_avg,
+        reference: if r.kind == tilting_proto::Reference::SINUSOID {
+            Reference::Sinusoid {
+                amplitude: r.amplitude,
+                omega: r.omega,
+            }
+        } else {
+            Reference::Hold
+        },
+        torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
+    };
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+struct Node {
+    params: Params,
+    law: Mutex<ComputedTorque>,
+    states: DropCounter,
+    references: DropCounter,
+    torques_published: AtomicU64,
+    torques_not_finite: AtomicU64,
+    publish_errors: AtomicU64,
+    references_applied: AtomicU64,
+    references_rejected: AtomicU64,
+    /// A reference arrived on the topic itself (newer than any query answer).
+    live_reference: AtomicBool,
+    ignore_planner: bool,
+    torque: TypedPublisher<TorqueCommand>,
+}
+
+impl Node {
+    fn on_state(&self, bytes: &[u8]) {
+        let Some(s) = self.states.decode::<PlantState>(bytes) else {
+            return;
+        };
+        let Some(mode) = Mode::from_index(s.mode) else {
+            return; // unreachable: decode validated the mode
+        };
+        let x = State::new(s.alpha, s.beta, s.alpha_dot, s.beta_dot);
+        let tau = {
+            let law = self.law.lock().unwrap_or_else(|e| e.into_inner());
+            law.torque(s.time, mode, &x)
+        };
+        if !tau.is_finite() {
+            let n = self.torques_not_finite.fetch_add(1, Ordering::Relaxed) + 1;
+            if n.is_power_of_two() {
+                tracing::warn!(
+                    seq = s.seq,
+                    "torque is not finite ({tau}); not published ({n} so far)"
+                );
+            }
+            return;
+        }
+        match self.torque.put(&TorqueCommand { seq: s.seq, tau }) {
+            Ok(()) => {
+                self.torques_published.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) => {
+                let n = self.publish_errors.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_power_of_two() {
+                    tracing::warn!("cannot publish a torque ({n} failures so far): {e}");
+                }
+            }
+        }
+    }
+
+    /// A reference from the topic (`live`) or from a query answer.
+    fn on_reference(&self, bytes: &[u8], live: bool) {
+        let Some(r) = self.references.decode::<tilting_proto::Reference>(bytes) else {
+            return;
+        };
+        if self.ignore_planner {
+            tracing::debug!("--ignore-planner: reference ignored");
+            return;
+        }
+        if !live && self.live_reference.load(Ordering::Acquire) {
+            return; // a query answer older than what the topic already gave
+        }
+        match config_from_reference(self.params, &r).and_then(ComputedTorque::new) {
+            Ok(c) => {
+                if live {
+                    self.live_reference.store(true, Ordering::Release);
+                }
+                let mut law = self.law.lock().unwrap_or_else(|e| e.into_inner());
+                if *law.config() != *c.config() {
+                    tracing::info!(
+                        kind = r.kind,
+                        amplitude = r.amplitude,
+                        omega = r.omega,
+                        kp = r.kp,
+                        kd = r.kd,
+                        k = r.k,
+                        energy_avg = r.energy_avg,
+                        torque_limit = r.torque_limit,
+                        source = if live { "topic" } else { "query" },
+                        "planner reference applied"
+                    );
+                }
+                *law = c;
+                self.references_applied.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) => {
+                self.references_rejected.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("planner reference rejected: {e}");
+            }
+        }
+    }
+
+    fn summary(&self) -> serde_json::Value {
+        let law = *self.law.lock().unwrap_or_else(|e| e.into_inner()).config();
+        let reference = match law.reference {
+            Reference::Hold => serde_json::json!({"kind": "hold"}),
+            Reference::Sinusoid { amplitude, omega } => {
+                serde_json::json!({"kind": "sinusoid", "amplitude": amplitude, "omega": omega})
+            }
+        };
+        serde_json::json!({
+            "states_received": self.states.received(),
+            "states_dropped": self.states.dropped(),
+            "torques_published": self.torques_published.load(Ordering::Relaxed),
+            "torques_not_finite": self.torques_not_finite.load(Ordering::Relaxed),
+            "publish_errors": self.publish_errors.load(Ordering::Relaxed),
+            "references_received": self.references.received(),
+            "references_dropped": self.references.dropped(),
+            "references_rejected": self.references_rejected.load(Ordering::Relaxed),
+            "references_applied": self.references_applied.load(Ordering::Relaxed),
+            "law": {
+                "kp": law.kp, "kd": law.kd, "k": law.k, "energy_avg": law.energy_avg,
+                "torque_limit": law.torque_limit, "reference": reference,
+            },
+        })
+    }
+}
+
+/// Runs the controller node until Ctrl-C or SIGTERM.
+pub fn run(args: ControllerArgs) -> anyhow::Result<ExitCode> {
+    let cfg = args.control_config()?;
+    let law = ComputedTorque::new(cfg)?;
+    let keys = args.zenoh.keys()?;
+    let rt = tilting_net::runtime()?;
+    rt.block_on(run_async(args, keys, law))
+}
+
+async fn run_async(
+    args: ControllerArgs,
+    keys: Keys,
+    law: ComputedTorque,
+) -> anyhow::Result<ExitCode> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+    let torque = TypedPublisher::declare(&session, keys.controller_torque(), Qos::Control).await?;
+    let node = Arc::new(Node {
+        params: law.config().params,
+        law: Mutex::new(law),
+        states: DropCounter::new(keys.plant_state()),
+        references: DropCounter::new(keys.planner_reference()),
+        torques_published: AtomicU64::new(0),
+        torques_not_finite: AtomicU64::new(0),
+        publish_errors: AtomicU64::new(0),
+        references_applied: AtomicU64::new(0),
+        references_rejected: AtomicU64::new(0),
+        live_reference: AtomicBool::new(false),
+        ignore_planner: args.ignore_planner,
+        torque,
+    });
+
+    let n = node.clone();
+    let _state_sub = session
+        .declare_subscriber(keys.plant_state().to_owned())
+        .callback(move |sample| n.on_state(&sample.payload().to_bytes()))
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", keys.plant_state()))?;
+    let n = node.clone();
+    let _reference_sub = session
+        .declare_subscriber(keys.planner_reference().to_owned())
+        .callback(move |sample| n.on_reference(&sample.payload().to_bytes(), true))
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", keys.planner_reference()))?;
+
+    // Ask the planner's queryable for the current reference now and whenever a planner appears.
+    let (query_tx, mut query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
+    let _ = query_tx.send(());
+    let (_planner, _planner_sub) =
+        tilting_net::watch_presence(&session, keys.alive_planner(), move |alive| {
+            if alive {
+                let _ = query_tx.send(());
+            }
+        })
+        .await?;
+    let (_plant, _plant_sub) =
+        tilting_net::watch_presence(&session, keys.alive_plant(), |_| {}).await?;
+    let querier = {
+        let session = session.clone();
+        let node = node.clone();
+        let key = keys.planner_reference().to_owned();
+        tokio::spawn(async move {
+            while query_rx.recv().await.is_some() {
+                if node.ignore_planner {
+                    continue;
+                }
+                let n = node.clone();
+                let r = session
+                    .get(key.clone())
+                    .timeout(Duration::from_secs(2))
+                    .callback(move |reply| match reply.result() {
+                        Ok(sample) => n.on_reference(&sample.payload().to_bytes(), false),
+                        Err(e) => n.references.record_drop(&format!(
+                            "error reply to the reference query: {}",
+                            String::from_utf8_lossy(&e.payload().to_bytes())
+                        )),
+                    })
+                    .await;
+                if let Err(e) = r {
+                    tracing::warn!("reference query failed: {e}");
+                }
+            }
+        })
+    };
+    let _token = tilting_net::declare_token(&session, keys.alive_controller()).await?;
+    tracing::info!(robot = keys.robot(), "controller ready");
+
+    tilting_net::shutdown_signal().await;
+    tracing::info!("stopping");
+    querier.abort();
+    drop(_token);
+    println!("{}", node.summary());
+    let _ = session.close().await;
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[test]
+    fn flags_parse_with_defaults() {
+        let a = ControllerArgs::try_parse_from(["tilting-controller"]).unwrap();
+        let c = a.control_config().unwrap();
+        assert_eq!((c.kp, c.kd, c.k), (100.0, 14.14, 500.0));
+        assert_eq!(c.energy_avg, 19.9588180580);
+        assert_eq!(c.reference, Reference::Hold);
+        assert_eq!(c.torque_limit, None);
+        let a = ControllerArgs::try_parse_from([
+            "tilting-controller",
+            "--reference",
+            "sinusoid:0.33,5",
+            "--torque-limit",
+            "40",
+            "--k",
+            "0",
+        ])
+        .unwrap();
+        let c = a.control_config().unwrap();
+        assert_eq!(
+            c.reference,
+            Reference::Sinusoid {
+                amplitude: 0.33,
+                omega: 5.0
+            }
+        );
+        assert_eq!(c.torque_limit, Some(40.0));
+        assert!(
+            ControllerArgs::try_parse_from(["tilting-controller", "--reference", "x"]).is_err()
+        );
+        let a = ControllerArgs::try_parse_from(["tilting-controller", "--kp=-1"]).unwrap();
+        assert!(a.control_config().is_err());
+    }
+
+    #[test]
+    fn reference_message_maps_to_the_law() {
+        let r = tilting_proto::Reference {
+            kind: tilting_proto::Reference::SINUSOID,
+            amplitude: 0.2,
+            omega: 3.0,
+            kp: 50.0,
+            kd: 10.0,
+            k: 0.0,
+            energy_avg: 1.0,
+            torque_limit: 0.0,
+        };
+        let c = config_from_reference(Params::default(), &r).unwrap();
+        assert_eq!(
+            c.reference,
+            Reference::Sinusoid {
+                amplitude: 0.2,
+                omega: 3.0
+            }
+        );
+        assert_eq!((c.kp, c.kd, c.torque_limit), (50.0, 10.0, None));
+        let hold = tilting_proto::Reference {
+            kind: tilting_proto::Reference::HOLD,
+            torque_limit: 5.0,
+            ..r
+        };
+        let c = config_from_reference(Params::default(), &hold).unwrap();
+        assert_eq!((c.reference, c.torque_limit), (Reference::Hold, Some(5.0)));
+    }
+}
