@@ -1,0 +1,165 @@
+//! PNG figures with plotters. The font is embedded (`assets/DejaVuSans.ttf`, registered as
+//! `sans-serif`), so drawing needs no system font.
+
+use crate::scenario::Scenario;
+use crate::simulate::SimulationReport;
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+use std::path::Path;
+use std::sync::OnceLock;
+use tilting_plant::Mode;
+
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// Registers the embedded DejaVu Sans as the `sans-serif` family (once per process).
+pub fn register_fonts() -> Result<()> {
+    static DONE: OnceLock<bool> = OnceLock::new();
+    let ok = *DONE.get_or_init(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err(anyhow!("the embedded font DejaVuSans.ttf is invalid"))
+    }
+}
+
+/// Figure size (px).
+const SIZE: (u32, u32) = (1400, 900);
+
+/// Colour of the markers of tilt starts (flat to left/right).
+const TILT_START: RGBColor = RGBColor(230, 120, 40);
+/// Colour of the markers of landings (left/right to flat).
+const LANDING: RGBColor = RGBColor(60, 140, 220);
+
+/// `[lo, hi]` of `v` with a margin; a flat signal gets a small band around its value.
+fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = v
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
+    if !lo.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let span = hi - lo;
+    let pad = if span > 1e-9 * hi.abs().max(1.0) {
+        0.08 * span
+    } else {
+        0.05 * hi.abs().max(0.02)
+    };
+    (lo - pad, hi + pad)
+}
+
+/// Draws `alpha(t)` and `beta(t)` of a run in two stacked panels, with the transition times
+/// marked: vertical lines at tilt starts and at landings.
+pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> {
+    register_fonts()?;
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE)?;
+    let coupling = if sc.is_sampled() {
+        format!("zero-order hold T = {} s", sc.control_period)
+    } else {
+        "continuous coupling".to_string()
+    };
+    let title = format!(
+        "Tilting system: K_P0 = {}, K_D = {}, k = {}, {coupling}, {} impact law{}",
+        sc.kp,
+        sc.kd,
+        sc.k,
+        sc.impact.as_str(),
+        match &r.fault {
+            Some(_) => " (stopped by a fault)",
+            None => "",
+        }
+    );
+    let root = root.titled(&title, ("sans-serif", 28))?;
+    let panels = root.split_evenly((2, 1));
+    let t_max = r
+        .final_state
+        .t
+        .max(sc.duration * 1e-6)
+        .max(f64::MIN_POSITIVE);
+    let t_max = if r.fault.is_some() {
+        t_max
+    } else {
+        sc.duration
+    };
+    let specs: [(usize, &str, &str); 2] = [
+        (0, "Plate tilt angle α(t)", "α [rad]"),
+        (1, "Arm angle β(t) relative to the plate", "β [rad]"),
+    ];
+    for (panel, (i, caption, ylabel)) in panels.iter().zip(specs) {
+        let (lo, hi) = range(r.samples.iter().map(|s| s.x[i]));
+        // Headroom above the curve for the legend.
+        let top = hi + 0.3 * (hi - lo);
+        let mid = 0.5 * (lo + hi);
+        let mut chart = ChartBuilder::on(panel)
+            .caption(caption, ("sans-serif", 24))
+            .margin(12)
+            .margin_right(40)
+            .x_label_area_size(55)
+            .y_label_area_size(95)
+            .build_cartesian_2d(0.0..t_max, lo..top)?;
+        chart
+            .configure_mesh()
+            .x_desc("time t [s]")
+            .y_desc(ylabel)
+            .axis_desc_style(("sans-serif", 22))
+            .label_style(("sans-serif", 18))
+            .light_line_style(WHITE.mix(0.0))
+            .bold_line_style(BLACK.mix(0.08))
+            .y_label_formatter(&|v| format!("{v:.3}"))
+            .draw()?;
+        // A landing and the re-tilt it triggers share one instant: landings are marked in the
+        // lower half of the panel, tilt starts in the upper half, so both stay visible.
+        let mut labelled = [false; 2];
+        for e in &r.events {
+            let landing = e.to == Mode::Flat;
+            let (color, y0, y1, label) = if landing {
+                (LANDING, lo, mid, "landing (tilted → flat), lower half")
+            } else {
+                (
+                    TILT_START,
+                    mid,
+                    hi,
+                    "tilt start (flat → tilted), upper half",
+                )
+            };
+            let s = chart.draw_series(std::iter::once(PathElement::new(
+                vec![(e.t, y0), (e.t, y1)],
+                color.mix(0.8).stroke_width(2),
+            )))?;
+            if i == 0 && !std::mem::replace(&mut labelled[landing as usize], true) {
+                s.label(label).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3))
+                });
+            }
+        }
+        chart.draw_series(LineSeries::new(
+            r.samples.iter().map(|s| (s.t, s.x[i])),
+            BLACK.stroke_width(2),
+        ))?;
+        if i == 0 && !r.events.is_empty() {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .label_font(("sans-serif", 18))
+                .background_style(WHITE.mix(0.9))
+                .border_style(BLACK.mix(0.4))
+                .draw()?;
+        }
+    }
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn font_registers() {
+        super::register_fonts().unwrap();
+        super::register_fonts().unwrap();
+    }
+}

@@ -1,0 +1,508 @@
+//! The `simulate` command: runs the closed loop of the hybrid plant and the computed-torque
+//! controller for one [`Scenario`] and reports the mode transitions, the tilt peaks, the final
+//! state and any fault.
+//!
+//! Two couplings:
+//! - continuous (`control_period = 0`): the torque law is evaluated inside the right-hand side
+//!   ([`Plant::advance_continuous`]), the paper's setting;
+//! - sampled (`control_period = T > 0`): the controller runs at `t_k = k T` on the state at that
+//!   instant and its torque is held until `t_{k+1}` ([`Plant::advance_held`]), as over a network.
+
+use crate::plot;
+use crate::scenario::{Scenario, ScenarioArgs};
+use crate::CommandError;
+use anyhow::Context;
+use serde::Serialize;
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::time::Instant;
+use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, Transition};
+
+/// Flags of `tilting-planner simulate`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SimulateArgs {
+    /// The scenario.
+    #[command(flatten)]
+    pub scenario: ScenarioArgs,
+    /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
+    /// summary
+    #[arg(long)]
+    pub json: bool,
+    /// Draw alpha(t) and beta(t) with the event times into this PNG file
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+}
+
+/// Options of [`simulate`] that do not change the result.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SimOptions {
+    /// Record the trajectory (decimated) for plotting.
+    pub record_samples: bool,
+    /// Show a progress bar on stderr.
+    pub progress: bool,
+}
+
+/// A mode transition as reported.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EventRecord {
+    /// Time (s).
+    pub t: f64,
+    /// Mode before.
+    pub from: Mode,
+    /// Mode after.
+    pub to: Mode,
+    /// State just before `(alpha, beta, alpha_dot, beta_dot)`.
+    pub x_before: [f64; 4],
+    /// State just after (the impact map applied for a landing).
+    pub x_after: [f64; 4],
+}
+
+/// The extreme tilt angle of one completed tilt.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PeakRecord {
+    /// Time of the extreme (s).
+    pub t: f64,
+    /// The tilt (`left` or `right`).
+    pub mode: Mode,
+    /// The extreme `alpha` (rad).
+    pub alpha: f64,
+}
+
+/// The hybrid state at the end of the run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FinalRecord {
+    /// Time (s): the duration, or the time of the fault.
+    pub t: f64,
+    /// Mode.
+    pub mode: Mode,
+    /// State `(alpha, beta, alpha_dot, beta_dot)`.
+    pub x: [f64; 4],
+}
+
+/// Work counters and settings of the run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunStats {
+    /// `continuous` or `sampled`.
+    pub coupling: &'static str,
+    /// Zero-order-hold period (s); 0 for continuous.
+    pub control_period: f64,
+    /// Requested simulated time (s).
+    pub duration: f64,
+    /// Right-hand-side evaluations counted by the integrator.
+    pub rhs_evals: u64,
+    /// Accepted steps.
+    pub steps: u64,
+    /// Rejected step attempts.
+    pub rejected_steps: u64,
+    /// Dense outputs built (one per step that contains an event).
+    pub dense_outputs: u64,
+    /// Mode transitions.
+    pub transitions: u64,
+    /// Completed tilts (landings).
+    pub tilts: u64,
+    /// Controller evaluations of the sampled coupling (0 for continuous).
+    pub controller_samples: u64,
+    /// Wall-clock time of the simulation (s), without output and plotting.
+    pub wall_time_s: f64,
+}
+
+/// One recorded point of the trajectory (for plots).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Time (s).
+    pub t: f64,
+    /// Mode.
+    pub mode: Mode,
+    /// State.
+    pub x: [f64; 4],
+}
+
+/// The result of [`simulate`]; serialises to the JSON of `simulate --json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SimulationReport {
+    /// Mode transitions in time order.
+    pub events: Vec<EventRecord>,
+    /// Extreme angle of each completed tilt.
+    pub tilt_peaks: Vec<PeakRecord>,
+    /// Hybrid state at the end.
+    #[serde(rename = "final")]
+    pub final_state: FinalRecord,
+    /// The fault that ended the run early, if any.
+    pub fault: Option<String>,
+    /// Work counters.
+    pub stats: RunStats,
+    /// The trajectory, if recorded (not serialised).
+    #[serde(skip)]
+    pub samples: Vec<Sample>,
+}
+
+/// Collects events, peaks and (optionally) a decimated trajectory.
+struct Recorder {
+    events: Vec<EventRecord>,
+    peaks: Vec<PeakRecord>,
+    samples: Option<Vec<Sample>>,
+    /// Smallest spacing of recorded samples between events (s).
+    min_dt: f64,
+}
+
+impl Recorder {
+    fn push(&mut self, t: f64, mode: Mode, x: &State, force: bool) {
+        if let Some(s) = &mut self.samples {
+            if force || s.last().is_none_or(|l| t - l.t >= self.min_dt) {
+                s.push(Sample {
+                    t,
+                    mode,
+                    x: (*x).into(),
+                });
+            }
+        }
+    }
+}
+
+impl Observer for Recorder {
+    fn transition(&mut self, ev: &Transition) {
+        self.events.push(EventRecord {
+            t: ev.t,
+            from: ev.from,
+            to: ev.to,
+            x_before: ev.x_before.into(),
+            x_after: ev.x_after.into(),
+        });
+        self.push(ev.t, ev.from, &ev.x_before, true);
+        self.push(ev.t, ev.to, &ev.x_after, true);
+    }
+
+    fn tilt_peak(&mut self, p: &TiltPeak) {
+        self.peaks.push(PeakRecord {
+            t: p.t,
+            mode: p.mode,
+            alpha: p.alpha,
+        });
+    }
+
+    fn sample(&mut self, t: f64, mode: Mode, x: &State) {
+        self.push(t, mode, x, false);
+    }
+}
+
+/// The continuous run is cut into at most this many pieces (for the progress bar)...
+const MAX_CHUNKS: f64 = 100.0;
+/// ...of at least this length (s): each cut ends an integrator step early, so the pieces are
+/// kept long. The cuts depend on the duration only, so the result does not depend on whether a
+/// bar is shown.
+const MIN_CHUNK: f64 = 1.0;
+
+/// Samples recorded for a plot, about.
+const PLOT_SAMPLES: f64 = 20_000.0;
+
+/// Runs the scenario. Fails only on an invalid scenario; a fault of the plant (contact loss,
+/// fall, Zeno, integrator failure) ends the run and is reported in the result.
+pub fn simulate(
+    sc: &Scenario,
+    opts: SimOptions,
+) -> Result<SimulationReport, crate::scenario::ScenarioError> {
+    sc.validate()?;
+    let ctrl = sc.controller()?;
+    let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).map_err(|e| {
+        crate::scenario::ScenarioError::File {
+            path: "initial state".into(),
+            message: e.to_string(),
+        }
+    })?;
+    let mut rec = Recorder {
+        events: Vec::new(),
+        peaks: Vec::new(),
+        samples: opts.record_samples.then(Vec::new),
+        min_dt: sc.duration / PLOT_SAMPLES,
+    };
+    rec.push(0.0, plant.mode(), &plant.state(), true);
+    let bar = opts.progress.then(|| progress_bar(sc.duration));
+    let t_end = sc.duration;
+    let start = Instant::now();
+    let mut controller_samples = 0u64;
+    let result: Result<(), Fault> = if sc.is_sampled() {
+        let period = sc.control_period;
+        // Update the bar about a thousand times per run.
+        let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
+        let mut next_update = every;
+        let mut k: u64 = 0;
+        loop {
+            // Sample instants are k T, not a running sum (which drifts); the plant stands at t_k.
+            let t_k = k as f64 * period;
+            debug_assert_eq!(t_k, plant.time());
+            let tau = ctrl.torque(t_k, plant.mode(), &plant.state());
+            controller_samples += 1;
+            let next = (k + 1) as f64 * period;
+            // The last period is cut at the end; a remainder below a billionth of a period is
+            // merged into it (a zero-length hold would underflow the integrator's step).
+            let t_next = if next >= t_end - 1e-9 * period {
+                t_end
+            } else {
+                next
+            };
+            if let Err(f) = plant.advance_held(tau, t_next, &mut rec) {
+                break Err(f);
+            }
+            if t_next >= t_end {
+                break Ok(());
+            }
+            k += 1;
+            if k >= next_update {
+                next_update += every;
+                if let Some(b) = &bar {
+                    set_progress(b, t_next, t_end);
+                }
+            }
+        }
+    } else {
+        let mut res = Ok(());
+        let chunks = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
+        for j in 1..=chunks {
+            let t_j = if j == chunks {
+                t_end
+            } else {
+                t_end * j as f64 / chunks as f64
+            };
+            if let Err(f) = plant.advance_continuous(&ctrl, t_j, &mut rec) {
+                res = Err(f);
+                break;
+            }
+            if let Some(b) = &bar {
+                set_progress(b, t_j, t_end);
+            }
+        }
+        res
+    };
+    let wall = start.elapsed().as_secs_f64();
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    rec.push(plant.time(), plant.mode(), &plant.state(), true);
+    let st = plant.stats();
+    Ok(SimulationReport {
+        events: rec.events,
+        tilt_peaks: rec.peaks,
+        final_state: FinalRecord {
+            t: plant.time(),
+            mode: plant.mode(),
+            x: plant.state().into(),
+        },
+        fault: result.err().map(|f| f.to_string()),
+        stats: RunStats {
+            coupling: if sc.is_sampled() {
+                "sampled"
+            } else {
+                "continuous"
+            },
+            control_period: sc.control_period,
+            duration: sc.duration,
+            rhs_evals: st.evals,
+            steps: st.steps,
+            rejected_steps: st.rejected,
+            dense_outputs: st.dense,
+            transitions: plant.transitions(),
+            tilts: plant.tilts(),
+            controller_samples,
+            wall_time_s: wall,
+        },
+        samples: rec.samples.unwrap_or_default(),
+    })
+}
+
+fn progress_bar(duration: f64) -> indicatif::ProgressBar {
+    let b = indicatif::ProgressBar::new(1000);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("[{elapsed_precise}] {wide_bar} {msg} (eta {eta})")
+    {
+        b.set_style(style);
+    }
+    b.set_message(format!("t = 0 / {duration} s"));
+    b
+}
+
+fn set_progress(b: &indicatif::ProgressBar, t: f64, duration: f64) {
+    b.set_position((1000.0 * t / duration).round() as u64);
+    b.set_message(format!("t = {t:.2} / {duration} s"));
+}
+
+/// The human-readable summary of a run.
+pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let coupling = if sc.is_sampled() {
+        format!(
+            "sampled coupling, zero-order hold every {} s",
+            sc.control_period
+        )
+    } else {
+        "continuous coupling".to_string()
+    };
+    let _ = writeln!(
+        s,
+        "simulated {} s of {} s ({coupling}; K_P0 = {}, K_D = {}, k = {}{}; {} impact law)",
+        r.final_state.t,
+        sc.duration,
+        sc.kp,
+        sc.kd,
+        sc.k,
+        sc.energy_avg
+            .filter(|_| sc.k != 0.0)
+            .map(|e| format!(", E_av = {e} J"))
+            .unwrap_or_default(),
+        sc.impact.as_str(),
+    );
+    let _ = writeln!(
+        s,
+        "tilts: {} completed, {} mode transitions",
+        r.stats.tilts, r.stats.transitions
+    );
+    if !r.tilt_peaks.is_empty() {
+        let last: Vec<String> = r.tilt_peaks[r.tilt_peaks.len().saturating_sub(6)..]
+            .iter()
+            .map(|p| format!("{:+.6} ({}, t = {:.4} s)", p.alpha, p.mode, p.t))
+            .collect();
+        let _ = writeln!(s, "last tilt peaks alpha (rad): {}", last.join(", "));
+    }
+    let x = r.final_state.x;
+    let _ = writeln!(
+        s,
+        "final: t = {} s, mode {}, alpha = {:.9} rad, beta = {:.9} rad, alpha_dot = {:.9} rad/s, \
+         beta_dot = {:.9} rad/s",
+        r.final_state.t, r.final_state.mode, x[0], x[1], x[2], x[3]
+    );
+    let _ = writeln!(
+        s,
+        "fault: {}",
+        r.fault.as_deref().unwrap_or("none (ran to the end)")
+    );
+    let _ = writeln!(
+        s,
+        "RHS evaluations: {} ({:.0} per simulated s), {} steps, {} rejected; wall time {:.3} s",
+        r.stats.rhs_evals,
+        r.stats.rhs_evals as f64 / r.final_state.t.max(f64::MIN_POSITIVE),
+        r.stats.steps,
+        r.stats.rejected_steps,
+        r.stats.wall_time_s
+    );
+    s
+}
+
+/// Writes `text` to stdout; a closed pipe (`| head`) is not an error.
+fn print_stdout(text: &str) -> Result<(), CommandError> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(CommandError::Failed(
+            anyhow::Error::new(e).context("cannot write to stdout"),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// `tilting-planner simulate`.
+pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
+    let sc = args
+        .scenario
+        .load()
+        .map_err(|e| CommandError::Usage(e.into()))?;
+    if let Some(p) = &args.plot {
+        let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        if !png {
+            return Err(CommandError::Usage(anyhow::anyhow!(
+                "invalid `--plot` = {}: must be a file name ending in .png",
+                p.display()
+            )));
+        }
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            if !dir.is_dir() {
+                return Err(CommandError::Usage(anyhow::anyhow!(
+                    "invalid `--plot` = {}: the directory {} does not exist",
+                    p.display(),
+                    dir.display()
+                )));
+            }
+        }
+    }
+    let opts = SimOptions {
+        record_samples: args.plot.is_some(),
+        progress: !args.json && std::io::stderr().is_terminal(),
+    };
+    let report = simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
+    if args.json {
+        let mut text = serde_json::to_string(&report)
+            .context("cannot serialise the report")
+            .map_err(CommandError::Failed)?;
+        text.push('\n');
+        print_stdout(&text)?;
+    } else {
+        print_stdout(&summary(&sc, &report))?;
+    }
+    if let Some(f) = &report.fault {
+        eprintln!("warning: the simulation stopped early: {f}");
+    }
+    if let Some(p) = &args.plot {
+        plot::plot_run(p, &sc, &report)
+            .with_context(|| format!("cannot draw the plot {}", p.display()))
+            .map_err(CommandError::Failed)?;
+        if !args.json {
+            print_stdout(&format!("plot: {}\n", p.display()))?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::ScenarioFile;
+
+    fn run(l: ScenarioFile) -> SimulationReport {
+        simulate(&Scenario::resolve(&[&l]), SimOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn orbit_lands_at_its_half_period() {
+        // Without the adaptation (k = 0) the built-in start is on the K_P0 orbit.
+        let r = run(ScenarioFile {
+            duration: Some(1.0),
+            k: Some(0.0),
+            ..Default::default()
+        });
+        assert!(r.fault.is_none());
+        let land = r.events[0];
+        assert_eq!((land.from, land.to), (Mode::Left, Mode::Flat));
+        assert!(
+            (land.t - crate::scenario::ORBIT_HALF_PERIOD).abs() < 1e-7,
+            "{}",
+            land.t
+        );
+        // On the orbit the landing state is the mirror of the start.
+        let x0 = crate::scenario::orbit_x0();
+        assert!((land.x_after[1] - (std::f64::consts::PI - x0[1])).abs() < 1e-7);
+        assert!((land.x_after[3] + x0[3]).abs() < 1e-6);
+        assert_eq!(r.final_state.t, 1.0);
+    }
+
+    #[test]
+    fn default_run_settles_on_a_symmetric_period_one_orbit() {
+        let r = run(ScenarioFile::default());
+        assert!(r.fault.is_none());
+        assert_eq!(r.final_state.t, 10.0);
+        let n = r.tilt_peaks.len();
+        assert!(n > 15, "{n}");
+        let (a, b) = (r.tilt_peaks[n - 2], r.tilt_peaks[n - 1]);
+        assert_ne!(a.mode, b.mode);
+        assert!((a.alpha + b.alpha).abs() < 1e-6, "{a:?} {b:?}");
+    }
+
+    #[test]
+    fn sampled_run_ends_on_time_with_an_uneven_last_period() {
+        let r = run(ScenarioFile {
+            duration: Some(0.2),
+            control_period: Some(0.03),
+            ..Default::default()
+        });
+        assert!(r.fault.is_none(), "{:?}", r.fault);
+        assert_eq!(r.final_state.t, 0.2);
+        assert_eq!(r.stats.controller_samples, 7);
+    }
+}

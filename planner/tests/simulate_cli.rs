@@ -1,0 +1,280 @@
+//! Runs the built `tilting-planner simulate` binary: JSON shape and content, usage and
+//! configuration errors, the plot, and the convergence of the sampled coupling.
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_tilting-planner");
+
+fn simulate(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .arg("simulate")
+        .args(args)
+        .output()
+        .expect("cannot run tilting-planner")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs with `--json`, checks success, and parses stdout as exactly one JSON value.
+fn simulate_json(args: &[&str]) -> Value {
+    let mut all = vec!["--json"];
+    all.extend_from_slice(args);
+    let o = simulate(&all);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    let text = String::from_utf8(o.stdout).expect("stdout is UTF-8");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("not one JSON object: {e}\n{text}"))
+}
+
+/// A fresh directory under the system temp dir, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let p = std::env::temp_dir().join(format!(
+            "tilting-planner-{tag}-{}-{nanos}",
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&p).expect("cannot create a temp dir");
+        TempDir(p)
+    }
+
+    fn file(&self, name: &str, contents: &str) -> String {
+        let p = self.0.join(name);
+        std::fs::write(&p, contents).expect("cannot write a temp file");
+        p.to_string_lossy().into_owned()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn state4(v: &Value) -> [f64; 4] {
+    let a = v.as_array().expect("a state is an array");
+    assert_eq!(a.len(), 4, "{v}");
+    std::array::from_fn(|i| a[i].as_f64().expect("a state holds numbers"))
+}
+
+#[test]
+fn json_report_of_the_default_orbit() {
+    let r = simulate_json(&["--duration", "5"]);
+    let obj = r.as_object().unwrap();
+    for key in ["events", "tilt_peaks", "final", "fault", "stats"] {
+        assert!(obj.contains_key(key), "missing {key}: {r}");
+    }
+    assert!(r["fault"].is_null(), "{}", r["fault"]);
+    assert_eq!(r["final"]["t"].as_f64(), Some(5.0));
+    assert!(["flat", "left", "right"].contains(&r["final"]["mode"].as_str().unwrap()));
+    state4(&r["final"]["x"]);
+
+    // Transitions chain (each starts in the mode the previous one ended in), starting from the
+    // initial left tilt, and the tilts alternate: left -> flat -> right -> flat -> left ...
+    let events = r["events"].as_array().unwrap();
+    assert!(events.len() >= 20, "{} events in 5 s", events.len());
+    let mut mode = "left".to_string();
+    let mut tilts = vec![mode.clone()];
+    let mut t_prev = 0.0;
+    for e in events {
+        let (from, to) = (e["from"].as_str().unwrap(), e["to"].as_str().unwrap());
+        assert_eq!(from, mode, "{e}");
+        assert_ne!(from, to);
+        let t = e["t"].as_f64().unwrap();
+        assert!(t >= t_prev && t <= 5.0, "{e}");
+        t_prev = t;
+        let (xb, xa) = (state4(&e["x_before"]), state4(&e["x_after"]));
+        if to == "flat" {
+            // Landing: the plate comes to rest, beta is continuous.
+            assert_eq!((xa[0], xa[2]), (0.0, 0.0), "{e}");
+            assert_eq!(xb[1], xa[1]);
+        } else {
+            assert_eq!(from, "flat", "{e}");
+            assert_eq!(xb, xa, "a tilt start keeps the state: {e}");
+            tilts.push(to.to_string());
+        }
+        mode = to.to_string();
+    }
+    for w in tilts.windows(2) {
+        assert_ne!(w[0], w[1], "tilts must alternate: {tilts:?}");
+    }
+    assert_eq!(r["final"]["mode"].as_str().unwrap(), mode);
+
+    let peaks = r["tilt_peaks"].as_array().unwrap();
+    assert_eq!(peaks.len(), r["stats"]["tilts"].as_u64().unwrap() as usize);
+    for (p, m) in peaks.iter().zip(&tilts) {
+        assert_eq!(p["mode"].as_str().unwrap(), m);
+        let a = p["alpha"].as_f64().unwrap();
+        assert!(if m == "left" { a > 0.0 } else { a < 0.0 }, "{p}");
+        assert!(p["t"].as_f64().unwrap() <= 5.0);
+    }
+}
+
+#[test]
+fn human_summary() {
+    let o = simulate(&["--duration", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    for part in [
+        "simulated 2 s",
+        "tilts:",
+        "last tilt peaks",
+        "final: t = 2 s",
+        "fault: none",
+        "RHS evaluations:",
+        "wall time",
+    ] {
+        assert!(out.contains(part), "missing {part:?} in\n{out}");
+    }
+}
+
+#[test]
+fn invalid_flags_exit_2_and_name_the_field() {
+    for (args, field) in [
+        (vec!["--kp", "-1"], "kp"),
+        (vec!["--kd", "inf"], "kd"),
+        (vec!["--duration", "nan"], "duration"),
+        (vec!["--duration", "0"], "duration"),
+        (vec!["--control-period", "10"], "control_period"),
+        (vec!["--control-period", "-0.001"], "control_period"),
+        (vec!["--mode", "upward"], "mode"),
+        (vec!["--impact", "elastic"], "impact"),
+        (vec!["--reference", "sinusoid:0.3"], "reference"),
+        (vec!["--x0", "0,1.57,0"], "x0"),
+        (vec!["--x0", "0,nan,0,0"], "x0[1]"),
+        (vec!["--mode", "right", "--x0", "0.1,1.57,0,0"], "x0[0]"),
+        (vec!["--rtol", "0"], "rtol"),
+        (vec!["--torque-limit", "-5"], "torque_limit"),
+        (vec!["--energy-avg", "nan"], "energy_avg"),
+        // A flat start with the adaptation on needs the energy of the orbit to stabilise.
+        (
+            vec![
+                "--mode",
+                "flat",
+                "--x0",
+                "0,1.5707963267948966,0,0",
+                "--k",
+                "500",
+            ],
+            "energy_avg",
+        ),
+        // So do gains the built-in E_av was not computed for.
+        (vec!["--kp", "150"], "energy_avg"),
+        (vec!["--plot", "out.svg"], "--plot"),
+    ] {
+        let o = simulate(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(field),
+            "{args:?}: {err:?} does not name {field}"
+        );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(o.stdout.is_empty(), "{args:?}");
+    }
+}
+
+#[test]
+fn invalid_files_exit_2_and_name_the_field() {
+    let dir = TempDir::new("invalid-files");
+    let unknown = dir.file("unknown.toml", "duration = 3\nduraton = 4\n");
+    let bad_value = dir.file("bad.toml", "kd = -2\n");
+    let bad_table = dir.file("bad_table.toml", "[params]\nl = 0\n");
+    let bad_params = dir.file("params.toml", "m_f = -1\n");
+    let unknown_param = dir.file("params2.toml", "mass = 1\n");
+    let missing = dir.0.join("missing.toml").to_string_lossy().into_owned();
+    for (args, field) in [
+        (vec!["--scenario", &unknown], "duraton"),
+        (vec!["--scenario", &bad_value], "kd"),
+        (vec!["--scenario", &bad_table], "params.l"),
+        (vec!["--params", &bad_params], "m_f"),
+        (vec!["--params", &unknown_param], "mass"),
+        (vec!["--scenario", &missing], "missing.toml"),
+    ] {
+        let o = simulate(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(field),
+            "{args:?}: {err:?} does not name {field}"
+        );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn files_and_flags_stack() {
+    let dir = TempDir::new("stack");
+    let sc = dir.file(
+        "s.toml",
+        "duration = 3\nk = 0\ncontrol_period = 0.001\n[params]\ng = 9.81\n",
+    );
+    let params = dir.file("p.toml", "m_l = 1.0\n");
+    // The flag wins over the file; k = 0 from the file needs no energy.
+    let r = simulate_json(&["--scenario", &sc, "--params", &params, "--duration", "1.5"]);
+    assert_eq!(r["final"]["t"].as_f64(), Some(1.5));
+    assert_eq!(r["stats"]["coupling"].as_str(), Some("sampled"));
+    assert_eq!(r["stats"]["controller_samples"].as_u64(), Some(1500));
+}
+
+#[test]
+fn a_physics_fault_is_reported_with_exit_code_0() {
+    // Tipped far over the left edge and still rotating: the plate falls.
+    let o = simulate(&[
+        "--json",
+        "--k",
+        "0",
+        "--mode",
+        "left",
+        "--x0",
+        "1.4,1.5707963267948966,2,0",
+        "--duration",
+        "2",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let fault = r["fault"].as_str().expect("a fault");
+    assert!(fault.contains("fall"), "{fault}");
+    assert!(r["final"]["t"].as_f64().unwrap() < 2.0);
+    assert!(stderr(&o).contains("fall"));
+}
+
+#[test]
+fn plot_writes_a_png() {
+    let dir = TempDir::new("plot");
+    let png = dir.0.join("out.png");
+    let o = simulate(&["--duration", "2", "--plot", png.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = std::fs::read(&png).expect("the PNG was written");
+    assert!(bytes.len() > 10_000, "{} bytes", bytes.len());
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+fn first_landing(period: &str) -> f64 {
+    let r = simulate_json(&["--duration", "1", "--control-period", period]);
+    let e = &r["events"][0];
+    assert_eq!(e["to"].as_str(), Some("flat"), "{e}");
+    e["t"].as_f64().unwrap()
+}
+
+#[test]
+fn zero_order_hold_converges_to_the_continuous_coupling() {
+    let t_cont = first_landing("0");
+    let d4 = (first_landing("1e-4") - t_cont).abs();
+    let d3 = (first_landing("1e-3") - t_cont).abs();
+    assert!(d4 < 1e-3, "T = 1e-4 s: landing off by {d4} s");
+    // The hold delays the control by T/2 on average: the error is first order in T.
+    assert!(d4 < 2e-5, "T = 1e-4 s: landing off by {d4} s");
+    let ratio = d3 / d4;
+    assert!(
+        (5.0..20.0).contains(&ratio),
+        "error ratio {ratio} between T = 1e-3 and 1e-4 s is not first order ({d3} vs {d4})"
+    );
+}
