@@ -329,8 +329,8 @@ impl StatusWatch {
                     tilting_proto::decode::<tilting_proto::Status>(&s.payload().to_bytes())
                 {
                     let mut v = l.lock().unwrap();
-                    if v.len() > 10_000 {
-                        v.drain(..5_000);
+                    if v.len() >= 4096 {
+                        v.drain(..2048);
                     }
                     v.push((Instant::now(), st));
                 }
@@ -345,19 +345,22 @@ impl StatusWatch {
         self.latest.lock().unwrap().last().map(|(_, s)| s.clone())
     }
 
-    /// Waits for a status satisfying `pred`; returns it with its arrival time.
+    /// Waits for a status received from now on that satisfies `pred`; returns it with its
+    /// arrival time.
     pub async fn wait_for(
         &self,
         timeout: Duration,
         mut pred: impl FnMut(&tilting_proto::Status) -> bool,
     ) -> Option<(Instant, tilting_proto::Status)> {
-        let mut seen = 0;
+        let since = Instant::now();
         poll_until(timeout, || {
             let v = self.latest.lock().unwrap();
-            seen = seen.min(v.len());
-            let hit = v[seen..].iter().find(|(_, s)| pred(s)).cloned();
-            seen = v.len();
-            hit
+            v.iter()
+                .rev()
+                .take_while(|(t, _)| *t >= since)
+                .filter(|(_, s)| pred(s))
+                .last()
+                .cloned()
         })
         .await
     }
