@@ -278,7 +278,8 @@ pub struct Client {
 }
 
 impl Client {
-    /// A peer connecting to `connect` (and listening on an ephemeral port, or on `listen`).
+    /// A peer listening on `listen` (default: an ephemeral loopback port) and connecting to
+    /// `connect` (default: nowhere; never the default port 7447).
     pub async fn open(robot: &str, listen: Option<u16>, connect: Option<u16>) -> Self {
         let listen = listen
             .map(endpoint)
@@ -286,7 +287,14 @@ impl Client {
         let connect: Vec<String> = connect.map(endpoint).into_iter().collect();
         let connect: Vec<&str> = connect.iter().map(String::as_str).collect();
         let args = tilting_net::ZenohArgs::new(robot, &[&listen], &connect);
-        let session = tilting_net::open_session(&args, tilting_net::Role::Peer)
+        // Role::Plant has no default connect endpoint: without `connect` the session connects
+        // nowhere (the explicit `listen` replaces the role's default).
+        let role = if connect.is_empty() {
+            tilting_net::Role::Plant
+        } else {
+            tilting_net::Role::Peer
+        };
+        let session = tilting_net::open_session(&args, role)
             .await
             .expect("test session");
         Self {

@@ -466,9 +466,6 @@ impl Loop {
                 }
             }
         }
-        if fresh.is_none() && gone && self.status_state != Status::SAFE_MODE {
-            self.enter_safe("the controller's liveliness token disappeared");
-        }
         let tau = if self.status_state == Status::SAFE_MODE {
             self.safe_periods += 1;
             self.safe_torque()
