@@ -343,7 +343,11 @@ struct Loop {
     step_cost: Ring,
     next_status: Instant,
     status_interval: Duration,
+    next_timing_log: Instant,
 }
+
+/// Interval of the timing line in the log.
+const TIMING_LOG_INTERVAL: Duration = Duration::from_secs(10);
 
 impl Loop {
     fn publish_state(&mut self) {
@@ -400,8 +404,28 @@ impl Loop {
     }
 
     fn maybe_status(&mut self) {
-        if Instant::now() >= self.next_status {
+        let now = Instant::now();
+        if now >= self.next_status {
             self.publish_status();
+        }
+        if now >= self.next_timing_log {
+            self.next_timing_log = now + TIMING_LOG_INTERVAL;
+            let j = self.jitter.percentiles();
+            let l = self.latency.percentiles();
+            tracing::info!(
+                seq = self.seq,
+                tilts = self.obs.tilts,
+                deadline_misses = self.deadline_misses,
+                overruns = self.overruns,
+                "timing over the last {} periods: jitter p50 {:.1} us p99 {:.1} us; \
+                 loop latency p50 {:.1} us p99 {:.1} us p99.9 {:.1} us",
+                Ring::CAPACITY,
+                j.p50,
+                j.p99,
+                l.p50,
+                l.p99,
+                l.p999
+            );
         }
     }
 
@@ -873,6 +897,7 @@ async fn run_async(
         step_cost: Ring::new(),
         next_status: Instant::now(),
         status_interval: Duration::from_millis(100),
+        next_timing_log: Instant::now() + TIMING_LOG_INTERVAL,
     };
     let (done_tx, done_rx) = tokio::sync::oneshot::channel();
     let pacing = std::thread::Builder::new()
