@@ -63,6 +63,15 @@ impl ControlConfig {
         non_negative("kd", self.kd)?;
         non_negative("k", self.k)?;
         finite("energy_avg", self.energy_avg)?;
+        if self.k > 0.0 && self.energy_avg <= 0.0 {
+            // The adaptation needs the orbit's average energy; 0 (the default) would make
+            // K_P = K_P0 - k E, a large negative stiffness.
+            return Err(ConfigError::OutOfRange {
+                field: "energy_avg",
+                value: self.energy_avg.to_string(),
+                allowed: "> 0 (the orbit's average energy in J) when k > 0",
+            });
+        }
         if let Reference::Sinusoid { amplitude, omega } = self.reference {
             finite("amplitude", amplitude)?;
             tilting_plant::params::positive("omega", omega)?;
@@ -155,5 +164,116 @@ impl TorqueLaw for ComputedTorque {
             // The controller's model differs from the plant's: use its own terms.
             ComputedTorque::torque(self, t, mode, x)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::FRAC_PI_2;
+    use tilting_plant::dynamics::accelerations;
+
+    #[test]
+    fn commanded_acceleration_is_achieved_in_every_mode() {
+        let cfg = ControlConfig {
+            k: 300.0,
+            energy_avg: 20.0,
+            reference: Reference::Sinusoid {
+                amplitude: 0.2,
+                omega: 3.0,
+            },
+            ..ControlConfig::default()
+        };
+        let c = ComputedTorque::new(cfg).unwrap();
+        for (mode, x) in [
+            (Mode::Flat, State::new(0.0, 1.3, 0.0, 0.4)),
+            (Mode::Left, State::new(0.1, 1.7, -0.3, 0.2)),
+            (Mode::Right, State::new(-0.2, 1.4, 0.5, -0.6)),
+        ] {
+            let t = 0.37;
+            let tau = c.torque(t, mode, &x);
+            let (_, bdd) = accelerations(&cfg.params, mode, &x, tau);
+            // v written out from the PD law and the adapted stiffness.
+            let (bd, bdd_d, bddd) = (
+                0.2 * (3.0 * t).sin() + FRAC_PI_2,
+                0.6 * (3.0 * t).cos(),
+                -1.8 * (3.0 * t).sin(),
+            );
+            let kp = 100.0 + 300.0 * (20.0 - tilting_plant::energy(&cfg.params, mode, &x));
+            let v = bddd + 14.14 * (bdd_d - x[3]) + kp * (bd - x[1]);
+            assert!(
+                (bdd - v).abs() < 1e-9 * (1.0 + v.abs()),
+                "{mode}: {bdd} vs {v}"
+            );
+        }
+    }
+
+    #[test]
+    fn torque_limit_clips() {
+        let cfg = ControlConfig {
+            torque_limit: Some(1.5),
+            ..ControlConfig::default()
+        };
+        let c = ComputedTorque::new(cfg).unwrap();
+        let tau = c.torque(0.0, Mode::Flat, &State::new(0.0, 0.3, 0.0, 0.0));
+        assert_eq!(tau, 1.5);
+        let tau = c.torque(0.0, Mode::Flat, &State::new(0.0, 2.8, 0.0, 0.0));
+        assert_eq!(tau, -1.5);
+    }
+
+    #[test]
+    fn invalid_settings_name_the_field() {
+        for (cfg, field) in [
+            (
+                ControlConfig {
+                    kp: -1.0,
+                    ..ControlConfig::default()
+                },
+                "kp",
+            ),
+            (
+                ControlConfig {
+                    kd: f64::NAN,
+                    ..ControlConfig::default()
+                },
+                "kd",
+            ),
+            (
+                ControlConfig {
+                    k: 500.0,
+                    ..ControlConfig::default()
+                },
+                "energy_avg",
+            ),
+            (
+                ControlConfig {
+                    torque_limit: Some(0.0),
+                    ..ControlConfig::default()
+                },
+                "torque_limit",
+            ),
+            (
+                ControlConfig {
+                    reference: Reference::Sinusoid {
+                        amplitude: 0.3,
+                        omega: -1.0,
+                    },
+                    ..ControlConfig::default()
+                },
+                "omega",
+            ),
+        ] {
+            let err = ComputedTorque::new(cfg).unwrap_err().to_string();
+            assert!(err.contains(field), "{err}");
+        }
+        assert!("sinusoid:0.3".parse::<Reference>().is_err());
+        assert!("sinusoid:0.3,0".parse::<Reference>().is_err());
+        assert_eq!(
+            "sinusoid:0.33,5".parse::<Reference>().unwrap(),
+            Reference::Sinusoid {
+                amplitude: 0.33,
+                omega: 5.0
+            }
+        );
     }
 }

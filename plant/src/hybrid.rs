@@ -161,7 +161,7 @@ impl SimConfig {
         positive("fall_angle", self.fall_angle)?;
         positive("zeno_window", self.zeno_window)?;
         positive("event_tol", self.event_tol)?;
-        if !(self.h_max > 0.0) {
+        if self.h_max.is_nan() || self.h_max <= 0.0 {
             return Err(ConfigError::OutOfRange {
                 field: "h_max",
                 value: format!("{}", self.h_max),
@@ -223,6 +223,8 @@ pub struct Plant {
     recent_next: usize,
     transitions: u64,
     tilts: u64,
+    /// Right-hand-side evaluations, all counted (steps, dense output, event location, checks).
+    rhs_evals: u64,
 }
 
 impl Plant {
@@ -239,11 +241,14 @@ impl Plant {
         ] {
             crate::params::finite(field, v)?;
         }
-        let mut x = x0;
+        let x = x0;
         match mode {
-            Mode::Flat => {
-                x[0] = 0.0;
-                x[2] = 0.0;
+            Mode::Flat if x[0] != 0.0 || x[2] != 0.0 => {
+                return Err(ConfigError::OutOfRange {
+                    field: "alpha",
+                    value: format!("{} (alpha_dot {})", x[0], x[2]),
+                    allowed: "alpha = alpha_dot = 0 in mode flat",
+                })
             }
             Mode::Left if x[0] < 0.0 => {
                 return Err(ConfigError::OutOfRange {
@@ -281,6 +286,7 @@ impl Plant {
             recent_next: 0,
             transitions: 0,
             tilts: 0,
+            rhs_evals: 0,
         })
     }
 
@@ -302,7 +308,10 @@ impl Plant {
     }
     /// Integrator work counters.
     pub fn stats(&self) -> OdeStats {
-        self.stepper.stats
+        OdeStats {
+            evals: self.rhs_evals,
+            ..self.stepper.stats
+        }
     }
     /// Mode transitions so far.
     pub fn transitions(&self) -> u64 {
@@ -409,6 +418,7 @@ impl Plant {
             return Err(Fault::NonFiniteTorque { t: self.t, tau });
         }
         let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
+        self.rhs_evals += 1;
         let g = self.events(&self.x, &xd);
         if g[2] <= 0.0 {
             return Err(Fault::ContactLoss {
@@ -456,10 +466,58 @@ impl Plant {
         obs: &mut O,
     ) -> Result<(), Fault> {
         self.settle(tau_of, obs)?;
+        self.check_tilt_direction(tau_of, obs)?;
         let p = self.cfg.params;
+        let evals = std::cell::Cell::new(0u64);
+        let result = self.integrate_inner(tau_of, t_target, obs, &p, &evals);
+        self.rhs_evals += evals.get();
+        result
+    }
+
+    /// A tilted state at `alpha = 0` whose motion points into the ground (a start given that
+    /// way, or a torque step at the very start of a tilt) lands at once instead of running
+    /// through the ground unnoticed.
+    fn check_tilt_direction<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        tau_of: &T,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        let s = match self.mode {
+            Mode::Flat => return Ok(()),
+            Mode::Left => 1.0,
+            Mode::Right => -1.0,
+        };
+        if s * self.x[0] > 0.0 {
+            return Ok(());
+        }
+        let into_ground = if self.x[2] != 0.0 {
+            s * self.x[2] < 0.0
+        } else {
+            let tau = tau_of.torque(self.t, self.mode, &self.x);
+            let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
+            self.rhs_evals += 1;
+            s * xd[2] < 0.0
+        };
+        if into_ground {
+            self.land(obs)?;
+            self.settle(tau_of, obs)?;
+        }
+        Ok(())
+    }
+
+    fn integrate_inner<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        tau_of: &T,
+        t_target: f64,
+        obs: &mut O,
+        p: &Params,
+        evals: &std::cell::Cell<u64>,
+    ) -> Result<(), Fault> {
+        let p = *p;
         while self.t < t_target {
             let mode = self.mode;
             let mut f = |t: f64, x: &State| {
+                evals.set(evals.get() + 1);
                 let tm = Terms::new(&p, mode, x);
                 let tau = tau_of.torque_t(t, mode, x, &p, &tm);
                 let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
@@ -469,6 +527,14 @@ impl Plant {
             let mut g0 = self.events(&self.x, &f0);
             let mut terminal = None;
             while self.t < t_target {
+                // A sliver of time left by rounding (a few ulp): finish it with one Euler step
+                // rather than asking the stepper for a step below its resolution.
+                let rest = t_target - self.t;
+                if rest <= 64.0 * f64::EPSILON * self.t.abs().max(1.0) {
+                    self.x += f0 * rest;
+                    self.t = t_target;
+                    break;
+                }
                 let step = self.stepper.step(&mut f, self.t, &self.x, &f0, t_target)?;
                 let g1 = self.events(&step.y1, step.f1());
                 let fired = (0..NG).filter(|&i| crossed(g0[i], g1[i]));
@@ -536,6 +602,7 @@ impl Plant {
                 (Some(Ev::Contact), m) => {
                     let tau = tau_of.torque(self.t, m, &self.x);
                     let xd = rhs(&p, m, &self.x, tau);
+                    self.rhs_evals += 1;
                     return Err(Fault::ContactLoss {
                         t: self.t,
                         mode: m,

@@ -9,6 +9,9 @@
 //! across zero-order-hold periods so that a lockstep run reproduces an offline one bit for bit.
 //! See `docs/architecture.md` for the comparison with `diffsol`.
 
+// The coefficients are quoted with all the digits published for them.
+#![allow(clippy::excessive_precision)]
+
 use nalgebra::SVector;
 
 /// Errors of the integrator.

@@ -556,3 +556,45 @@ fn invalid_parameters_are_refused_with_the_field_named() {
         .to_string()
         .contains("rtol"));
 }
+
+#[test]
+fn a_tilt_started_into_the_ground_lands_at_once() {
+    // Mode left at alpha = 0 with the plate pushed down: it must not run through the ground.
+    let p = Params::default();
+    let law = paper_law(p, 0.0);
+    let x = State::new(0.0, FRAC_PI_2, 0.0, 0.0);
+    let mut plant = Plant::new(SimConfig::default(), 0.0, Mode::Left, x).unwrap();
+    let mut log = Log::default();
+    plant.advance_continuous(&law, 0.5, &mut log).unwrap();
+    assert_eq!(log.events[0].t, 0.0);
+    assert_eq!(
+        (log.events[0].from, log.events[0].to),
+        (Mode::Left, Mode::Flat)
+    );
+    assert_eq!(plant.mode(), Mode::Flat);
+    // The same with a downward tilt rate.
+    let x = State::new(0.0, FRAC_PI_2, -0.2, 0.0);
+    let mut plant = Plant::new(SimConfig::default(), 0.0, Mode::Left, x).unwrap();
+    plant.advance_held(0.0, 0.01, &mut ()).unwrap();
+    assert!(plant.mode() != Mode::Left || plant.state()[0] >= 0.0);
+}
+
+#[test]
+fn rounding_slivers_before_a_sample_instant_do_not_fault() {
+    // Small maximal steps in 1 ms pieces used to leave a few-ulp remainder before the target.
+    let p = Params::default();
+    let law = paper_law(p, 500.0);
+    let cfg = SimConfig {
+        h_max: 1e-4,
+        ..SimConfig::default()
+    };
+    let x0 = State::new(0.0, FRAC_PI_2 + ORBIT_BETA0, 0.0, ORBIT_BETA_DOT0);
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
+    for k in 0..3000u64 {
+        let tau = law(k as f64 * 1e-3, plant.mode(), &plant.state());
+        plant
+            .advance_held(tau, (k + 1) as f64 * 1e-3, &mut ())
+            .unwrap();
+    }
+    assert_eq!(plant.time(), 3.0);
+}
