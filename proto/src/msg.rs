@@ -318,6 +318,10 @@ pub struct Status {
     pub jitter_p99_us: f64,
     /// Largest period overrun since start, µs.
     pub max_overrun_us: f64,
+    /// Median loop latency (state published to its torque received), µs.
+    pub latency_p50_us: f64,
+    /// 99th percentile of the loop latency, µs.
+    pub latency_p99_us: f64,
     /// Fault description, empty if none; at most [`Status::MAX_FAULT_LEN`] bytes of UTF-8.
     pub fault: String,
 }
@@ -336,7 +340,7 @@ impl Status {
     /// Cap on `fault`, bytes.
     pub const MAX_FAULT_LEN: usize = 1024;
     /// Wire size with an empty `fault`, bytes.
-    pub const MIN_SIZE: usize = 106;
+    pub const MIN_SIZE: usize = 122;
     /// Largest valid wire size, bytes.
     pub const MAX_SIZE: usize = Self::MIN_SIZE + Self::MAX_FAULT_LEN;
 
@@ -367,6 +371,8 @@ impl Status {
         finite(M, "jitter_p50_us", self.jitter_p50_us)?;
         finite(M, "jitter_p99_us", self.jitter_p99_us)?;
         finite(M, "max_overrun_us", self.max_overrun_us)?;
+        finite(M, "latency_p50_us", self.latency_p50_us)?;
+        finite(M, "latency_p99_us", self.latency_p99_us)?;
         if self.fault.len() > Self::MAX_FAULT_LEN {
             return Err(ValidationError::TooLong {
                 message: M,
@@ -499,6 +505,8 @@ mod tests {
             jitter_p50_us: 0.0,
             jitter_p99_us: 0.0,
             max_overrun_us: 0.0,
+            latency_p50_us: 0.0,
+            latency_p99_us: 0.0,
             fault: String::new(),
         };
         s.set_fault("short");

@@ -61,6 +61,8 @@ fn status_bytes_with_declared_len(len: u64) -> Vec<u8> {
         jitter_p50_us: 1.0,
         jitter_p99_us: 2.0,
         max_overrun_us: 3.0,
+        latency_p50_us: 4.0,
+        latency_p99_us: 5.0,
         fault: String::new(),
     };
     let mut b = codec::encode(&s);

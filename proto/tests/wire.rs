@@ -65,6 +65,8 @@ fn example_status() -> Status {
         jitter_p50_us: 12.25,
         jitter_p99_us: 80.5,
         max_overrun_us: 950.0,
+        latency_p50_us: 21.5,
+        latency_p99_us: 64.75,
         fault: "watchdog: no torque for 20 ms (ü)".to_owned(),
     }
 }
@@ -100,8 +102,8 @@ fn wire_sizes() {
     assert_eq!(TorqueCommand::SIZE, 16);
     assert_eq!(ModeEvent::SIZE, 82);
     assert_eq!(Reference::SIZE, 57);
-    assert_eq!(Status::MIN_SIZE, 106);
-    assert_eq!(Status::MAX_SIZE, 106 + 1024);
+    assert_eq!(Status::MIN_SIZE, 122);
+    assert_eq!(Status::MAX_SIZE, 122 + 1024);
     assert_eq!(<PlantState as Message>::WIRE_SIZE, Some(49));
     assert_eq!(<TorqueCommand as Message>::WIRE_SIZE, Some(16));
     assert_eq!(<ModeEvent as Message>::WIRE_SIZE, Some(82));
@@ -227,7 +229,13 @@ fn status_layout_is_hand_built() {
     ] {
         want.extend_from_slice(&n.to_le_bytes());
     }
-    for f in [s.jitter_p50_us, s.jitter_p99_us, s.max_overrun_us] {
+    for f in [
+        s.jitter_p50_us,
+        s.jitter_p99_us,
+        s.max_overrun_us,
+        s.latency_p50_us,
+        s.latency_p99_us,
+    ] {
         want.extend_from_slice(&f.to_le_bytes());
     }
     assert_eq!(want.len(), Status::MIN_SIZE - 8);
@@ -379,7 +387,7 @@ fn status_truncated_or_extended_is_rejected() {
         }
     );
     let too_big = vec![0u8; Status::MAX_SIZE + 1];
-    let err = expect_err::<Status>(&too_big, &["Status", "at most 1130", "got 1131"]);
+    let err = expect_err::<Status>(&too_big, &["Status", "at most 1146", "got 1147"]);
     assert!(matches!(err, DecodeError::TooLarge { .. }));
     // A 1025-byte fault encodes (encode does not validate) but cannot be received.
     let mut s = example_status();
@@ -478,6 +486,20 @@ fn non_finite_fields_of_other_messages_are_named() {
             "max_overrun_us",
             Status {
                 max_overrun_us: f64::NAN,
+                ..example_status()
+            },
+        ),
+        (
+            "latency_p50_us",
+            Status {
+                latency_p50_us: f64::NEG_INFINITY,
+                ..example_status()
+            },
+        ),
+        (
+            "latency_p99_us",
+            Status {
+                latency_p99_us: f64::NAN,
                 ..example_status()
             },
         ),
@@ -758,12 +780,12 @@ fn random_bytes_never_panic_and_accepted_status_round_trips() {
             // Make the fixed part plausible and the length prefix consistent half the time.
             b[16] %= 5;
             b[17] %= 3;
-            for off in [8, 74, 82, 90] {
+            for off in [8, 74, 82, 90, 98, 106] {
                 b[off..off + 8].copy_from_slice(&1.0f64.to_le_bytes());
             }
             let n = (len - Status::MIN_SIZE) as u64;
-            b[98..106].copy_from_slice(&n.to_le_bytes());
-            for c in &mut b[106..] {
+            b[114..122].copy_from_slice(&n.to_le_bytes());
+            for c in &mut b[122..] {
                 *c = b'a' + *c % 26;
             }
         }

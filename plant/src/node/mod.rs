@@ -370,6 +370,7 @@ impl Loop {
 
     fn status(&mut self) -> Status {
         let p = self.jitter.percentiles();
+        let l = self.latency.percentiles();
         let mut s = Status {
             seq: self.seq,
             time: self.plant.time(),
@@ -385,6 +386,8 @@ impl Loop {
             jitter_p50_us: p.p50,
             jitter_p99_us: p.p99,
             max_overrun_us: self.max_overrun_us(),
+            latency_p50_us: l.p50,
+            latency_p99_us: l.p99,
             fault: String::new(),
         };
         s.set_fault(&self.fault);
