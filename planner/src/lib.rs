@@ -44,4 +44,8 @@ impl std::fmt::Display for CommandError {
 }
 
 impl std::error::Error for CommandError {}
+pub mod bifurcation;
+pub mod commands;
+pub mod gains;
 pub mod orbit;
+pub mod sinusoid;

@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
+use tilting_planner::commands;
 use tilting_planner::simulate::{self, SimulateArgs};
 
 #[derive(Debug, Parser)]
@@ -17,6 +18,15 @@ enum Command {
     /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
     /// default the paper's stabilised tilting orbit
     Simulate(SimulateArgs),
+    /// Approach 1: the frequency w of beta_d = A sin(w t) + pi/2 whose ideal-tracking tilt lands
+    /// at t_l = T/2 + s t_t
+    Sinusoid(commands::SinusoidArgs),
+    /// Approach 2: every periodic tilting orbit for a gain pair, with Floquet multipliers
+    Orbit(commands::OrbitArgs),
+    /// Sweep the energy-adaptation gain k (Fig. 8): tilt peaks, their period, and k*
+    Bifurcation(commands::BifurcationArgs),
+    /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
+    Gains(commands::GainsArgs),
 }
 
 fn main() -> ExitCode {
@@ -24,6 +34,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Simulate(args) => simulate::run(args),
+        Command::Sinusoid(args) => commands::sinusoid(args),
+        Command::Orbit(args) => commands::orbit(args),
+        Command::Bifurcation(args) => commands::bifurcation(args),
+        Command::Gains(args) => commands::gains(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

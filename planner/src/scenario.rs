@@ -10,11 +10,11 @@
 //!
 //! ```toml
 //! mode = "left"
-//! x0 = [0.0, 1.5705814493798966, 0.0, 0.498257789686]
+//! x0 = [0.0, 1.5705814493798966, 0.0, 0.498257789692]
 //! kp = 100
 //! kd = 14.14
 //! k = 500
-//! energy_avg = 19.9588180580
+//! energy_avg = 19.963439703027
 //! reference = "hold"            # or "sinusoid:A,w"
 //! impact = "paper"              # or "striking-edge"
 //! duration = 10                 # s
@@ -45,7 +45,7 @@ pub const ORBIT_MODE: Mode = Mode::Left;
 /// `beta0` (rad): the orbit starts at `beta = pi/2 + ORBIT_BETA0`.
 pub const ORBIT_BETA0: f64 = -0.000214877415;
 /// `beta_dot0` (rad/s) at the start of the orbit.
-pub const ORBIT_BETA_DOT0: f64 = 0.498257789686;
+pub const ORBIT_BETA_DOT0: f64 = 0.498257789692;
 /// Duration of the left tilt (s): half the orbit's period; the orbit lands at this time and
 /// tilts right at once (the mirror image of the left half).
 pub const ORBIT_HALF_PERIOD: f64 = 0.435260234280;
@@ -57,7 +57,7 @@ pub const ORBIT_KD: f64 = 14.14;
 /// (period doubling sets in near `k = 1925`).
 pub const ORBIT_K: f64 = 500.0;
 /// The time average `E_av` (J) of the energy over one period of the orbit.
-pub const ORBIT_ENERGY_AVG: f64 = 19.9588180580;
+pub const ORBIT_ENERGY_AVG: f64 = 19.963439703027;
 
 /// Default run length (s).
 pub const DEFAULT_DURATION: f64 = 10.0;
@@ -584,7 +584,7 @@ impl Scenario {
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct ScenarioArgs {
     /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad, rad/s, rad/s) [default: start of
-    /// the paper's orbit, 0,1.5705814493798966,0,0.498257789686]
+    /// the paper's orbit, 0,1.5705814493798966,0,0.498257789692]
     #[arg(long, value_name = "A,B,AD,BD", value_parser = parse_x0, allow_hyphen_values = true)]
     pub x0: Option<[f64; 4]>,
     /// Initial mode: flat, left or right [default: left]
@@ -600,7 +600,7 @@ pub struct ScenarioArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub k: Option<f64>,
     /// Average orbit energy E_av (J) for the adaptation; required when k != 0 unless k and the
-    /// model are the defaults [default: 19.9588180580 with the default k]
+    /// model are the defaults [default: 19.963439703027 with the default k]
     #[arg(long, allow_negative_numbers = true)]
     pub energy_avg: Option<f64>,
     /// Desired arm trajectory: hold (beta_d = pi/2) or sinusoid:A,w (beta_d = A sin(w t) + pi/2,

@@ -52,8 +52,8 @@ impl Observer for Log {
 /// The paper's periodic orbit (K_P = 100, K_D = 14.14) and its average energy, as found by the
 /// planner; the tests below only need a realistic tilting motion, not these exact digits.
 const ORBIT_BETA0: f64 = -0.000214877415;
-const ORBIT_BETA_DOT0: f64 = 0.498257789686;
-const ORBIT_E_AV: f64 = 19.9588180580;
+const ORBIT_BETA_DOT0: f64 = 0.498257789692;
+const ORBIT_E_AV: f64 = 19.963439703027;
 
 /// The closed-loop law of the paper written out independently of the controller crate (which
 /// this crate does not depend on): computed torque for `v = K_D (0 - beta_dot) + K_P (pi/2 -

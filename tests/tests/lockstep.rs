@@ -54,11 +54,11 @@ fn offline() -> Vec<Row> {
         },
         ..SimConfig::default()
     };
-    let x0 = State::new(0.0, FRAC_PI_2 - 0.000214877415, 0.0, 0.498257789686);
+    let x0 = State::new(0.0, FRAC_PI_2 - 0.000214877415, 0.0, 0.498257789692);
     let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
     let c = ComputedTorque::new(ControlConfig {
         k: 500.0,
-        energy_avg: 19.9588180580,
+        energy_avg: 19.963439703027,
         ..ControlConfig::default()
     })
     .unwrap();

@@ -124,7 +124,7 @@ async fn controller_started_after_the_planner_receives_the_reference() {
     };
     let flags_law = ComputedTorque::new(ControlConfig {
         k: 500.0,
-        energy_avg: 19.9588180580,
+        energy_avg: 19.963439703027,
         ..ControlConfig::default()
     })
     .unwrap();

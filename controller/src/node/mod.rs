@@ -49,7 +49,7 @@ pub struct ControllerArgs {
     #[arg(long, default_value_t = 500.0)]
     pub k: f64,
     /// Target average energy E_av (J) of the adaptation
-    #[arg(long, default_value_t = 19.9588180580)]
+    #[arg(long, default_value_t = 19.963439703027)]
     pub energy_avg: f64,
     /// Desired arm trajectory: hold or sinusoid:A,w (A in rad, w in rad/s)
     #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
@@ -341,7 +341,7 @@ mod tests {
         let a = ControllerArgs::try_parse_from(["tilting-controller"]).unwrap();
         let c = a.control_config().unwrap();
         assert_eq!((c.kp, c.kd, c.k), (100.0, 14.14, 500.0));
-        assert_eq!(c.energy_avg, 19.9588180580);
+        assert_eq!(c.energy_avg, 19.963439703027);
         assert_eq!(c.reference, Reference::Hold);
         assert_eq!(c.torque_limit, None);
         let a = ControllerArgs::try_parse_from([

@@ -62,7 +62,7 @@ pub const EXIT_FAULT: u8 = 3;
 /// `beta0` of the paper's tilting orbit: the default start is `beta = pi/2 + ORBIT_BETA0`.
 pub const ORBIT_BETA0: f64 = -0.000214877415;
 /// `beta_dot0` (rad/s) of the paper's tilting orbit.
-pub const ORBIT_BETA_DOT0: f64 = 0.498257789686;
+pub const ORBIT_BETA_DOT0: f64 = 0.498257789692;
 
 /// The default initial state: the start of a left tilt on the paper's orbit (the same as
 /// `tilting-planner simulate`).
@@ -133,7 +133,7 @@ pub struct PlantArgs {
     #[arg(long, default_value = "left")]
     pub mode: Mode,
     /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad/s) [default: start of the paper's
-    /// tilting orbit, 0,pi/2-0.000214877415,0,0.498257789686]
+    /// tilting orbit, 0,pi/2-0.000214877415,0,0.498257789692]
     #[arg(long, value_name = "A,B,AD,BD", value_parser = parse_x0, allow_hyphen_values = true)]
     pub x0: Option<[f64; 4]>,
     /// Landing impact law: paper or striking-edge
@@ -981,6 +981,6 @@ mod tests {
     fn default_start_is_the_orbit() {
         let x = orbit_x0();
         assert_eq!(x[1], FRAC_PI_2 - 0.000214877415);
-        assert_eq!(x[3], 0.498257789686);
+        assert_eq!(x[3], 0.498257789692);
     }
 }

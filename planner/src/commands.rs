@@ -1,0 +1,525 @@
+//! Command-line glue for the planning commands `orbit`, `sinusoid`, `bifurcation` and `gains`:
+//! flags, validation that names the field, progress bars and output (a human summary, or one
+//! JSON object with `--json`). The computations live in [`crate::orbit`], [`crate::sinusoid`],
+//! [`crate::bifurcation`] and [`crate::gains`].
+
+use crate::bifurcation::{self, Sweep};
+use crate::orbit::{self, OrbitProblem, OrbitSolution};
+use crate::sinusoid;
+use crate::{gains, CommandError};
+use anyhow::anyhow;
+use clap::Args;
+use serde::Serialize;
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use tilting_plant::{ImpactLaw, Params};
+
+/// Model flags shared by the planning commands.
+#[derive(Debug, Clone, Args)]
+pub struct ModelArgs {
+    /// TOML file with the physical parameters (m_f, m_l, l, f, g); missing fields keep the
+    /// paper's values
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// Landing impact law
+    #[arg(long, default_value = "paper", value_parser = parse_impact)]
+    pub impact: ImpactLaw,
+    /// Print one JSON object instead of a human summary
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
+    s.parse()
+}
+
+impl ModelArgs {
+    fn params(&self) -> Result<Params, CommandError> {
+        match &self.params {
+            Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into())),
+            None => Ok(Params::default()),
+        }
+    }
+}
+
+fn usage(msg: String) -> CommandError {
+    CommandError::Usage(anyhow!(msg))
+}
+
+fn check(field: &str, v: f64, ok: bool, allowed: &str) -> Result<f64, CommandError> {
+    if v.is_finite() && ok {
+        Ok(v)
+    } else {
+        Err(usage(format!(
+            "invalid `--{field}` = {v}: must be {allowed}"
+        )))
+    }
+}
+
+fn emit<T: Serialize>(
+    json: bool,
+    value: &T,
+    human: impl FnOnce() -> String,
+) -> Result<(), CommandError> {
+    let text = if json {
+        let mut s = serde_json::to_string(value).map_err(|e| CommandError::Failed(e.into()))?;
+        s.push('\n');
+        s
+    } else {
+        human()
+    };
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(CommandError::Failed(anyhow!("cannot write to stdout: {e}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let b = indicatif::ProgressBar::new(len);
+    b.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{what} [{{bar:40}}] {{pos}}/{{len}} {{elapsed_precise}} (eta {{eta}})"
+        ))
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    b
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// `orbit`: the periodic orbits of approach 2 for one gain pair.
+#[derive(Debug, Clone, Args)]
+pub struct OrbitArgs {
+    /// Stiffness gain K_P (1/s^2)
+    #[arg(long, default_value_t = 100.0)]
+    pub kp: f64,
+    /// Damping gain K_D (1/s)
+    #[arg(long, default_value_t = 14.14)]
+    pub kd: f64,
+    /// Energy adaptation gain k (1/(J s^2)); with k > 0 the orbit of the adapted loop
+    /// K_P = K_P0 + k (E_av - E) is computed, E_av taken from the k = 0 orbit unless given
+    #[arg(long, default_value_t = 0.0)]
+    pub k: f64,
+    /// Average energy E_av (J) for the adaptation
+    #[arg(long)]
+    pub energy_avg: Option<f64>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// The JSON of `orbit`.
+#[derive(Debug, Serialize)]
+pub struct OrbitReport {
+    /// K_P (1/s^2).
+    pub kp: f64,
+    /// K_D (1/s).
+    pub kd: f64,
+    /// k.
+    pub k: f64,
+    /// E_av used by the adaptation (J), if any.
+    pub energy_avg_adaptation: Option<f64>,
+    /// The orbits found, by increasing maximal tilt.
+    pub solutions: Vec<OrbitSolution>,
+}
+
+/// Runs `orbit`.
+pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
+    let params = args.model.params()?;
+    check("kp", args.kp, args.kp > 0.0, "finite and > 0")?;
+    check("kd", args.kd, args.kd > 0.0, "finite and > 0")?;
+    check("k", args.k, args.k >= 0.0, "finite and >= 0")?;
+    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let base = orbit::find_all(&pb);
+    let (solutions, e_av) = if args.k > 0.0 {
+        let e_av = match args.energy_avg {
+            Some(e) => check("energy-avg", e, e > 0.0, "finite and > 0 (J)")?,
+            None => base.first().map(|s| s.energy_avg).ok_or_else(|| {
+                usage("no k = 0 orbit to take E_av from: give --energy-avg".into())
+            })?,
+        };
+        let mut sols: Vec<OrbitSolution> = base
+            .iter()
+            .filter_map(|s| {
+                // Continue each branch from k = 0 in steps, the orbit moves with k.
+                let mut g = [s.beta0, s.beta_dot0, s.t_end];
+                let n = (args.k / 100.0).ceil().max(1.0) as usize;
+                let mut last = None;
+                for i in 1..=n {
+                    let kk = args.k * i as f64 / n as f64;
+                    let sol = orbit::solve(&pb.with_adaptation(kk, e_av), g).ok()?;
+                    g = [sol.beta0, sol.beta_dot0, sol.t_end];
+                    last = Some(sol);
+                }
+                last
+            })
+            .collect();
+        sols.sort_by(|a, b| a.max_tilt.total_cmp(&b.max_tilt));
+        (sols, Some(e_av))
+    } else {
+        (base, None)
+    };
+    let report = OrbitReport {
+        kp: args.kp,
+        kd: args.kd,
+        k: args.k,
+        energy_avg_adaptation: e_av,
+        solutions,
+    };
+    emit(args.model.json, &report, || {
+        let mut s = format!(
+            "periodic orbits for K_P = {}, K_D = {}, k = {} ({} found)\n",
+            args.kp,
+            args.kd,
+            args.k,
+            report.solutions.len()
+        );
+        for o in &report.solutions {
+            let mult: Vec<String> = o
+                .multipliers
+                .iter()
+                .map(|m| {
+                    if m[1] == 0.0 {
+                        format!("{:.6}", m[0])
+                    } else {
+                        format!("{:.6}{:+.6}i", m[0], m[1])
+                    }
+                })
+                .collect();
+            s += &format!(
+                "  beta0 = {:+.9} rad, beta_dot0 = {:.9} rad/s, t_end = {:.9} s, period = {:.6} s, \
+                 max tilt = {:.6} rad, E_av = {:.9} J, multipliers [{}] ({})\n",
+                o.beta0,
+                o.beta_dot0,
+                o.t_end,
+                o.period,
+                o.max_tilt,
+                o.energy_avg,
+                mult.join(", "),
+                if o.stable { "stable" } else { "unstable" }
+            );
+        }
+        s
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// `sinusoid`: approach 1, the frequency for a landing condition.
+#[derive(Debug, Clone, Args)]
+pub struct SinusoidArgs {
+    /// Amplitude A of beta_d = A sin(w t) + pi/2 (rad)
+    #[arg(long, default_value_t = 0.33)]
+    pub amplitude: f64,
+    /// s in the landing condition t_l = T/2 + s t_t, in (-1, 1)
+    #[arg(long, default_value_t = -0.5, allow_hyphen_values = true)]
+    pub landing_offset: f64,
+    /// Lowest frequency searched (rad/s)
+    #[arg(long, default_value_t = 0.5)]
+    pub omega_min: f64,
+    /// Highest frequency searched (rad/s)
+    #[arg(long, default_value_t = 30.0)]
+    pub omega_max: f64,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// Runs `sinusoid`.
+pub fn sinusoid(args: &SinusoidArgs) -> Result<(), CommandError> {
+    let params = args.model.params()?;
+    let search = sinusoid::Search {
+        omega_min: args.omega_min,
+        omega_max: args.omega_max,
+        ..sinusoid::Search::default()
+    };
+    check(
+        "omega-min",
+        args.omega_min,
+        args.omega_min > 0.0,
+        "finite and > 0 (rad/s)",
+    )?;
+    check(
+        "omega-max",
+        args.omega_max,
+        args.omega_max > args.omega_min,
+        "finite and > --omega-min (rad/s)",
+    )?;
+    let sol = sinusoid::solve(&params, args.amplitude, args.landing_offset, &search).map_err(
+        |e| match e {
+            sinusoid::SinusoidError::Invalid { .. } => CommandError::Usage(e.into()),
+            other => CommandError::Failed(other.into()),
+        },
+    )?;
+    emit(args.model.json, &sol, || {
+        format!(
+            "A = {} rad, t_l = T/2 + ({}) t_t: w = {:.9} rad/s (T = {:.6} s), tilt {} at t_t = {:.6} s, \
+             landing at t_l = {:.6} s, max tilt {:.6} rad{}\n",
+            sol.amplitude,
+            sol.landing_offset,
+            sol.omega,
+            sol.period,
+            sol.side,
+            sol.tilt_time,
+            sol.landing_time,
+            sol.max_tilt,
+            if sol.other_roots.is_empty() {
+                String::new()
+            } else {
+                format!("; other solutions at w = {:?}", sol.other_roots)
+            }
+        )
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// `bifurcation`: the sweep of the adaptation gain k (Fig. 8) and k*.
+#[derive(Debug, Clone, Args)]
+pub struct BifurcationArgs {
+    /// First k (1/(J s^2))
+    #[arg(long, default_value_t = 1500.0)]
+    pub k_from: f64,
+    /// Last k
+    #[arg(long, default_value_t = 2500.0)]
+    pub k_to: f64,
+    /// Step of k
+    #[arg(long, default_value_t = 10.0)]
+    pub k_step: f64,
+    /// Tilts simulated for each k
+    #[arg(long, default_value_t = 500)]
+    pub tilts: usize,
+    /// Tilts kept (the last ones) for each k
+    #[arg(long, default_value_t = 200)]
+    pub keep: usize,
+    /// K_P0 (1/s^2)
+    #[arg(long, default_value_t = 100.0)]
+    pub kp: f64,
+    /// K_D (1/s)
+    #[arg(long, default_value_t = 14.14)]
+    pub kd: f64,
+    /// Peaks closer than this (rad) count as equal when classifying the period
+    #[arg(long, default_value_t = 1e-5)]
+    pub period_tol: f64,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// The JSON of `bifurcation`.
+#[derive(Debug, Serialize)]
+pub struct BifurcationReport {
+    /// E_av of the k = 0 orbit (J).
+    pub energy_avg: f64,
+    /// Where a multiplier of the adapted orbit crosses -1 (null if not in the range).
+    pub k_star: Option<f64>,
+    /// The first k of the sweep whose peaks are not period 1 (null if none).
+    pub k_onset_observed: Option<f64>,
+    /// One row per k.
+    pub rows: Vec<bifurcation::Row>,
+}
+
+/// The `k = 0` orbit the sweep starts from (the one with the smallest tilt).
+pub fn base_orbit(pb: &OrbitProblem) -> Result<OrbitSolution, CommandError> {
+    orbit::find_all(pb).into_iter().next().ok_or_else(|| {
+        CommandError::Failed(anyhow!(
+            "no periodic orbit for K_P = {}, K_D = {}",
+            pb.control.kp,
+            pb.control.kd
+        ))
+    })
+}
+
+/// Runs `bifurcation`.
+pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
+    let params = args.model.params()?;
+    check("k-from", args.k_from, args.k_from >= 0.0, "finite and >= 0")?;
+    check(
+        "k-to",
+        args.k_to,
+        args.k_to >= args.k_from,
+        "finite and >= --k-from",
+    )?;
+    check("k-step", args.k_step, args.k_step > 0.0, "finite and > 0")?;
+    check(
+        "period-tol",
+        args.period_tol,
+        args.period_tol > 0.0,
+        "finite and > 0 (rad)",
+    )?;
+    if args.keep == 0 || args.keep > args.tilts {
+        return Err(usage(format!(
+            "invalid `--keep` = {}: must be in 1..=--tilts ({})",
+            args.keep, args.tilts
+        )));
+    }
+    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let o = base_orbit(&pb)?;
+    let ks = gains::range(args.k_from, args.k_to, args.k_step);
+    let sw = Sweep {
+        problem: pb,
+        start_beta0: o.beta0,
+        start_beta_dot0: o.beta_dot0,
+        energy_avg: o.energy_avg,
+        tilts: args.tilts,
+        keep: args.keep,
+        period_tol: args.period_tol,
+    };
+    let b = bar(ks.len() as u64, "bifurcation", args.model.json);
+    let rows = bifurcation::sweep(&sw, &ks, &|| b.inc(1));
+    b.finish_and_clear();
+    // The attracting adapted orbit is found by simulation at k = 500 (the paper's stabilised
+    // case), or at k_from if that is lower, and continued from there.
+    let k_star = bifurcation::k_star(&sw, 500.0, args.k_from, args.k_to, 1e-3);
+    let report = BifurcationReport {
+        energy_avg: o.energy_avg,
+        k_star,
+        k_onset_observed: rows.iter().find(|r| r.period != Some(1)).map(|r| r.k),
+        rows,
+    };
+    emit(args.model.json, &report, || {
+        let mut s = format!(
+            "E_av = {:.9} J; k* (multiplier crosses -1) = {}; first k not period 1 in the sweep = {}\n",
+            report.energy_avg,
+            report.k_star.map_or("none in range".into(), |k| format!("{k:.3}")),
+            report.k_onset_observed.map_or("none".into(), |k| format!("{k}"))
+        );
+        for r in &report.rows {
+            let (lo, hi) = r
+                .peaks
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(lo, hi), &p| {
+                    (lo.min(p), hi.max(p))
+                });
+            s += &format!(
+                "  k = {:>8.2}: period {:>9}  |alpha| peaks in [{:.6}, {:.6}] rad{}\n",
+                r.k,
+                r.period.map_or("irregular".to_string(), |p| p.to_string()),
+                lo,
+                hi,
+                r.fault
+                    .as_ref()
+                    .map_or(String::new(), |f| format!("  fault: {f}"))
+            );
+        }
+        s
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// `gains`: the maximal tilt angle over a grid of (K_P, K_D) (Fig. 6).
+#[derive(Debug, Clone, Args)]
+pub struct GainsArgs {
+    /// First K_P (1/s^2)
+    #[arg(long, default_value_t = 60.0)]
+    pub kp_from: f64,
+    /// Last K_P
+    #[arg(long, default_value_t = 140.0)]
+    pub kp_to: f64,
+    /// Step of K_P
+    #[arg(long, default_value_t = 20.0)]
+    pub kp_step: f64,
+    /// First K_D (1/s)
+    #[arg(long, default_value_t = 8.0)]
+    pub kd_from: f64,
+    /// Last K_D
+    #[arg(long, default_value_t = 20.0)]
+    pub kd_to: f64,
+    /// Step of K_D
+    #[arg(long, default_value_t = 1.0)]
+    pub kd_step: f64,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// The JSON of `gains`.
+#[derive(Debug, Serialize)]
+pub struct GainsReport {
+    /// One entry per (K_P, K_D).
+    pub cells: Vec<gains::Cell>,
+}
+
+/// Checks the grid flags and returns `(kps, kds)`.
+pub fn grid_axes(args: &GainsArgs) -> Result<(Vec<f64>, Vec<f64>), CommandError> {
+    check(
+        "kp-from",
+        args.kp_from,
+        args.kp_from > 0.0,
+        "finite and > 0",
+    )?;
+    check(
+        "kp-to",
+        args.kp_to,
+        args.kp_to >= args.kp_from,
+        "finite and >= --kp-from",
+    )?;
+    check(
+        "kp-step",
+        args.kp_step,
+        args.kp_step > 0.0,
+        "finite and > 0",
+    )?;
+    check(
+        "kd-from",
+        args.kd_from,
+        args.kd_from > 0.0,
+        "finite and > 0",
+    )?;
+    check(
+        "kd-to",
+        args.kd_to,
+        args.kd_to >= args.kd_from,
+        "finite and >= --kd-from",
+    )?;
+    check(
+        "kd-step",
+        args.kd_step,
+        args.kd_step > 0.0,
+        "finite and > 0",
+    )?;
+    let kps = gains::range(args.kp_from, args.kp_to, args.kp_step);
+    let kds = gains::range(args.kd_from, args.kd_to, args.kd_step);
+    if kps.len() * kds.len() > 100_000 {
+        return Err(usage(format!(
+            "the grid has {} cells: at most 100000",
+            kps.len() * kds.len()
+        )));
+    }
+    Ok((kps, kds))
+}
+
+/// Runs `gains`.
+pub fn gains(args: &GainsArgs) -> Result<(), CommandError> {
+    let params = args.model.params()?;
+    let (kps, kds) = grid_axes(args)?;
+    let b = bar(kps.len() as u64, "gains", args.model.json);
+    let cells = gains::grid(params, args.model.impact, &kps, &kds, &|| b.inc(1));
+    b.finish_and_clear();
+    let report = GainsReport { cells };
+    emit(args.model.json, &report, || {
+        let mut s = String::from("maximal tilt angle (rad) of the periodic orbits\n");
+        for c in &report.cells {
+            s += &format!(
+                "  K_P = {:>7.2}, K_D = {:>6.2}: {}\n",
+                c.kp,
+                c.kd,
+                if c.max_tilt.is_empty() {
+                    "no orbit found".to_string()
+                } else {
+                    c.max_tilt
+                        .iter()
+                        .zip(&c.stable)
+                        .map(|(m, st)| format!("{m:.6}{}", if *st { " (stable)" } else { "" }))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            );
+        }
+        s
+    })
+}
