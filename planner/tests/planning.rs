@@ -1,0 +1,245 @@
+//! The planner checked against truths it did not produce: the orbit re-simulated by the hybrid
+//! simulator, its multipliers against a finite-difference monodromy of the full hybrid return
+//! map, the mirror symmetry, the sinusoid solution against a closed-loop simulation, and k*
+//! against the onset of period two in the sweep.
+
+use std::f64::consts::{FRAC_PI_2, PI};
+use tilting_controller::{ComputedTorque, ControlConfig, Reference};
+use tilting_planner::bifurcation::{self, Sweep};
+use tilting_planner::orbit::{self, eigenvalues2, OrbitProblem, OrbitSolution};
+use tilting_planner::sinusoid::{self, Search};
+use tilting_plant::{
+    mirror, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, Tolerance, Transition,
+};
+
+#[derive(Default)]
+struct Events(Vec<Transition>);
+impl Observer for Events {
+    fn transition(&mut self, ev: &Transition) {
+        self.0.push(*ev);
+    }
+}
+
+fn tight() -> SimConfig {
+    SimConfig {
+        tol: Tolerance {
+            rtol: 1e-12,
+            atol: 1e-14,
+        },
+        ..SimConfig::default()
+    }
+}
+
+fn paper_orbit() -> (OrbitProblem, OrbitSolution) {
+    let pb = OrbitProblem::new(Params::default(), ImpactLaw::Paper, 100.0, 14.14);
+    let sols = orbit::find_all(&pb);
+    assert!(!sols.is_empty(), "no orbit found");
+    let s = sols[0].clone();
+    (pb, s)
+}
+
+/// Runs the hybrid loop from `x0` in `mode` until `n` transitions into `target` have happened.
+fn run_until(
+    law: &ComputedTorque,
+    mode: Mode,
+    x0: State,
+    target: Mode,
+    n: usize,
+) -> Vec<Transition> {
+    let mut plant = Plant::new(tight(), 0.0, mode, x0).unwrap();
+    let mut ev = Events::default();
+    let mut t = 0.0;
+    while ev.0.iter().filter(|e| e.to == target).count() < n {
+        t += 0.05;
+        plant.advance_continuous(law, t, &mut ev).unwrap();
+        assert!(t < 20.0, "no transition into {target}");
+    }
+    ev.0
+}
+
+#[test]
+fn orbit_is_a_periodic_hybrid_solution_when_resimulated() {
+    let (pb, s) = paper_orbit();
+    let law = ComputedTorque::new(pb.control).unwrap();
+    let x0 = OrbitProblem::start(s.beta0, s.beta_dot0);
+    // Half a period: land at t_end and start the right tilt in the mirrored state.
+    let ev = run_until(&law, Mode::Left, x0, Mode::Right, 1);
+    let land = ev.iter().find(|e| e.from == Mode::Left).unwrap();
+    let right = ev.iter().find(|e| e.to == Mode::Right).unwrap();
+    assert!((land.t - s.t_end).abs() < 1e-9, "{} vs {}", land.t, s.t_end);
+    assert_eq!(right.t, land.t, "the right tilt starts at the landing");
+    assert!((right.x_after - mirror(&x0)).norm() < 1e-9);
+    // A full period: back at the start.
+    let ev = run_until(&law, Mode::Left, x0, Mode::Left, 1);
+    let back = ev.iter().find(|e| e.to == Mode::Left).unwrap();
+    assert!((back.t - s.period).abs() < 1e-8);
+    assert!((back.x_after - x0).norm() < 1e-8);
+    // The orbit of the paper is unstable (one multiplier outside the unit circle).
+    assert!(!s.stable);
+    assert!(s.max_tilt > 0.0 && s.max_tilt < 0.1);
+}
+
+#[test]
+fn orbit_mirror_image_is_the_right_started_orbit() {
+    let (pb, s) = paper_orbit();
+    let law = ComputedTorque::new(pb.control).unwrap();
+    let x0 = mirror(&OrbitProblem::start(s.beta0, s.beta_dot0));
+    let ev = run_until(&law, Mode::Right, x0, Mode::Left, 1);
+    let land = ev.iter().find(|e| e.from == Mode::Right).unwrap();
+    let left = ev.iter().find(|e| e.to == Mode::Left).unwrap();
+    assert!((land.t - s.t_end).abs() < 1e-9);
+    assert!((left.x_after - OrbitProblem::start(s.beta0, s.beta_dot0)).norm() < 1e-9);
+}
+
+/// The half-period mirrored return map computed with the hybrid simulator: a left-tilt start
+/// `(beta - pi/2, beta_dot)` to the mirrored state at the next right-tilt start.
+fn return_map(law: &ComputedTorque, b: f64, bd: f64) -> [f64; 2] {
+    let ev = run_until(law, Mode::Left, OrbitProblem::start(b, bd), Mode::Right, 1);
+    let right = ev.iter().find(|e| e.to == Mode::Right).unwrap();
+    let m = mirror(&right.x_after);
+    [m[1] - FRAC_PI_2, m[3]]
+}
+
+fn check_multipliers(pb: &OrbitProblem, s: &OrbitSolution) {
+    let law = ComputedTorque::new(pb.control).unwrap();
+    // Central differences of the whole hybrid map: truncation ~h^2, round-off ~1e-12/h.
+    let h = 1e-5;
+    let mut jac = nalgebra::Matrix2::zeros();
+    for (j, (db, dbd)) in [(h, 0.0), (0.0, h)].into_iter().enumerate() {
+        let p = return_map(&law, s.beta0 + db, s.beta_dot0 + dbd);
+        let m = return_map(&law, s.beta0 - db, s.beta_dot0 - dbd);
+        jac[(0, j)] = (p[0] - m[0]) / (2.0 * h);
+        jac[(1, j)] = (p[1] - m[1]) / (2.0 * h);
+    }
+    let mut fd = eigenvalues2(&jac);
+    let mut ours = s.multipliers.clone();
+    fd.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    ours.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    for (a, b) in ours.iter().zip(&fd) {
+        assert!(
+            (a[0] - b[0]).abs() < 1e-5 && (a[1] - b[1]).abs() < 1e-5,
+            "sensitivities {ours:?} vs finite differences {fd:?}"
+        );
+    }
+}
+
+#[test]
+fn multipliers_match_finite_difference_monodromy() {
+    let (pb, s) = paper_orbit();
+    check_multipliers(&pb, &s);
+    // And on the adapted loop near the period doubling, where one multiplier is near -1.
+    let pk = pb.with_adaptation(1900.0, s.energy_avg);
+    let sw = sweep_settings(&pb, &s);
+    let guess = bifurcation::attracting_orbit_guess(&sw, 1900.0, 300).unwrap();
+    let sk = orbit::solve(&pk, guess).unwrap();
+    assert!(
+        sk.multipliers.iter().any(|m| m[0] < -0.8),
+        "{:?}",
+        sk.multipliers
+    );
+    check_multipliers(&pk, &sk);
+}
+
+fn sweep_settings(pb: &OrbitProblem, s: &OrbitSolution) -> Sweep {
+    Sweep {
+        problem: *pb,
+        start_beta0: s.beta0,
+        start_beta_dot0: s.beta_dot0,
+        energy_avg: s.energy_avg,
+        tilts: 500,
+        keep: 100,
+        period_tol: 1e-5,
+    }
+}
+
+#[test]
+fn k_star_marks_the_onset_of_period_two() {
+    let (pb, s) = paper_orbit();
+    let sw = sweep_settings(&pb, &s);
+    let ks = bifurcation::k_star(&sw, 500.0, 1500.0, 2500.0, 1e-2).expect("a crossing");
+    // The paper reports the first bifurcation at k = 1925.
+    assert!((ks - 1925.0).abs() < 25.0, "k* = {ks}");
+    // The simulated loop: period 1 a little below k*, period 2 a little above.
+    let below = bifurcation::run_one(&sw, ks - 40.0);
+    let above = bifurcation::run_one(&sw, ks + 40.0);
+    assert_eq!(below.period, Some(1), "{:?}", &below.peaks[..4]);
+    assert_eq!(above.period, Some(2), "{:?}", &above.peaks[..4]);
+}
+
+#[test]
+fn sinusoid_solution_lands_on_time_in_a_closed_loop_simulation() {
+    let p = Params::default();
+    for s_off in [-0.5, -0.25, -1.0 / 6.0, -0.125] {
+        let sol = sinusoid::solve(&p, 0.33, s_off, &Search::default()).unwrap();
+        // Independent path: the full hybrid simulator, with a computed-torque law that tracks
+        // the reference exactly because the start is on it (zero tracking error stays zero
+        // until the first impact).
+        let law = ComputedTorque::new(ControlConfig {
+            reference: Reference::Sinusoid {
+                amplitude: 0.33,
+                omega: sol.omega,
+            },
+            ..ControlConfig::default()
+        })
+        .unwrap();
+        let x0 = State::new(0.0, FRAC_PI_2, 0.0, 0.33 * sol.omega);
+        let mut plant = Plant::new(tight(), 0.0, Mode::Flat, x0).unwrap();
+        let mut ev = Events::default();
+        let mut t = 0.0;
+        while ev.0.len() < 2 {
+            t += 0.05;
+            plant.advance_continuous(&law, t, &mut ev).unwrap();
+        }
+        let (tilt, land) = (ev.0[0], ev.0[1]);
+        assert_eq!((tilt.from, tilt.to), (Mode::Flat, sol.side));
+        assert_eq!(land.to, Mode::Flat);
+        assert!(
+            (tilt.t - sol.tilt_time).abs() < 1e-9,
+            "t_t {} vs {}",
+            tilt.t,
+            sol.tilt_time
+        );
+        assert!(
+            (land.t - sol.landing_time).abs() < 1e-8,
+            "t_l {} vs {}",
+            land.t,
+            sol.landing_time
+        );
+        let period = 2.0 * PI / sol.omega;
+        assert!((land.t - (period / 2.0 + s_off * tilt.t)).abs() < 1e-8);
+    }
+}
+
+#[test]
+fn no_tilt_region_does_not_tilt_in_simulation() {
+    let p = Params::default();
+    let (a, w) = (0.1, 3.0);
+    assert_eq!(sinusoid::tilt_start(&p, a, w).unwrap(), None);
+    let law = ComputedTorque::new(ControlConfig {
+        reference: Reference::Sinusoid {
+            amplitude: a,
+            omega: w,
+        },
+        ..ControlConfig::default()
+    })
+    .unwrap();
+    let mut plant = Plant::new(
+        tight(),
+        0.0,
+        Mode::Flat,
+        State::new(0.0, FRAC_PI_2, 0.0, a * w),
+    )
+    .unwrap();
+    let mut ev = Events::default();
+    plant
+        .advance_continuous(&law, 2.0 * PI / w, &mut ev)
+        .unwrap();
+    assert!(ev.0.is_empty());
+    assert!(matches!(
+        sinusoid::solve(&p, 0.0, 0.0, &Search::default()),
+        Err(sinusoid::SinusoidError::Invalid {
+            field: "amplitude",
+            ..
+        })
+    ));
+}
