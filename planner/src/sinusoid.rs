@@ -129,19 +129,30 @@ pub fn tilt_start(p: &Params, a: f64, w: f64) -> Result<Option<(f64, Mode)>, Sin
     Ok(None)
 }
 
+/// The right-hand side of the tilt `(alpha, alpha_dot)` over `side` with the arm on the ideal
+/// motion: the unactuated row `M11 alpha_ddot = -(M12 beta_ddot + h1)` with `beta` prescribed.
+fn tilt_rhs(
+    p: &Params,
+    side: Mode,
+    a: f64,
+    w: f64,
+) -> impl FnMut(f64, &Vector2<f64>) -> Vector2<f64> + '_ {
+    move |t: f64, y: &Vector2<f64>| {
+        let (b, bd, bdd) = arm(a, w, t);
+        let x = State::new(y[0], b, y[1], bd);
+        let (m11, m12, _) = mass_matrix(p, side, b);
+        let (h1, _) = bias(p, side, &x);
+        Vector2::new(y[1], -(m12 * bdd + h1) / m11)
+    }
+}
+
 /// The tilt of the ideal motion: start, landing (within one period after the start) and
 /// largest angle. The tilt obeys the unactuated row of the tilted equations with `beta`
 /// prescribed: `M11 alpha_ddot = -(M12 beta_ddot + h1)`.
 pub fn ideal_tilt(p: &Params, a: f64, w: f64, tol: Tolerance) -> Result<Tilt, SinusoidError> {
     let (t_t, side) = tilt_start(p, a, w)?.ok_or(SinusoidError::NoTilt { a, w })?;
     let sgn = if side == Mode::Left { 1.0 } else { -1.0 };
-    let mut f = |t: f64, y: &Vector2<f64>| {
-        let (b, bd, bdd) = arm(a, w, t);
-        let x = State::new(y[0], b, y[1], bd);
-        let (m11, m12, _) = mass_matrix(p, side, b);
-        let (h1, _) = bias(p, side, &x);
-        Vector2::new(y[1], -(m12 * bdd + h1) / m11)
-    };
+    let mut f = tilt_rhs(p, side, a, w);
     let mut st = Dop853::new(tol);
     let t_end = t_t + 2.0 * PI / w;
     let (mut t, mut y) = (t_t, Vector2::zeros());
@@ -392,13 +403,7 @@ pub fn sample_ideal_tilt(p: &Params, a: f64, w: f64, n: usize) -> Vec<(f64, f64)
         return Vec::new();
     };
     let side = tilt.side;
-    let mut f = |t: f64, y: &Vector2<f64>| {
-        let (b, bd, bdd) = arm(a, w, t);
-        let x = State::new(y[0], b, y[1], bd);
-        let (m11, m12, _) = mass_matrix(p, side, b);
-        let (h1, _) = bias(p, side, &x);
-        Vector2::new(y[1], -(m12 * bdd + h1) / m11)
-    };
+    let mut f = tilt_rhs(p, side, a, w);
     let mut out = Vec::with_capacity(n);
     let mut st = Dop853::new(tol);
     let (mut t, mut y) = (tilt.tilt_time, Vector2::zeros());
