@@ -47,5 +47,8 @@ impl std::error::Error for CommandError {}
 pub mod bifurcation;
 pub mod commands;
 pub mod gains;
+pub mod live;
 pub mod orbit;
+pub mod publish;
+pub mod record;
 pub mod sinusoid;

@@ -27,6 +27,12 @@ enum Command {
     Bifurcation(commands::BifurcationArgs),
     /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
     Gains(commands::GainsArgs),
+    /// Publish the controller's law as the planner's reference over zenoh (put on change and
+    /// every second, a queryable for late joiners, the planner's liveliness token)
+    Publish(tilting_planner::publish::PublishArgs),
+    /// The main job: plant and controller as child processes and the planner in-process on
+    /// localhost, the paper's stabilised orbit live at 1 kHz; status line, recording, plot
+    Live(tilting_planner::live::LiveArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,6 +44,8 @@ fn main() -> ExitCode {
         Command::Orbit(args) => commands::orbit(args),
         Command::Bifurcation(args) => commands::bifurcation(args),
         Command::Gains(args) => commands::gains(args),
+        Command::Publish(args) => tilting_planner::publish::run(args),
+        Command::Live(args) => tilting_planner::live::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,476 @@
+//! The `publish` command: the planner as a zenoh node. It publishes the controller's law (gains,
+//! energy target, reference trajectory, torque limit) as a `tilting_proto::Reference` on
+//! `tilting/{robot}/planner/reference`, following the late-joiner convention of
+//! `docs/protocol.md`:
+//!
+//! 1. a queryable on that key answers every query with the current reference;
+//! 2. the reference is put on the key when it changes, and repeated at a low rate (`--repeat`,
+//!    1 s by default);
+//! 3. the liveliness token `tilting/{robot}/alive/planner` is declared after the queryable, so
+//!    a controller that sees the token can query at once.
+//!
+//! For now the "plan" is the law given by the flags; `--from-orbit` computes the energy target
+//! `E_av` of the adaptation from the smallest periodic tilting orbit of the loop without
+//! adaptation ([`crate::orbit::find_all`]). [`ReferencePublisher`] is also used in-process by
+//! `live`.
+
+use crate::orbit::{find_all, OrbitProblem};
+use crate::scenario::{reference_to_string, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP};
+use crate::CommandError;
+use anyhow::{anyhow, Context as _};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tilting_controller::{ControlConfig, Reference as Trajectory};
+use tilting_net::{Qos, Role, TypedPublisher, ZenohArgs};
+use tilting_plant::{ImpactLaw, Params};
+use tilting_proto::{codec, Keys, Reference};
+use zenoh::{Session, Wait as _};
+
+/// The controller's law as flags (shared by `publish` and `live`).
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct LawArgs {
+    /// Desired arm trajectory: hold or sinusoid:A,w (A in rad, w in rad/s)
+    #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
+    pub reference: Trajectory,
+    /// Base stiffness K_P0 (1/s^2)
+    #[arg(long, default_value_t = ORBIT_KP, value_name = "1/S2")]
+    pub kp: f64,
+    /// Damping K_D (1/s)
+    #[arg(long, default_value_t = ORBIT_KD, value_name = "1/S")]
+    pub kd: f64,
+    /// Energy adaptation gain k (1/(J s^2)); 0 = off
+    #[arg(long, default_value_t = ORBIT_K, value_name = "1/(J S2)")]
+    pub k: f64,
+    /// Target average energy E_av (J) of the adaptation (the default is the paper's stabilised
+    /// orbit)
+    #[arg(long, default_value_t = ORBIT_ENERGY_AVG, value_name = "J")]
+    pub energy_avg: f64,
+    /// Symmetric torque saturation (N m) applied by the controller; 0 = none
+    #[arg(long, default_value_t = 0.0, value_name = "NM")]
+    pub torque_limit: f64,
+    /// Take E_av from the smallest periodic tilting orbit of the loop without adaptation with
+    /// --kp and --kd (paper model and impact law), computed by shooting (as `orbit`)
+    #[arg(long, conflicts_with = "energy_avg")]
+    pub from_orbit: bool,
+}
+
+impl Default for LawArgs {
+    fn default() -> Self {
+        Self {
+            reference: Trajectory::Hold,
+            kp: ORBIT_KP,
+            kd: ORBIT_KD,
+            k: ORBIT_K,
+            energy_avg: ORBIT_ENERGY_AVG,
+            torque_limit: 0.0,
+            from_orbit: false,
+        }
+    }
+}
+
+impl LawArgs {
+    /// The reference message the flags describe, checked like the controller checks it. With
+    /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
+    pub fn resolve(&self) -> Result<Reference, CommandError> {
+        let mut energy_avg = self.energy_avg;
+        if self.from_orbit {
+            energy_avg = orbit_energy_avg(self.kp, self.kd)?;
+        }
+        let (kind, amplitude, omega) = match self.reference {
+            Trajectory::Hold => (Reference::HOLD, 0.0, 0.0),
+            Trajectory::Sinusoid { amplitude, omega } => (Reference::SINUSOID, amplitude, omega),
+        };
+        let r = Reference {
+            kind,
+            amplitude,
+            omega,
+            kp: self.kp,
+            kd: self.kd,
+            k: self.k,
+            energy_avg,
+            torque_limit: self.torque_limit,
+        };
+        check_reference(&r).map_err(CommandError::Usage)?;
+        Ok(r)
+    }
+
+    /// The controller flags of the same law (for a `tilting-controller` child).
+    pub fn controller_flags(r: &Reference) -> Vec<String> {
+        let traj = if r.kind == Reference::SINUSOID {
+            format!("sinusoid:{},{}", r.amplitude, r.omega)
+        } else {
+            "hold".to_owned()
+        };
+        vec![
+            "--kp".into(),
+            r.kp.to_string(),
+            "--kd".into(),
+            r.kd.to_string(),
+            "--k".into(),
+            r.k.to_string(),
+            format!("--energy-avg={}", r.energy_avg),
+            "--reference".into(),
+            traj,
+            "--torque-limit".into(),
+            r.torque_limit.to_string(),
+        ]
+    }
+}
+
+/// Checks a reference as the controller will: valid message and a valid control law.
+pub fn check_reference(r: &Reference) -> anyhow::Result<()> {
+    r.validate().map_err(|e| anyhow!("{e}"))?;
+    let cfg = ControlConfig {
+        kp: r.kp,
+        kd: r.kd,
+        k: r.k,
+        energy_avg: r.energy_avg,
+        reference: trajectory(r),
+        torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
+        ..ControlConfig::default()
+    };
+    cfg.validate().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+fn trajectory(r: &Reference) -> Trajectory {
+    if r.kind == Reference::SINUSOID {
+        Trajectory::Sinusoid {
+            amplitude: r.amplitude,
+            omega: r.omega,
+        }
+    } else {
+        Trajectory::Hold
+    }
+}
+
+/// One line describing a reference, e.g. `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J`.
+pub fn describe(r: &Reference) -> String {
+    format!(
+        "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit {}",
+        reference_to_string(&trajectory(r)),
+        r.kp,
+        r.kd,
+        r.k,
+        r.energy_avg,
+        if r.torque_limit > 0.0 {
+            format!("{} N m", r.torque_limit)
+        } else {
+            "none".to_owned()
+        }
+    )
+}
+
+/// `E_av` of the smallest periodic tilting orbit of the loop `K_P = kp`, `K_D = kd` without
+/// adaptation (paper model, paper impact law).
+pub fn orbit_energy_avg(kp: f64, kd: f64) -> Result<f64, CommandError> {
+    if !(kp.is_finite() && kp > 0.0 && kd.is_finite() && kd >= 0.0) {
+        return Err(CommandError::Usage(anyhow!(
+            "--from-orbit needs --kp > 0 and --kd >= 0, got {kp} and {kd}"
+        )));
+    }
+    let t0 = Instant::now();
+    let pb = OrbitProblem::new(Params::default(), ImpactLaw::Paper, kp, kd);
+    let all = find_all(&pb);
+    let Some(best) = all.first() else {
+        return Err(CommandError::Failed(anyhow!(
+            "--from-orbit: no periodic tilting orbit found for K_P = {kp}, K_D = {kd}"
+        )));
+    };
+    eprintln!(
+        "--from-orbit: {} orbit(s) for K_P = {kp}, K_D = {kd} in {:.1} s; the smallest (max tilt \
+         {:.6} rad, period {:.6} s, {}) has E_av = {} J",
+        all.len(),
+        t0.elapsed().as_secs_f64(),
+        best.max_tilt,
+        best.period,
+        if best.stable { "stable" } else { "unstable" },
+        best.energy_avg
+    );
+    Ok(best.energy_avg)
+}
+
+/// The planner's side of the reference convention: a queryable answering the latest reference,
+/// puts on change (and on [`ReferencePublisher::repeat`]), and the planner's liveliness token.
+/// Dropping it undeclares all three.
+pub struct ReferencePublisher {
+    latest: Arc<Mutex<Reference>>,
+    publisher: TypedPublisher<Reference>,
+    puts: AtomicU64,
+    queries: Arc<AtomicU64>,
+    _queryable: zenoh::query::Queryable<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+impl ReferencePublisher {
+    /// Declares the queryable, puts `reference`, then declares the token (in that order).
+    pub async fn start(
+        session: &Session,
+        keys: &Keys,
+        reference: Reference,
+    ) -> anyhow::Result<Self> {
+        check_reference(&reference).context("invalid reference")?;
+        let key = keys.planner_reference().to_owned();
+        let latest = Arc::new(Mutex::new(reference));
+        let queries = Arc::new(AtomicU64::new(0));
+        let (l, q, reply_key) = (latest.clone(), queries.clone(), key.clone());
+        let queryable = session
+            .declare_queryable(key.clone())
+            .callback(move |query| {
+                let r = *l.lock().unwrap_or_else(|e| e.into_inner());
+                match query.reply(reply_key.clone(), codec::encode(&r)).wait() {
+                    Ok(()) => {
+                        q.fetch_add(1, Ordering::Relaxed);
+                    }
+                    Err(e) => tracing::warn!("cannot answer a reference query: {e}"),
+                }
+            })
+            .await
+            .map_err(|e| anyhow!("cannot declare the queryable on {key}: {e}"))?;
+        let publisher = TypedPublisher::declare(session, &key, Qos::Data).await?;
+        let me = Self {
+            latest,
+            publisher,
+            puts: AtomicU64::new(0),
+            queries,
+            _queryable: queryable,
+            _token: tilting_net::declare_token(session, keys.alive_planner()).await?,
+        };
+        // Put before the token exists would also do; after it, a controller that queried on
+        // the token's appearance and one that only listens both get it.
+        me.repeat()?;
+        Ok(me)
+    }
+
+    /// Replaces the reference; puts it at once if it changed.
+    pub fn set(&self, reference: Reference) -> anyhow::Result<()> {
+        check_reference(&reference).context("invalid reference")?;
+        let changed = {
+            let mut l = self.latest.lock().unwrap_or_else(|e| e.into_inner());
+            let changed = *l != reference;
+            *l = reference;
+            changed
+        };
+        if changed {
+            self.repeat()?;
+        }
+        Ok(())
+    }
+
+    /// Puts the current reference again.
+    pub fn repeat(&self) -> anyhow::Result<()> {
+        let r = self.reference();
+        self.publisher.put(&r)?;
+        self.puts.fetch_add(1, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// The current reference.
+    pub fn reference(&self) -> Reference {
+        *self.latest.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Puts so far.
+    pub fn puts(&self) -> u64 {
+        self.puts.load(Ordering::Relaxed)
+    }
+
+    /// Queries answered so far.
+    pub fn queries_answered(&self) -> u64 {
+        self.queries.load(Ordering::Relaxed)
+    }
+}
+
+/// Flags of `tilting-planner publish`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PublishArgs {
+    /// Zenoh and naming flags.
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// The law to publish.
+    #[command(flatten)]
+    pub law: LawArgs,
+    /// Repeat the reference on its key every this many seconds; 0 = only when it changes (the
+    /// queryable answers late joiners either way)
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    pub repeat: f64,
+    /// Stop after this many seconds [default: run until Ctrl-C]
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+}
+
+/// Checks a duration flag: positive and finite.
+pub fn check_seconds(flag: &str, v: f64, allow_zero: bool) -> Result<(), CommandError> {
+    let ok = v.is_finite() && (v > 0.0 || (allow_zero && v == 0.0)) && v < 1e9;
+    if ok {
+        Ok(())
+    } else {
+        Err(CommandError::Usage(anyhow!(
+            "invalid `{flag}` = {v}: must be a {} number of seconds",
+            if allow_zero {
+                "non-negative"
+            } else {
+                "positive"
+            }
+        )))
+    }
+}
+
+/// `tilting-planner publish`.
+pub fn run(args: &PublishArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn,tilting_planner=info,tilting_net=info");
+    check_seconds("--repeat", args.repeat, true)?;
+    if let Some(d) = args.duration {
+        check_seconds("--duration", d, false)?;
+    }
+    let keys = args.zenoh.keys().map_err(CommandError::Usage)?;
+    args.zenoh.config(Role::Peer).map_err(CommandError::Usage)?;
+    let reference = args.law.resolve()?;
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(serve(args, keys, reference))
+        .map_err(CommandError::Failed)
+}
+
+async fn serve(args: &PublishArgs, keys: Keys, reference: Reference) -> anyhow::Result<()> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+    let publisher = ReferencePublisher::start(&session, &keys, reference).await?;
+    eprintln!(
+        "publishing on {}: {}; {}",
+        keys.planner_reference(),
+        describe(&reference),
+        match args.duration {
+            Some(d) => format!("for {d} s"),
+            None => "until Ctrl-C".to_owned(),
+        }
+    );
+    let start = tokio::time::Instant::now();
+    let end = args.duration.map(|d| start + Duration::from_secs_f64(d));
+    let period = (args.repeat > 0.0).then(|| Duration::from_secs_f64(args.repeat));
+    let mut next = period.map(|p| start + p);
+    let stop = tilting_net::shutdown_signal();
+    tokio::pin!(stop);
+    loop {
+        let wake = match (next, end) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        tokio::select! {
+            _ = &mut stop => break,
+            _ = async {
+                match wake {
+                    Some(w) => tokio::time::sleep_until(w).await,
+                    None => std::future::pending().await,
+                }
+            } => {}
+        }
+        let now = tokio::time::Instant::now();
+        if end.is_some_and(|e| now >= e) {
+            break;
+        }
+        if let (Some(n), Some(p)) = (next, period) {
+            if now >= n {
+                if let Err(e) = publisher.repeat() {
+                    tracing::warn!("{e}");
+                }
+                next = Some(n + p);
+            }
+        }
+    }
+    let summary = serde_json::json!({
+        "key": keys.planner_reference(),
+        "reference": {
+            "kind": if reference.kind == Reference::SINUSOID { "sinusoid" } else { "hold" },
+            "amplitude": reference.amplitude,
+            "omega": reference.omega,
+            "kp": reference.kp,
+            "kd": reference.kd,
+            "k": reference.k,
+            "energy_avg": reference.energy_avg,
+            "torque_limit": reference.torque_limit,
+        },
+        "puts": publisher.puts(),
+        "queries_answered": publisher.queries_answered(),
+        "seconds": start.elapsed().as_secs_f64(),
+    });
+    drop(publisher);
+    println!("{summary}");
+    let _ = session.close().await;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: PublishArgs,
+    }
+
+    #[test]
+    fn defaults_are_the_paper_orbit() {
+        let a = Cli::try_parse_from(["x"]).unwrap().args;
+        assert_eq!(a.law, LawArgs::default());
+        let r = a.law.resolve().unwrap();
+        assert_eq!(r.kind, Reference::HOLD);
+        assert_eq!((r.kp, r.kd, r.k), (ORBIT_KP, ORBIT_KD, ORBIT_K));
+        assert_eq!(r.energy_avg, ORBIT_ENERGY_AVG);
+        assert_eq!(r.torque_limit, 0.0);
+        assert_eq!(a.duration, None);
+        assert_eq!(a.repeat, 1.0);
+    }
+
+    #[test]
+    fn flags_map_to_the_message_and_back() {
+        let a = Cli::try_parse_from([
+            "x",
+            "--reference",
+            "sinusoid:0.2,4",
+            "--kp",
+            "60",
+            "--kd",
+            "12",
+            "--k",
+            "0",
+            "--torque-limit",
+            "5",
+            "--robot",
+            "r1",
+        ])
+        .unwrap()
+        .args;
+        let r = a.law.resolve().unwrap();
+        assert_eq!(
+            (
+                r.kind,
+                r.amplitude,
+                r.omega,
+                r.kp,
+                r.kd,
+                r.k,
+                r.torque_limit
+            ),
+            (Reference::SINUSOID, 0.2, 4.0, 60.0, 12.0, 0.0, 5.0)
+        );
+        let flags = LawArgs::controller_flags(&r);
+        assert!(flags.contains(&"sinusoid:0.2,4".to_owned()), "{flags:?}");
+        assert!(describe(&r).contains("sinusoid:0.2,4"));
+        // Bad laws are usage errors.
+        let bad = Cli::try_parse_from(["x", "--kp=-1"]).unwrap().args;
+        assert!(matches!(bad.law.resolve(), Err(CommandError::Usage(_))));
+        assert!(Cli::try_parse_from(["x", "--reference", "sinusoid:1,0"]).is_err());
+        assert!(
+            Cli::try_parse_from(["x", "--from-orbit", "--energy-avg", "3"]).is_err(),
+            "--from-orbit and --energy-avg conflict"
+        );
+    }
+
+    #[test]
+    fn from_orbit_finds_the_paper_orbit_energy() {
+        let e = orbit_energy_avg(ORBIT_KP, ORBIT_KD).unwrap();
+        assert!((e - ORBIT_ENERGY_AVG).abs() < 1e-3, "{e}");
+    }
+}

@@ -1,0 +1,523 @@
+//! Recording of a live run: the plant's states, the controller's torques and the mode events,
+//! as received by a subscriber, streamed to CSV files with flat memory, and the figure drawn
+//! from those files at the end.
+//!
+//! Files (numbers in Rust's shortest round-trip form, modes as wire bytes: 0 flat, 1 left,
+//! 2 right):
+//!
+//! - `state.csv`: `seq,t,mode,alpha,beta,alpha_dot,beta_dot`, one row per `PlantState`;
+//! - `torque.csv`: `seq,tau`, one row per `TorqueCommand`;
+//! - `events.csv`: `t,from,to,alpha_before,beta_before,alpha_dot_before,beta_dot_before,
+//!   alpha_after,beta_after,alpha_dot_after,beta_dot_after`, one row per `ModeEvent`.
+//!
+//! Subscriber callbacks hand messages to a [`RecordSender`], which never blocks: a bounded
+//! channel feeds one writer thread, and a message that finds the channel full is counted as
+//! dropped (a slow disk must not slow the zenoh threads, and through them the plant). Repeated
+//! samples (the plant re-publishes state 0 while it waits for a controller, and its controller
+//! answers each copy) are written once.
+
+use crate::plot;
+use crate::scenario::Scenario;
+use crate::simulate::{EventRecord, FinalRecord, RunStats, Sample, SimulationReport};
+use anyhow::{anyhow, Context as _, Result};
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::{BufRead as _, BufReader, BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use tilting_plant::Mode;
+use tilting_proto::{ModeEvent, PlantState, TorqueCommand};
+
+/// Names of the files in the output directory.
+pub const STATE_CSV: &str = "state.csv";
+/// See [`STATE_CSV`].
+pub const TORQUE_CSV: &str = "torque.csv";
+/// See [`STATE_CSV`].
+pub const EVENTS_CSV: &str = "events.csv";
+/// The figure.
+pub const RUN_PNG: &str = "run.png";
+
+/// Header of `state.csv`.
+pub const STATE_HEADER: &str = "seq,t,mode,alpha,beta,alpha_dot,beta_dot";
+/// Header of `torque.csv`.
+pub const TORQUE_HEADER: &str = "seq,tau";
+/// Header of `events.csv`.
+pub const EVENTS_HEADER: &str = "t,from,to,alpha_before,beta_before,alpha_dot_before,\
+beta_dot_before,alpha_after,beta_after,alpha_dot_after,beta_dot_after";
+
+/// Capacity of the channel to the writer thread (messages): about 20 s of a 1 kHz loop.
+const CHANNEL: usize = 1 << 15;
+/// Tilt peaks kept for the status line and the summary.
+const PEAKS: usize = 16;
+/// Longest time the view lags behind the files when messages are few.
+const VIEW_INTERVAL: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// A message to record.
+#[derive(Debug, Clone, Copy)]
+pub enum Record {
+    /// A plant state.
+    State(PlantState),
+    /// A torque answer.
+    Torque(TorqueCommand),
+    /// A mode transition.
+    Event(ModeEvent),
+}
+
+enum Msg {
+    Rec(Record),
+    Stop,
+}
+
+/// What the recording has seen so far (for the status line and the summary).
+#[derive(Debug, Clone, Default)]
+pub struct RecordView {
+    /// The latest state written.
+    pub last_state: Option<PlantState>,
+    /// Rows in `state.csv`.
+    pub states: u64,
+    /// Rows in `torque.csv`.
+    pub torques: u64,
+    /// Rows in `events.csv`.
+    pub events: u64,
+    /// Flat → tilted events.
+    pub tilts: u64,
+    /// States skipped because their `seq` was not above the last one (re-publications).
+    pub repeated_states: u64,
+    /// Torques skipped likewise.
+    pub repeated_torques: u64,
+    /// States missing between two consecutive rows (gaps in `seq`).
+    pub missing_states: u64,
+    /// The last tilt peaks `(t, alpha)` seen in the sampled states (extreme `alpha` of each
+    /// completed tilt), oldest first.
+    pub peaks: VecDeque<(f64, f64)>,
+}
+
+/// The writer thread's end of a recording.
+pub struct Recorder {
+    tx: SyncSender<Msg>,
+    dropped: Arc<AtomicU64>,
+    view: Arc<Mutex<RecordView>>,
+    thread: Option<JoinHandle<std::io::Result<()>>>,
+    dir: PathBuf,
+}
+
+/// A cheap, cloneable handle for subscriber callbacks.
+#[derive(Clone)]
+pub struct RecordSender {
+    tx: SyncSender<Msg>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl RecordSender {
+    /// Queues `r` for writing; never blocks (a full queue drops and counts it).
+    pub fn send(&self, r: Record) {
+        match self.tx.try_send(Msg::Rec(r)) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(TrySendError::Disconnected(_)) => {}
+        }
+    }
+}
+
+impl Recorder {
+    /// Creates the three CSV files (with their headers) in `dir` and starts the writer thread.
+    pub fn create(dir: &Path) -> Result<Self> {
+        let open = |name: &str, header: &str| -> Result<BufWriter<File>> {
+            let path = dir.join(name);
+            let mut w = BufWriter::with_capacity(
+                1 << 16,
+                File::create(&path).with_context(|| format!("cannot create {}", path.display()))?,
+            );
+            writeln!(w, "{header}")?;
+            Ok(w)
+        };
+        let files = Files {
+            state: open(STATE_CSV, STATE_HEADER)?,
+            torque: open(TORQUE_CSV, TORQUE_HEADER)?,
+            events: open(EVENTS_CSV, EVENTS_HEADER)?,
+        };
+        let (tx, rx) = sync_channel(CHANNEL);
+        let view = Arc::new(Mutex::new(RecordView::default()));
+        let v = view.clone();
+        let thread = std::thread::Builder::new()
+            .name("live-record".into())
+            .spawn(move || writer(rx, files, v))
+            .context("cannot start the recording thread")?;
+        Ok(Self {
+            tx,
+            dropped: Arc::new(AtomicU64::new(0)),
+            view,
+            thread: Some(thread),
+            dir: dir.to_path_buf(),
+        })
+    }
+
+    /// A handle for callbacks.
+    pub fn sender(&self) -> RecordSender {
+        RecordSender {
+            tx: self.tx.clone(),
+            dropped: self.dropped.clone(),
+        }
+    }
+
+    /// A snapshot of what was written so far.
+    pub fn view(&self) -> RecordView {
+        self.view.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+
+    /// Messages dropped because the writer fell behind.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// The output directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Writes what is queued, flushes and closes the files; returns the final view. Messages
+    /// sent afterwards are ignored.
+    pub fn finish(mut self) -> Result<RecordView> {
+        // A blocking send: the writer drains the queue before it sees the stop.
+        let _ = self.tx.send(Msg::Stop);
+        if let Some(t) = self.thread.take() {
+            t.join()
+                .map_err(|_| anyhow!("the recording thread panicked"))?
+                .context("cannot write the recording")?;
+        }
+        Ok(self.view())
+    }
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        if let Some(t) = self.thread.take() {
+            let _ = self.tx.send(Msg::Stop);
+            let _ = t.join();
+        }
+    }
+}
+
+struct Files {
+    state: BufWriter<File>,
+    torque: BufWriter<File>,
+    events: BufWriter<File>,
+}
+
+/// The current tilt, for peak tracking: its mode and extreme alpha so far.
+struct Tilt {
+    mode: u8,
+    t: f64,
+    alpha: f64,
+}
+
+fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std::io::Result<()> {
+    let mut last_state: Option<u64> = None;
+    let mut last_torque: Option<u64> = None;
+    let mut tilt: Option<Tilt> = None;
+    // Counters are published to `view` every 64 messages, or when the queue has been idle for
+    // VIEW_INTERVAL, so the lock is cheap and the view is never stale for long.
+    let mut local = RecordView::default();
+    let mut pending = 0u32;
+    let mut result = Ok(());
+    loop {
+        let rec = match rx.recv_timeout(VIEW_INTERVAL) {
+            Ok(Msg::Rec(r)) => r,
+            Ok(Msg::Stop) | Err(RecvTimeoutError::Disconnected) => break,
+            Err(RecvTimeoutError::Timeout) => {
+                if pending > 0 {
+                    pending = 0;
+                    *view.lock().unwrap_or_else(|e| e.into_inner()) = local.clone();
+                }
+                continue;
+            }
+        };
+        if result.is_err() {
+            continue; // keep draining so senders never see a full queue forever
+        }
+        let r = match rec {
+            Record::State(s) => {
+                if last_state.is_some_and(|l| s.seq <= l) {
+                    local.repeated_states += 1;
+                    Ok(())
+                } else {
+                    if let Some(l) = last_state {
+                        local.missing_states += s.seq - l - 1;
+                    }
+                    last_state = Some(s.seq);
+                    local.states += 1;
+                    local.last_state = Some(s);
+                    track_peak(&mut tilt, &s, &mut local.peaks);
+                    writeln!(
+                        f.state,
+                        "{},{},{},{},{},{},{}",
+                        s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                    )
+                }
+            }
+            Record::Torque(c) => {
+                if last_torque.is_some_and(|l| c.seq <= l) {
+                    local.repeated_torques += 1;
+                    Ok(())
+                } else {
+                    last_torque = Some(c.seq);
+                    local.torques += 1;
+                    writeln!(f.torque, "{},{}", c.seq, c.tau)
+                }
+            }
+            Record::Event(e) => {
+                local.events += 1;
+                if e.from == 0 && e.to != 0 {
+                    local.tilts += 1;
+                }
+                let (b, a) = (e.x_before, e.x_after);
+                writeln!(
+                    f.events,
+                    "{},{},{},{},{},{},{},{},{},{},{}",
+                    e.time, e.from, e.to, b[0], b[1], b[2], b[3], a[0], a[1], a[2], a[3]
+                )
+            }
+        };
+        if let Err(e) = r {
+            result = Err(e);
+        }
+        pending += 1;
+        if pending >= 64 {
+            pending = 0;
+            *view.lock().unwrap_or_else(|e| e.into_inner()) = local.clone();
+        }
+    }
+    *view.lock().unwrap_or_else(|e| e.into_inner()) = local;
+    result?;
+    f.state.flush()?;
+    f.torque.flush()?;
+    f.events.flush()
+}
+
+fn track_peak(tilt: &mut Option<Tilt>, s: &PlantState, peaks: &mut VecDeque<(f64, f64)>) {
+    let same = tilt.as_ref().is_some_and(|c| c.mode == s.mode);
+    if !same {
+        if let Some(done) = tilt.take() {
+            if peaks.len() == PEAKS {
+                peaks.pop_front();
+            }
+            peaks.push_back((done.t, done.alpha));
+        }
+        if s.mode != 0 {
+            *tilt = Some(Tilt {
+                mode: s.mode,
+                t: s.time,
+                alpha: s.alpha,
+            });
+        }
+    } else if let Some(c) = tilt {
+        if s.alpha.abs() > c.alpha.abs() {
+            c.alpha = s.alpha;
+            c.t = s.time;
+        }
+    }
+}
+
+/// Points kept for the figure, about.
+const PLOT_POINTS: u64 = 20_000;
+
+/// Splits a CSV line into `n` numbers.
+fn numbers<const N: usize>(line: &str) -> Option<[f64; N]> {
+    let mut out = [0.0; N];
+    let mut it = line.split(',');
+    for v in &mut out {
+        *v = it.next()?.trim().parse().ok()?;
+    }
+    it.next().is_none().then_some(out)
+}
+
+/// Draws `alpha(t)` and `beta(t)` of the recording in `dir` into `png` (via
+/// [`plot::plot_run`]), decimated to about 20 000 points (mode changes are always kept).
+/// `states` is the number of rows of `state.csv` (to pick the decimation); `scenario` gives
+/// the gains and the control period for the title; `fault` marks an early end.
+pub fn plot_recording(
+    dir: &Path,
+    png: &Path,
+    states: u64,
+    scenario: &Scenario,
+    fault: Option<String>,
+) -> Result<()> {
+    let stride = states.div_ceil(PLOT_POINTS).max(1);
+    let mut samples: Vec<Sample> = Vec::with_capacity((states / stride + 1024) as usize);
+    let file = File::open(dir.join(STATE_CSV)).context("cannot read state.csv")?;
+    let mut last_mode = None;
+    let mut last: Option<Sample> = None;
+    for (i, line) in BufReader::new(file).lines().skip(1).enumerate() {
+        let line = line?;
+        let Some([_, t, q, a, b, ad, bd]) = numbers::<7>(&line) else {
+            continue;
+        };
+        let Some(mode) = Mode::from_index(q as u8) else {
+            continue;
+        };
+        let s = Sample {
+            t,
+            mode,
+            x: [a, b, ad, bd],
+        };
+        if i as u64 % stride == 0 || last_mode != Some(mode) {
+            samples.push(s);
+        }
+        last_mode = Some(mode);
+        last = Some(s);
+    }
+    if let (Some(l), Some(p)) = (last, samples.last()) {
+        if p.t < l.t {
+            samples.push(l);
+        }
+    }
+    let Some(end) = last else {
+        return Err(anyhow!("state.csv has no rows: nothing to plot"));
+    };
+    let mut events = Vec::new();
+    let file = File::open(dir.join(EVENTS_CSV)).context("cannot read events.csv")?;
+    for line in BufReader::new(file).lines().skip(1) {
+        let line = line?;
+        let Some(v) = numbers::<11>(&line) else {
+            continue;
+        };
+        let (Some(from), Some(to)) = (Mode::from_index(v[1] as u8), Mode::from_index(v[2] as u8))
+        else {
+            continue;
+        };
+        events.push(EventRecord {
+            t: v[0],
+            from,
+            to,
+            x_before: [v[3], v[4], v[5], v[6]],
+            x_after: [v[7], v[8], v[9], v[10]],
+        });
+    }
+    let sc = Scenario {
+        duration: end.t.max(1e-3),
+        ..scenario.clone()
+    };
+    let report = SimulationReport {
+        events,
+        tilt_peaks: Vec::new(),
+        final_state: FinalRecord {
+            t: end.t,
+            mode: end.mode,
+            x: end.x,
+        },
+        fault,
+        stats: RunStats {
+            coupling: "sampled",
+            control_period: sc.control_period,
+            duration: sc.duration,
+            rhs_evals: 0,
+            steps: 0,
+            rejected_steps: 0,
+            dense_outputs: 0,
+            transitions: 0,
+            tilts: 0,
+            controller_samples: 0,
+            wall_time_s: 0.0,
+        },
+        samples,
+    };
+    plot::plot_run(png, &sc, &report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("tilting-record-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn state(seq: u64, mode: u8, alpha: f64) -> PlantState {
+        PlantState {
+            seq,
+            time: seq as f64 * 1e-3,
+            alpha,
+            beta: 1.5,
+            alpha_dot: 0.0,
+            beta_dot: 0.0,
+            mode,
+        }
+    }
+
+    #[test]
+    fn writes_dedups_tracks_peaks_and_plots() {
+        let dir = scratch("unit");
+        let rec = Recorder::create(&dir).unwrap();
+        let tx = rec.sender();
+        tx.send(Record::State(state(0, 1, 0.0)));
+        tx.send(Record::State(state(0, 1, 0.0))); // re-published
+        tx.send(Record::Torque(TorqueCommand { seq: 0, tau: 1.0 }));
+        tx.send(Record::Torque(TorqueCommand { seq: 0, tau: 1.0 }));
+        for k in 1..100u64 {
+            let (mode, alpha) = if k < 50 {
+                (1, 0.01 * (k as f64 * 0.06).sin())
+            } else {
+                (2, -0.02 * ((k - 50) as f64 * 0.06).sin())
+            };
+            tx.send(Record::State(state(k, mode, alpha)));
+            tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.5 }));
+        }
+        tx.send(Record::State(state(105, 0, 0.0))); // a gap of 5
+        tx.send(Record::Event(ModeEvent {
+            seq: 49,
+            time: 0.0495,
+            from: 1,
+            to: 0,
+            x_before: [0.0, 1.0, -0.1, 0.2],
+            x_after: [0.0, 1.0, 0.0, -0.2],
+        }));
+        tx.send(Record::Event(ModeEvent {
+            seq: 49,
+            time: 0.0495,
+            from: 0,
+            to: 2,
+            x_before: [0.0, 1.0, 0.0, -0.2],
+            x_after: [0.0, 1.0, 0.0, -0.2],
+        }));
+        let v = rec.finish().unwrap();
+        assert_eq!((v.states, v.torques, v.events, v.tilts), (101, 100, 2, 1));
+        assert_eq!((v.repeated_states, v.repeated_torques), (1, 1));
+        assert_eq!(v.missing_states, 5);
+        assert_eq!(v.peaks.len(), 2);
+        assert!((v.peaks[0].1 - 0.01 * (49.0f64 * 0.06).sin()).abs() < 1e-12);
+        assert!(v.peaks[1].1 < -0.019);
+        let text = std::fs::read_to_string(dir.join(STATE_CSV)).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some(STATE_HEADER));
+        assert_eq!(lines.next(), Some("0,0,1,0,1.5,0,0"));
+        assert_eq!(text.lines().count(), 102);
+        let ev = std::fs::read_to_string(dir.join(EVENTS_CSV)).unwrap();
+        assert_eq!(ev.lines().nth(2), Some("0.0495,0,2,0,1,0,-0.2,0,1,0,-0.2"));
+        let png = dir.join(RUN_PNG);
+        plot_recording(&dir, &png, v.states, &Scenario::default(), None).unwrap();
+        assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_full_queue_drops_without_blocking() {
+        let dir = scratch("full");
+        let rec = Recorder::create(&dir).unwrap();
+        let tx = rec.sender();
+        for k in 0..(4 * CHANNEL as u64) {
+            tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.0 }));
+        }
+        let dropped = rec.dropped();
+        let v = rec.finish().unwrap();
+        assert_eq!(v.torques + dropped, 4 * CHANNEL as u64);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
