@@ -1,0 +1,257 @@
+//! The wire protocol is language-neutral: `tilting-plant` in lockstep against the stand-alone
+//! Python controller `examples/python/controller.py` (eclipse-zenoh, `struct`, the law written
+//! again in Python from the model notes) reproduces the offline sampled loop computed here with
+//! the Rust libraries.
+//!
+//! Needs `python3` with the `zenoh` module (`.ci/run` installs `eclipse-zenoh`); without it the
+//! tests print a SKIP line and pass.
+
+use std::f64::consts::FRAC_PI_2;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_plant::{Mode, Plant, SimConfig, State, Tolerance};
+use tilting_tests::*;
+
+const PERIOD: f64 = 0.001;
+const DURATION: f64 = 1.0;
+
+/// Agreement required between the Python-controlled run and the offline Rust loop, on every
+/// state component and torque. Not bit-identical: the Python law evaluates the same formulas in
+/// another order (energy from the point-mass velocities rather than the mass matrix, powers
+/// instead of products, ...), so the torques differ in the last bits and the closed loop carries
+/// those differences along.
+const TOLERANCE: f64 = 1e-9;
+
+/// The Python interpreter: `$TILTING_PYTHON` or `python3`.
+fn python() -> String {
+    std::env::var("TILTING_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+fn script() -> PathBuf {
+    workspace_root().join("examples/python/controller.py")
+}
+
+/// Does `python -c code` run and exit 0?
+fn python_runs(code: &str) -> bool {
+    Command::new(python())
+        .args(["-c", code])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// One CSV row of `--record`: t, mode, alpha, beta, alpha_dot, beta_dot, tau (empty on the last
+/// row), seq.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Row {
+    t: f64,
+    mode: u8,
+    x: [f64; 4],
+    tau: Option<f64>,
+    seq: u64,
+}
+
+fn parse_csv(text: &str) -> Vec<Row> {
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t,mode,alpha,beta,alpha_dot,beta_dot,tau,seq")
+    );
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f.len(), 8, "{l}");
+            let p = |s: &str| s.parse::<f64>().unwrap_or_else(|e| panic!("{s}: {e}"));
+            Row {
+                t: p(f[0]),
+                mode: f[1].parse().unwrap(),
+                x: [p(f[2]), p(f[3]), p(f[4]), p(f[5])],
+                tau: (!f[6].is_empty()).then(|| p(f[6])),
+                seq: f[7].parse().unwrap(),
+            }
+        })
+        .collect()
+}
+
+/// The offline closed loop with the Rust controller: `tau_k = c(t_k, q_k, x_k)` held over
+/// `[t_k, t_{k+1}]`, with the plant's defaults (initial orbit state, `atol = rtol / 100`).
+fn offline() -> Vec<Row> {
+    let rtol = Tolerance::default().rtol;
+    let cfg = SimConfig {
+        tol: Tolerance {
+            rtol,
+            atol: rtol * 1e-2,
+        },
+        ..SimConfig::default()
+    };
+    let x0 = State::new(0.0, FRAC_PI_2 - 0.000214877415, 0.0, 0.498257789692);
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
+    let c = ComputedTorque::new(ControlConfig {
+        k: 500.0,
+        energy_avg: 19.963439703027,
+        ..ControlConfig::default()
+    })
+    .unwrap();
+    let n = (DURATION / PERIOD).round() as u64;
+    let mut rows = Vec::new();
+    for k in 0..=n {
+        let x = plant.state();
+        let row = |tau| Row {
+            t: plant.time(),
+            mode: plant.mode().index(),
+            x: [x[0], x[1], x[2], x[3]],
+            tau,
+            seq: k,
+        };
+        if k == n {
+            rows.push(row(None));
+            break;
+        }
+        let tau = c.torque(plant.time(), plant.mode(), &x);
+        rows.push(row(Some(tau)));
+        plant
+            .advance_held(tau, (k + 1) as f64 * PERIOD, &mut ())
+            .unwrap();
+    }
+    rows
+}
+
+#[test]
+fn python_controller_self_test() {
+    if !python_runs("import struct") {
+        eprintln!("SKIP python_controller_self_test: `{}` not found", python());
+        return;
+    }
+    // Encodings against the worked examples of docs/protocol.md and the law against the
+    // equations of motion; needs no zenoh.
+    let out = Command::new(python())
+        .arg(script())
+        .arg("--self-test")
+        .stdin(Stdio::null())
+        .output()
+        .expect("run controller.py --self-test");
+    assert!(
+        out.status.success(),
+        "controller.py --self-test: {}\n{}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn python_controller_drives_the_plant_like_the_rust_one() {
+    if !python_runs("import zenoh") {
+        eprintln!(
+            "SKIP python_controller_drives_the_plant_like_the_rust_one: `{} -c \"import zenoh\"` \
+             failed; install it with `python3 -m pip install 'eclipse-zenoh==1.10.2'`",
+            python()
+        );
+        return;
+    }
+    let plant_bin = bin("tilting-plant");
+    let dir = Scratch::new("python-peer");
+    let port = free_port();
+    let robot = robot("python_peer");
+    let csv = dir.path().join("rec.csv");
+    let mut plant = Proc::spawn(
+        "plant",
+        &plant_bin,
+        &plant_args(
+            &robot,
+            port,
+            &[
+                "--clock",
+                "lockstep",
+                "--duration",
+                "1",
+                "--record",
+                csv.to_str().unwrap(),
+            ],
+        ),
+        dir.path(),
+    );
+    let mut args = vec![script().to_str().unwrap().to_owned()];
+    args.extend(peer_args(
+        &robot,
+        port,
+        &[
+            "--kp",
+            "100",
+            "--kd",
+            "14.14",
+            "--k",
+            "500",
+            "--energy-avg",
+            "19.963439703027",
+        ],
+    ));
+    let mut ctl = Proc::spawn(
+        "controller.py",
+        std::path::Path::new(&python()),
+        &args,
+        dir.path(),
+    );
+    let status = plant.expect_exit(Duration::from_secs(60));
+    assert!(
+        status.success(),
+        "plant: {status}\n{}\n{}",
+        plant.logs(),
+        ctl.logs()
+    );
+    let summary = plant.summary();
+    eprintln!("plant summary: {summary}");
+    assert_eq!(summary["result"], "completed", "{summary}");
+    assert_eq!(summary["steps"], 1000, "{summary}");
+    assert_eq!(summary["deadline_misses"], 0, "{summary}");
+    assert_eq!(summary["torques_dropped"], 0, "{summary}");
+    assert_eq!(summary["torques_stale"], 0, "{summary}");
+    assert_eq!(summary["watchdog_trips"], 0, "{summary}");
+    let c_status = ctl.interrupt(Duration::from_secs(10));
+    assert!(c_status.success(), "{}", ctl.logs());
+    let c_summary = ctl.summary();
+    eprintln!("controller.py summary: {c_summary}");
+    assert_eq!(c_summary["states_dropped"], 0, "{c_summary}");
+    assert_eq!(c_summary["torques_not_finite"], 0, "{c_summary}");
+    assert!(
+        c_summary["torques_published"].as_u64().unwrap() >= 1000,
+        "{c_summary}"
+    );
+
+    let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());
+    let want = offline();
+    assert_eq!(got.len(), want.len(), "number of samples");
+    let (mut worst_x, mut worst_tau) = (0.0f64, 0.0f64);
+    for (g, w) in got.iter().zip(&want) {
+        assert_eq!((g.seq, g.mode), (w.seq, w.mode), "seq/mode at {w:?}");
+        // Sample times are the plant's own `k h`: the controller has no part in them.
+        assert_eq!(g.t, w.t, "sample time of seq {}", w.seq);
+        for i in 0..4 {
+            worst_x = worst_x.max((g.x[i] - w.x[i]).abs());
+        }
+        match (g.tau, w.tau) {
+            (Some(a), Some(b)) => worst_tau = worst_tau.max((a - b).abs()),
+            (None, None) => {}
+            other => panic!("tau presence differs at seq {}: {other:?}", w.seq),
+        }
+    }
+    eprintln!(
+        "python controller vs offline Rust loop: {} samples, largest difference: state {worst_x:e}, \
+         torque {worst_tau:e} N m",
+        got.len()
+    );
+    assert!(worst_x <= TOLERANCE, "largest state difference {worst_x:e}");
+    assert!(
+        worst_tau <= TOLERANCE,
+        "largest torque difference {worst_tau:e}"
+    );
+    // The run really is closed-loop through Python: it tilted both ways.
+    assert!(
+        want.iter().any(|r| r.mode == 1) && want.iter().any(|r| r.mode == 2),
+        "the reference run should tilt both ways within {DURATION} s"
+    );
+}
