@@ -18,6 +18,8 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::Once;
 use std::time::{Duration, Instant};
 
+pub mod recording;
+
 pub use tilting_net;
 pub use tilting_proto;
 pub use zenoh;
