@@ -46,6 +46,7 @@ impl std::fmt::Display for CommandError {
 impl std::error::Error for CommandError {}
 pub mod bifurcation;
 pub mod commands;
+pub mod figures;
 pub mod gains;
 pub mod live;
 pub mod orbit;

@@ -27,6 +27,8 @@ enum Command {
     Bifurcation(commands::BifurcationArgs),
     /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
     Gains(commands::GainsArgs),
+    /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png) in a directory
+    Figures(tilting_planner::figures::FiguresArgs),
     /// Publish the controller's law as the planner's reference over zenoh (put on change and
     /// every second, a queryable for late joiners, the planner's liveliness token)
     Publish(tilting_planner::publish::PublishArgs),
@@ -44,6 +46,7 @@ fn main() -> ExitCode {
         Command::Orbit(args) => commands::orbit(args),
         Command::Bifurcation(args) => commands::bifurcation(args),
         Command::Gains(args) => commands::gains(args),
+        Command::Figures(args) => tilting_planner::figures::figures(args),
         Command::Publish(args) => tilting_planner::publish::run(args),
         Command::Live(args) => tilting_planner::live::run(args),
     };
