@@ -537,7 +537,7 @@ fn tilt_and_landing(p: &Params, a: f64, w: f64) -> Option<(f64, f64)> {
 /// The lowest frequency (rad/s) in `[lo, hi]` at which the ideal motion of amplitude `a`
 /// makes the plate tilt; `Some(lo)` if it tilts at `lo` already, `None` if never.
 fn no_tilt_boundary(p: &Params, a: f64, lo: f64, hi: f64) -> Option<f64> {
-    let no_tilt = |w: f64| matches!(sinusoid::tilt_start(p, a, w), Ok(None));
+    let no_tilt = |w: f64| sinusoid::tilt_start(p, a, w).is_none();
     if !no_tilt(lo) {
         return Some(lo);
     }
@@ -625,14 +625,7 @@ fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
         .par_iter()
         .flat_map_iter(|&a| {
             gw.iter().map(move |&w| {
-                // `tilt_start` reports a contact loss when F_y <= 0 at a scan point before it
-                // has seen a margin cross zero; but s_l + s_r = 2 f F_y, so a margin crosses
-                // zero first: these pairs tilt (counted apart for the summary).
-                let kind = match sinusoid::tilt_start(&p, a, w) {
-                    Ok(None) => 0,
-                    Ok(Some(_)) => 1,
-                    Err(_) => 2,
-                };
+                let kind = u8::from(sinusoid::tilt_start(&p, a, w).is_some());
                 (a, w, kind)
             })
         })
@@ -678,7 +671,6 @@ fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
     }
     draw_fig4(&ctx.path(4), &cells, &curves)?;
     let no_tilt = cells.iter().filter(|c| c.2 == 0).count();
-    let contact = cells.iter().filter(|c| c.2 == 2).count();
     let band_033 = curves
         .iter()
         .map(|c| {
@@ -690,13 +682,8 @@ fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
         })
         .collect::<Vec<_>>();
     let text = format!(
-        "(A, w) partition: {no_tilt} of {} grid pairs do not tilt{}; curves s = {} ({} amplitudes){}",
+        "(A, w) partition: {no_tilt} of {} grid pairs do not tilt; curves s = {} ({} amplitudes){}",
         cells.len(),
-        if contact > 0 {
-            format!(" ({contact} tilting pairs reported as contact loss by tilt_start)")
-        } else {
-            String::new()
-        },
         curves
             .iter()
             .map(|c| format!("{}", c.drawn))
@@ -704,7 +691,8 @@ fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
             .join(", "),
         amps.len(),
         match (band_033[0], band_033[2]) {
-            (Some(w0), Some(w1)) => format!("; at A = 0.33 the band is w in [{w0:.4}, {w1:.4}] rad/s"),
+            (Some(w0), Some(w1)) =>
+                format!("; at A = 0.33 the band is w in [{w0:.4}, {w1:.4}] rad/s"),
             _ => String::new(),
         }
     );
@@ -712,7 +700,6 @@ fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
         "text": text,
         "grid_pairs": cells.len(),
         "no_tilt_pairs": no_tilt,
-        "contact_loss_pairs": contact,
         "curves": curves.iter().map(|c| json!({
             "s": c.s,
             "s_drawn": c.drawn,

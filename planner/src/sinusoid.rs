@@ -46,12 +46,6 @@ pub enum SinusoidError {
         /// Frequency.
         w: f64,
     },
-    /// The ground force vanishes before the plate tilts.
-    #[error("the plate would leave the ground (F_y <= 0) at t = {t} s before tilting")]
-    ContactLoss {
-        /// Time (s).
-        t: f64,
-    },
     /// No frequency in the searched range meets the landing condition.
     #[error("no solution: no w in [{w_min}, {w_max}] rad/s gives t_l = T/2 + {s} t_t for A = {a} rad{hint}")]
     NoSolution {
@@ -80,30 +74,27 @@ pub enum SinusoidError {
 
 /// The first time in `[0, T]` the ZMP leaves the support under the ideal arm motion, with the
 /// side, located to 1e-13 s; `None` when it stays inside.
-pub fn tilt_start(p: &Params, a: f64, w: f64) -> Result<Option<(f64, Mode)>, SinusoidError> {
+pub fn tilt_start(p: &Params, a: f64, w: f64) -> Option<(f64, Mode)> {
     let period = 2.0 * PI / w;
     let margins = |t: f64| {
         let (b, bd, bdd) = arm(a, w, t);
         let x = State::new(0.0, b, 0.0, bd);
         let tau = torque_for_beta_ddot(p, Mode::Flat, &x, bdd);
-        let (sl, sr) = support_margins(p, &x, tau);
-        // F_y from the margins: s_l + s_r = 2 f F_y.
-        (sl, sr, (sl + sr) / (2.0 * p.f))
+        support_margins(p, &x, tau)
     };
     let n = 400;
     let mut t0 = 0.0;
-    let (mut l0, mut r0, _) = margins(0.0);
+    let (mut l0, mut r0) = margins(0.0);
     for i in 1..=n {
         let t1 = period * i as f64 / n as f64;
-        let (l1, r1, fy1) = margins(t1);
-        if fy1 <= 0.0 {
-            return Err(SinusoidError::ContactLoss { t: t1 });
-        }
+        // The margins add up to 2 f F_y, so an edge is always crossed before the ground force
+        // could vanish: the flat phase ends with a tilt, never with a contact loss.
+        let (l1, r1) = margins(t1);
         if l1 <= 0.0 || r1 <= 0.0 {
             // Bisect the earliest of the two crossings.
             let left_first = l1 <= 0.0 && (r1 > 0.0 || l1 / (l1 - l0) >= r1 / (r1 - r0));
             let g = |t: f64| {
-                let (l, r, _) = margins(t);
+                let (l, r) = margins(t);
                 if left_first {
                     l
                 } else {
@@ -120,13 +111,13 @@ pub fn tilt_start(p: &Params, a: f64, w: f64) -> Result<Option<(f64, Mode)>, Sin
                 }
             }
             let side = if left_first { Mode::Left } else { Mode::Right };
-            return Ok(Some((hi, side)));
+            return Some((hi, side));
         }
         t0 = t1;
         l0 = l1;
         r0 = r1;
     }
-    Ok(None)
+    None
 }
 
 /// The right-hand side of the tilt `(alpha, alpha_dot)` over `side` with the arm on the ideal
@@ -150,7 +141,7 @@ fn tilt_rhs(
 /// largest angle. The tilt obeys the unactuated row of the tilted equations with `beta`
 /// prescribed: `M11 alpha_ddot = -(M12 beta_ddot + h1)`.
 pub fn ideal_tilt(p: &Params, a: f64, w: f64, tol: Tolerance) -> Result<Tilt, SinusoidError> {
-    let (t_t, side) = tilt_start(p, a, w)?.ok_or(SinusoidError::NoTilt { a, w })?;
+    let (t_t, side) = tilt_start(p, a, w).ok_or(SinusoidError::NoTilt { a, w })?;
     let sgn = if side == Mode::Left { 1.0 } else { -1.0 };
     let mut f = tilt_rhs(p, side, a, w);
     let mut st = Dop853::new(tol);
