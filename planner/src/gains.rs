@@ -1,6 +1,7 @@
 //! The paper's Fig. 6: the maximal tilt angle of the periodic orbits of approach 2 over a grid
 //! of gains `(K_P, K_D)`. Each row of constant `K_P` is solved by continuation in `K_D` from
-//! the orbits found at its first cell; rows run in parallel.
+//! the orbits found at its first cell, with a full search every fifth cell; rows run in
+//! parallel.
 
 use crate::orbit::{self, OrbitProblem, OrbitSolution};
 use rayon::prelude::*;
@@ -36,14 +37,16 @@ fn dedup(mut v: Vec<OrbitSolution>) -> Vec<OrbitSolution> {
 pub fn row(params: Params, impact: ImpactLaw, kp: f64, kds: &[f64]) -> Vec<Cell> {
     let mut out = Vec::with_capacity(kds.len());
     let mut prev: Vec<OrbitSolution> = Vec::new();
-    for &kd in kds {
+    for (i, &kd) in kds.iter().enumerate() {
         let pb = OrbitProblem::new(params, impact, kp, kd);
         let mut sols: Vec<OrbitSolution> = prev
             .iter()
             .filter_map(|s| orbit::solve(&pb, [s.beta0, s.beta_dot0, s.t_end]).ok())
             .collect();
-        if sols.is_empty() {
-            sols = orbit::find_all(&pb);
+        // A full search at every fifth cell (and whenever the branches are lost) catches
+        // branches that appear along the row.
+        if sols.is_empty() || i % 5 == 0 {
+            sols.extend(orbit::find_all(&pb));
         }
         let sols = dedup(sols);
         out.push(Cell {
