@@ -71,24 +71,24 @@ impl Ring {
     }
 
     /// Percentiles of the samples in the window (nearest rank; zeros if empty). Does not
-    /// allocate.
+    /// allocate. Three selections instead of a sort (about 15 us instead of 40 to 80 us for a
+    /// full window): the plant computes these at 10 Hz on its pacing thread, while a round
+    /// trip is in flight.
     pub fn percentiles(&mut self) -> Percentiles {
         if self.len == 0 {
             return Percentiles::default();
         }
         self.scratch.clear();
         self.scratch.extend_from_slice(&self.buf[..self.len]);
-        self.scratch.sort_unstable_by(f64::total_cmp);
-        let at = |q: f64| {
-            let n = self.scratch.len();
-            let i = ((q * n as f64).ceil() as usize).clamp(1, n) - 1;
-            self.scratch[i]
-        };
-        Percentiles {
-            p50: at(0.5),
-            p99: at(0.99),
-            p999: at(0.999),
-        }
+        let n = self.scratch.len();
+        let rank = |q: f64| ((q * n as f64).ceil() as usize).clamp(1, n) - 1;
+        let (i50, i99, i999) = (rank(0.5), rank(0.99), rank(0.999));
+        // Each selection leaves the smaller values before the chosen index, so the next,
+        // smaller rank is selected within that prefix.
+        let (_, &mut p999, _) = self.scratch.select_nth_unstable_by(i999, f64::total_cmp);
+        let (_, &mut p99, _) = self.scratch[..=i999].select_nth_unstable_by(i99, f64::total_cmp);
+        let (_, &mut p50, _) = self.scratch[..=i99].select_nth_unstable_by(i50, f64::total_cmp);
+        Percentiles { p50, p99, p999 }
     }
 }
 
@@ -117,5 +117,25 @@ mod tests {
         assert_eq!(r.count(), 1000 + 10 * Ring::CAPACITY as u64);
         r.push(f64::NAN);
         assert_eq!(r.count(), 1000 + 10 * Ring::CAPACITY as u64);
+    }
+
+    #[test]
+    fn selection_matches_a_sort() {
+        let mut x: u64 = 12345;
+        for len in [1usize, 2, 3, 99, 1000, 4095, 4096, 10_000] {
+            let mut r = Ring::new();
+            let mut all = Vec::new();
+            for _ in 0..len {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let v = ((x >> 33) % 5000) as f64 * 0.25;
+                r.push(v);
+                all.push(v);
+            }
+            let mut w = all[all.len().saturating_sub(Ring::CAPACITY)..].to_vec();
+            w.sort_unstable_by(f64::total_cmp);
+            let at = |q: f64| w[((q * w.len() as f64).ceil() as usize).clamp(1, w.len()) - 1];
+            let p = r.percentiles();
+            assert_eq!((p.p50, p.p99, p.p999), (at(0.5), at(0.99), at(0.999)), "{len}");
+        }
     }
 }
