@@ -1,0 +1,336 @@
+//! Runs the built `tilting-planner live` and `publish` with the real node binaries:
+//!
+//! - `live --duration 5 --out DIR` exits 0 and writes the three CSV files with plausible content
+//!   (about 5000 states, alternating left/right tilts, finite numbers), the PNG and the summary;
+//! - a controller started after `publish` gets the published law from the planner's queryable;
+//! - `live` without the node binaries next to it fails with a message that says how to build
+//!   them.
+//!
+//! `tilting-plant` and `tilting-controller` are built once per test binary (`cargo build
+//! --release -p tilting-plant -p tilting-controller`) so they sit next to `tilting-planner`;
+//! set `TILTING_TESTS_NO_BUILD=1` to skip that.
+
+use std::io::Read as _;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Once;
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_tilting-planner");
+
+static BUILD: Once = Once::new();
+
+/// The directory of `tilting-planner`, with the node binaries built into it.
+fn bin_dir() -> PathBuf {
+    let dir = Path::new(BIN).parent().unwrap().to_path_buf();
+    BUILD.call_once(|| {
+        if std::env::var_os("TILTING_TESTS_NO_BUILD").is_some() {
+            return;
+        }
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+        let status = Command::new(cargo)
+            .args([
+                "build",
+                "--release",
+                "-p",
+                "tilting-plant",
+                "-p",
+                "tilting-controller",
+            ])
+            .current_dir(root)
+            .status()
+            .expect("cannot run cargo build");
+        assert!(status.success(), "cargo build of the node binaries failed");
+    });
+    for name in ["tilting-plant", "tilting-controller"] {
+        assert!(
+            dir.join(name).is_file(),
+            "{name} is not next to {BIN}: build it with `cargo build --release --workspace`"
+        );
+    }
+    dir
+}
+
+/// A fresh directory under the system temp dir, removed on drop (unless the test failed).
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("tilting-live-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).expect("cannot create a temp dir");
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// A child killed on drop.
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn csv(path: &Path) -> (String, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header = lines.next().expect("a header").to_owned();
+    let n = header.split(',').count();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split(',')
+                .map(|x| {
+                    x.parse::<f64>()
+                        .unwrap_or_else(|e| panic!("{}: `{x}` in `{l}`: {e}", path.display()))
+                })
+                .collect();
+            assert_eq!(v.len(), n, "{}: `{l}`", path.display());
+            assert!(v.iter().all(|x| x.is_finite()), "{}: `{l}`", path.display());
+            v
+        })
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn live_runs_the_orbit_for_5_s_and_records_it() {
+    bin_dir();
+    let dir = TempDir::new("run");
+    let out = dir.0.join("out");
+    let robot = format!("live_{}", std::process::id());
+    let o = Command::new(BIN)
+        .args(["live", "--duration", "5", "--robot", &robot, "--out"])
+        .arg(&out)
+        .output()
+        .expect("cannot run tilting-planner live");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let logs = || {
+        let mut s = format!("--- stdout ---\n{stdout}\n--- stderr ---\n{stderr}");
+        for f in ["plant.log", "controller.log"] {
+            let t = std::fs::read_to_string(out.join(f)).unwrap_or_default();
+            s.push_str(&format!("\n--- {f} ---\n{t}"));
+        }
+        s
+    };
+    assert!(o.status.success(), "live failed: {}\n{}", o.status, logs());
+    eprintln!("{stdout}");
+    assert!(stdout.contains("live run completed"), "{}", logs());
+    assert!(stdout.contains("loop latency"), "{}", logs());
+    assert!(stderr.contains("latency p50"), "no status line\n{}", logs());
+
+    // state.csv: seq 0..=5000, time k ms, on the orbit.
+    let (header, states) = csv(&out.join("state.csv"));
+    assert_eq!(header, "seq,t,mode,alpha,beta,alpha_dot,beta_dot");
+    assert!(
+        (4500..=5500).contains(&states.len()),
+        "{} state rows",
+        states.len()
+    );
+    for w in states.windows(2) {
+        assert!(w[1][0] > w[0][0] && w[1][1] > w[0][1], "{w:?}");
+    }
+    let last = states.last().unwrap();
+    assert!((last[1] - 5.0).abs() < 1e-9, "last t = {}", last[1]);
+    for r in &states {
+        assert!((0.0..=2.0).contains(&r[2]), "mode {r:?}");
+        assert!(r[3].abs() < 0.1, "|alpha| stays small on the orbit: {r:?}");
+        assert!(
+            (r[4] - std::f64::consts::FRAC_PI_2).abs() < 0.5,
+            "beta {r:?}"
+        );
+    }
+
+    // torque.csv: one answer per state.
+    let (header, torques) = csv(&out.join("torque.csv"));
+    assert_eq!(header, "seq,tau");
+    assert!(
+        torques.len() + 10 >= states.len() && torques.len() <= states.len(),
+        "{} torques for {} states",
+        torques.len(),
+        states.len()
+    );
+
+    // events.csv: landings and tilt starts; the tilts alternate left/right.
+    let (header, events) = csv(&out.join("events.csv"));
+    assert!(header.starts_with("t,from,to,alpha_before"), "{header}");
+    let tilts: Vec<u8> = events
+        .iter()
+        .filter(|e| e[1] == 0.0 && e[2] != 0.0)
+        .map(|e| e[2] as u8)
+        .collect();
+    assert!(
+        (9..=13).contains(&tilts.len()),
+        "about 11 tilts in 5 s (the first one starts before t = 0 and has no event): {tilts:?}"
+    );
+    for w in tilts.windows(2) {
+        assert_ne!(w[0], w[1], "tilts alternate: {tilts:?}");
+    }
+    let landings = events.iter().filter(|e| e[1] != 0.0 && e[2] == 0.0).count();
+    assert!(landings.abs_diff(tilts.len()) <= 1, "{events:?}");
+
+    // The figure and the summary.
+    let png = std::fs::read(out.join("run.png")).expect("run.png");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    assert!(png.len() > 20_000, "run.png is {} bytes", png.len());
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["result"], "completed", "{summary:#}");
+    assert_eq!(summary["plant"]["result"], "completed", "{summary:#}");
+    assert_eq!(summary["record"]["states"], states.len() as u64);
+    assert_eq!(summary["record"]["dropped"], 0);
+    assert_eq!(summary["plant"]["watchdog_trips"], 0, "{summary:#}");
+    assert!(
+        summary["controller"]["references_applied"]
+            .as_u64()
+            .unwrap()
+            >= 1
+    );
+}
+
+#[test]
+fn a_late_controller_gets_the_published_reference() {
+    let dir = TempDir::new("publish");
+    let ctl_bin = bin_dir().join("tilting-controller");
+    let (pub_port, ctl_port) = (free_port(), free_port());
+    let robot = format!("publish_{}", std::process::id());
+    let ep = |p: u16| format!("tcp/127.0.0.1:{p}");
+    // No repetition: only the queryable can hand the law to a controller that starts later.
+    let publisher = Proc(
+        Command::new(BIN)
+            .args([
+                "publish",
+                "--robot",
+                &robot,
+                "--listen",
+                &ep(pub_port),
+                "--connect",
+                &ep(ctl_port),
+                "--reference",
+                "sinusoid:0.2,4",
+                "--kp",
+                "60",
+                "--kd",
+                "12",
+                "--k",
+                "0",
+                "--torque-limit",
+                "5",
+                "--repeat",
+                "0",
+                "--duration",
+                "60",
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(dir.0.join("publish.log")).unwrap())
+            .spawn()
+            .expect("cannot start publish"),
+    );
+    // Start the controller only once the reference is out (its only put has no subscriber).
+    let plog = dir.0.join("publish.log");
+    let end = Instant::now() + Duration::from_secs(20);
+    while !std::fs::read_to_string(&plog)
+        .unwrap_or_default()
+        .contains("publishing on")
+    {
+        assert!(Instant::now() < end, "publish did not start");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let ctl = Proc(
+        Command::new(&ctl_bin)
+            .args([
+                "--robot",
+                &robot,
+                "--listen",
+                &ep(ctl_port),
+                "--connect",
+                &ep(pub_port),
+            ])
+            .env("NO_COLOR", "1")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(dir.0.join("controller.log")).unwrap())
+            .spawn()
+            .expect("cannot start the controller"),
+    );
+    // The controller logs each law it applies.
+    let log = dir.0.join("controller.log");
+    let end = Instant::now() + Duration::from_secs(20);
+    loop {
+        let text = std::fs::read_to_string(&log).unwrap_or_default();
+        if text.contains("planner reference applied") {
+            assert!(
+                text.contains("source=\"query\""),
+                "the law must come from the queryable: {text}"
+            );
+            break;
+        }
+        assert!(Instant::now() < end, "no reference applied:\n{text}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let stop = |mut p: Proc| -> String {
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(p.0.id() as i32, libc::SIGINT) };
+        let end = Instant::now() + Duration::from_secs(10);
+        let status = loop {
+            if let Some(s) = p.0.try_wait().unwrap() {
+                break s;
+            }
+            assert!(Instant::now() < end, "did not stop at SIGINT");
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        assert!(status.success(), "{status}");
+        let mut out = String::new();
+        p.0.stdout.take().unwrap().read_to_string(&mut out).unwrap();
+        out
+    };
+    let c: serde_json::Value =
+        serde_json::from_str(stop(ctl).lines().last().expect("controller summary")).unwrap();
+    assert_eq!(c["law"]["kp"], 60.0, "{c}");
+    assert_eq!(c["law"]["kd"], 12.0, "{c}");
+    assert_eq!(c["law"]["torque_limit"], 5.0, "{c}");
+    assert_eq!(c["law"]["reference"]["kind"], "sinusoid", "{c}");
+    assert_eq!(c["law"]["reference"]["amplitude"], 0.2, "{c}");
+    let p: serde_json::Value =
+        serde_json::from_str(stop(publisher).lines().last().expect("publish summary")).unwrap();
+    assert!(p["queries_answered"].as_u64().unwrap() >= 1, "{p}");
+    assert_eq!(p["puts"], 1, "{p}");
+}
+
+#[test]
+fn live_without_the_node_binaries_says_how_to_build_them() {
+    let dir = TempDir::new("nobin");
+    let exe = dir.0.join("tilting-planner");
+    std::fs::copy(BIN, &exe).unwrap();
+    let o = Command::new(&exe)
+        .args(["live", "--duration", "1", "--out"])
+        .arg(dir.0.join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("tilting-plant"), "{err}");
+    assert!(err.contains("cargo build --release --workspace"), "{err}");
+}

@@ -1,0 +1,724 @@
+//! The networked loop benchmark (not a test):
+//!
+//! ```sh
+//! cargo run --release -p tilting-tests --example loop_bench
+//! cargo run --release -p tilting-tests --example loop_bench -- --realtime-s 10 --lockstep-s 5 --long-s 30
+//! ```
+//!
+//! 1. **Raw zenoh ping-pong** between this process and a small pong process (this binary run as
+//!    `loop_bench pong ...`), with the session settings of the nodes (`tilting_net`: peer mode,
+//!    explicit loopback endpoints, this side listening like the plant, the pong connecting like
+//!    the controller; control QoS: real-time priority, express, blocking congestion control). The
+//!    pong echoes a 16-byte payload on another key from its subscriber callback, as the
+//!    controller answers a state. Measured two ways:
+//!    - back-to-back: publish, wait for the echo, publish the next (the lockstep pattern);
+//!    - paced at 1 kHz with the plant's pacing (absolute deadlines, `clock_nanosleep`
+//!      `TIMER_ABSTIME`, 1 ns timer slack, a 50 µs spin): publish at each deadline, collect the
+//!      echo's arrival time stamped by the subscriber callback (the real-time pattern). Round
+//!      trips paced at 1 kHz are slower than back-to-back ones (the threads go to sleep between
+//!      messages), so the real-time loop is compared with this one.
+//! 2. **The plant-controller loop** (`tilting-plant` and `tilting-controller` as processes, the
+//!    paper's orbit): real time at 1 kHz for `--realtime-s`, and lockstep as fast as it goes for
+//!    `--lockstep-s` (steps per second from two plant statuses 5 s apart). The latencies are the
+//!    plant's (state published → its torque received), over its last 4096 periods; the ping
+//!    percentiles use the same window (the last 4096 round trips) and are printed over the whole
+//!    run too.
+//! 3. **Memory**: the plant's resident set (VmRSS) during a long real-time run (`--long-s`).
+//!
+//! Targets of the issue: real-time loop latency p99 within 1.2x of the raw (paced) ping-pong p99;
+//! lockstep rate at least 0.8x of the raw (back-to-back) ping-pong rate.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use tilting_net::{Qos, Role, TypedPublisher, ZenohArgs};
+use tilting_proto::{Status, TorqueCommand};
+use tilting_tests::{endpoint, free_port, peer_args, plant_args, Client, Proc, StatusWatch};
+
+// ------------------------------------------------------------------ pacing (as the plant's)
+
+fn now_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// `clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)` to `spin_ns` before the deadline, then a
+/// busy wait (the plant's `clock::sleep_until`).
+fn sleep_until(deadline_ns: u64, spin_ns: u64) -> u64 {
+    let wake_at = deadline_ns.saturating_sub(spin_ns);
+    if now_ns() < wake_at {
+        let ts = libc::timespec {
+            tv_sec: (wake_at / 1_000_000_000) as libc::time_t,
+            tv_nsec: (wake_at % 1_000_000_000) as libc::c_long,
+        };
+        loop {
+            // SAFETY: `ts` is a valid timespec; a null `rem` is allowed with TIMER_ABSTIME.
+            let rc = unsafe {
+                libc::clock_nanosleep(
+                    libc::CLOCK_MONOTONIC,
+                    libc::TIMER_ABSTIME,
+                    &ts,
+                    std::ptr::null_mut(),
+                )
+            };
+            if rc != libc::EINTR {
+                break;
+            }
+        }
+    }
+    loop {
+        let now = now_ns();
+        if now >= deadline_ns {
+            return now;
+        }
+        std::hint::spin_loop();
+    }
+}
+
+fn set_min_timer_slack() {
+    // SAFETY: PR_SET_TIMERSLACK takes an unsigned long value and no pointers.
+    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
+}
+
+// ------------------------------------------------------------------ statistics
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Pct {
+    p50: f64,
+    p99: f64,
+    p999: f64,
+    max: f64,
+    n: usize,
+}
+
+/// Nearest-rank percentiles (the plant's convention) of `v` (µs).
+fn pct(v: &[f64]) -> Pct {
+    if v.is_empty() {
+        return Pct::default();
+    }
+    let mut s = v.to_vec();
+    s.sort_unstable_by(f64::total_cmp);
+    let at = |q: f64| s[((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
+    Pct {
+        p50: at(0.5),
+        p99: at(0.99),
+        p999: at(0.999),
+        max: s[s.len() - 1],
+        n: s.len(),
+    }
+}
+
+/// The plant's window: the last 4096 samples.
+fn last_window(v: &[f64]) -> &[f64] {
+    &v[v.len().saturating_sub(4096)..]
+}
+
+// ------------------------------------------------------------------ the pong process
+
+fn keys(robot: &str) -> (String, String) {
+    (format!("bench/{robot}/ping"), format!("bench/{robot}/pong"))
+}
+
+/// `loop_bench pong ROBOT LISTEN_PORT CONNECT_PORT`: echoes every ping on the pong key.
+fn pong(robot: &str, listen: u16, connect: u16) -> anyhow::Result<()> {
+    let rt = tilting_net::runtime()?;
+    rt.block_on(async {
+        let args = ZenohArgs::new(robot, &[&endpoint(listen)], &[&endpoint(connect)]);
+        let session = tilting_net::open_session(&args, Role::Peer).await?;
+        let (ping_key, pong_key) = keys(robot);
+        let publisher =
+            TypedPublisher::<TorqueCommand>::declare(&session, &pong_key, Qos::Control).await?;
+        let _sub = session
+            .declare_subscriber(ping_key)
+            .callback(move |s| {
+                let _ = publisher.put_raw(&s.payload().to_bytes());
+            })
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        tilting_net::shutdown_signal().await;
+        let _ = session.close().await;
+        Ok(())
+    })
+}
+
+// ------------------------------------------------------------------ the ping side
+
+struct Inbox {
+    /// `(seq, arrival ns)` of the latest echo.
+    last: Mutex<Option<(u64, u64)>>,
+    cv: Condvar,
+}
+
+/// This process's side of the ping-pong: a session listening like the plant, the pong process
+/// connected to it.
+struct PingPong {
+    rt: tokio::runtime::Runtime,
+    session: zenoh::Session,
+    publisher: TypedPublisher<TorqueCommand>,
+    _sub: zenoh::pubsub::Subscriber<()>,
+    inbox: Arc<Inbox>,
+    pong: Proc,
+    seq: u64,
+}
+
+impl PingPong {
+    fn start(exe: &Path, dir: &Path) -> anyhow::Result<Self> {
+        let robot = format!("bench_{}", std::process::id());
+        let (port, pong_port) = (free_port(), free_port());
+        let rt = tilting_net::runtime()?;
+        let inbox = Arc::new(Inbox {
+            last: Mutex::new(None),
+            cv: Condvar::new(),
+        });
+        let (ping_key, pong_key) = keys(&robot);
+        let (session, publisher, sub) = rt.block_on(async {
+            let args = ZenohArgs::new(&robot, &[&endpoint(port)], &[]);
+            let session = tilting_net::open_session(&args, Role::Plant).await?;
+            let publisher =
+                TypedPublisher::<TorqueCommand>::declare(&session, &ping_key, Qos::Control).await?;
+            let ib = inbox.clone();
+            let sub = session
+                .declare_subscriber(pong_key.clone())
+                .callback(move |s| {
+                    let t = now_ns();
+                    let b = s.payload().to_bytes();
+                    if b.len() >= 8 {
+                        let seq = u64::from_le_bytes(b[..8].try_into().expect("8 bytes"));
+                        *ib.last.lock().unwrap() = Some((seq, t));
+                        ib.cv.notify_all();
+                    }
+                })
+                .await
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            anyhow::Ok((session, publisher, sub))
+        })?;
+        let pong = Proc::spawn(
+            "pong",
+            exe,
+            &[
+                "pong".into(),
+                robot.clone(),
+                pong_port.to_string(),
+                port.to_string(),
+            ],
+            dir,
+        );
+        let mut me = Self {
+            rt,
+            session,
+            publisher,
+            _sub: sub,
+            inbox,
+            pong,
+            seq: 0,
+        };
+        // Until the pong answers (its subscription has reached us).
+        let start = Instant::now();
+        loop {
+            let seq = me.next();
+            me.send(seq);
+            if me.wait_echo(seq, Duration::from_millis(20)).is_some() {
+                break;
+            }
+            anyhow::ensure!(
+                start.elapsed() < Duration::from_secs(15),
+                "the pong process did not answer\n{}",
+                me.pong.logs()
+            );
+        }
+        set_min_timer_slack();
+        for _ in 0..2000 {
+            let seq = me.next();
+            me.send(seq);
+            let _ = me.wait_echo(seq, Duration::from_secs(1));
+        }
+        Ok(me)
+    }
+
+    fn next(&mut self) -> u64 {
+        self.seq += 1;
+        self.seq
+    }
+
+    /// Publishes `seq`; returns the time just before the put (ns).
+    fn send(&self, seq: u64) -> u64 {
+        let t = now_ns();
+        self.publisher
+            .put(&TorqueCommand { seq, tau: 0.5 })
+            .expect("put");
+        t
+    }
+
+    fn wait_echo(&self, seq: u64, timeout: Duration) -> Option<u64> {
+        let end = Instant::now() + timeout;
+        let mut g = self.inbox.last.lock().unwrap();
+        loop {
+            if let Some((s, t)) = *g {
+                if s == seq {
+                    return Some(t);
+                }
+            }
+            let now = Instant::now();
+            if now >= end {
+                return None;
+            }
+            g = self.inbox.cv.wait_timeout(g, end - now).unwrap().0;
+        }
+    }
+
+    /// Back-to-back for `secs`: round trips (µs) and round trips per second.
+    fn back_to_back(&mut self, secs: f64) -> anyhow::Result<(Vec<f64>, f64)> {
+        let mut v = Vec::new();
+        let t0 = Instant::now();
+        while t0.elapsed().as_secs_f64() < secs {
+            let seq = self.next();
+            let t = self.send(seq);
+            let a = self
+                .wait_echo(seq, Duration::from_secs(1))
+                .ok_or_else(|| anyhow::anyhow!("echo {seq} lost"))?;
+            v.push(a.saturating_sub(t) as f64 * 1e-3);
+        }
+        let rate = v.len() as f64 / t0.elapsed().as_secs_f64();
+        Ok((v, rate))
+    }
+
+    /// Paced at 1 kHz for `secs` as the plant paces: publish at each deadline, read the echo's
+    /// arrival time at the next one. Returns the round trips (µs) and the echoes that had not
+    /// arrived by the next deadline.
+    fn paced(&mut self, secs: f64) -> (Vec<f64>, u64) {
+        let h = 1_000_000u64;
+        let n = (secs * 1000.0) as u64;
+        let mut v = Vec::with_capacity(n as usize);
+        let mut late = 0;
+        let start = now_ns() + h;
+        let mut pending: Option<(u64, u64)> = None;
+        for k in 0..=n {
+            sleep_until(start + k * h, 50_000);
+            if let Some((s, t)) = pending.take() {
+                match *self.inbox.last.lock().unwrap() {
+                    Some((es, a)) if es == s => v.push(a.saturating_sub(t) as f64 * 1e-3),
+                    _ => late += 1,
+                }
+            }
+            if k < n {
+                let seq = self.next();
+                pending = Some((seq, self.send(seq)));
+            }
+        }
+        (v, late)
+    }
+
+    fn stop(mut self) {
+        self.pong.signal(libc::SIGINT);
+        let _ = self.pong.wait_timeout(Duration::from_secs(5));
+        drop(self._sub);
+        drop(self.publisher);
+        let session = self.session;
+        self.rt.block_on(async {
+            let _ = session.close().await;
+        });
+    }
+}
+
+// ------------------------------------------------------------------ the real loop
+
+struct LoopRun {
+    summary: serde_json::Value,
+    /// Lockstep: steps per second between two statuses.
+    rate: Option<f64>,
+    /// `(seconds since start, VmRSS kB)` samples of the plant.
+    rss: Vec<(f64, u64)>,
+}
+
+fn vm_rss_kb(pid: i32) -> Option<u64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    s.lines()
+        .find(|l| l.starts_with("VmRSS:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
+}
+
+/// Runs plant + controller; `lockstep_s` = Some(wall seconds) for a lockstep run, otherwise a
+/// real-time run of `duration` s sampling the plant's RSS every `rss_every` s.
+fn real_loop(
+    bins: &(PathBuf, PathBuf),
+    dir: &Path,
+    tag: &str,
+    duration: f64,
+    lockstep_s: Option<f64>,
+    rss_every: f64,
+) -> anyhow::Result<LoopRun> {
+    let rt = tilting_net::runtime()?;
+    let port = free_port();
+    let robot = format!("{tag}_{}", std::process::id());
+    let d = duration.to_string();
+    let mut extra = vec!["--duration", d.as_str()];
+    if lockstep_s.is_some() {
+        extra.extend(["--clock", "lockstep"]);
+    }
+    let mut plant = Proc::spawn(
+        &format!("{tag}-plant"),
+        &bins.0,
+        &plant_args(&robot, port, &extra),
+        dir,
+    );
+    let (client, status) = rt.block_on(async {
+        let client = Client::open(&robot, None, Some(port)).await;
+        let status = StatusWatch::new(&client).await;
+        (client, status)
+    });
+    let mut ctl = Proc::spawn(
+        &format!("{tag}-controller"),
+        &bins.1,
+        &peer_args(&robot, port, &[]),
+        dir,
+    );
+    let running = rt
+        .block_on(status.wait_for(Duration::from_secs(15), |s| {
+            s.state == Status::RUNNING && s.steps > 0
+        }))
+        .ok_or_else(|| anyhow::anyhow!("the plant did not start\n{}", plant.logs()))?;
+    let t_start = running.0;
+    let mut rate = None;
+    let mut rss = Vec::new();
+    if let Some(secs) = lockstep_s {
+        std::thread::sleep(Duration::from_millis(500));
+        let running = |s: &Status| s.state == Status::RUNNING;
+        let a = rt.block_on(status.wait_for(Duration::from_secs(5), running));
+        std::thread::sleep(Duration::from_secs_f64(secs));
+        let b = rt.block_on(status.wait_for(Duration::from_secs(5), running));
+        if let (Some((ta, sa)), Some((tb, sb))) = (a, b) {
+            rate = Some((sb.steps - sa.steps) as f64 / (tb - ta).as_secs_f64());
+        }
+        plant.signal(libc::SIGINT);
+    } else {
+        let mut next = 1.0;
+        while plant.try_wait().is_none() {
+            let t = t_start.elapsed().as_secs_f64();
+            if t >= next && t < duration - 0.5 {
+                if let Some(kb) = vm_rss_kb(plant.pid()) {
+                    rss.push((t, kb));
+                }
+                next += rss_every;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    let exit = plant.expect_exit(Duration::from_secs_f64(duration.min(1e5) + 60.0));
+    anyhow::ensure!(exit.success(), "plant: {exit}\n{}", plant.logs());
+    let summary = plant.summary();
+    let _ = ctl.interrupt(Duration::from_secs(10));
+    drop(status);
+    rt.block_on(async {
+        let _ = client.session.close().await;
+    });
+    Ok(LoopRun { summary, rate, rss })
+}
+
+fn lat(s: &serde_json::Value) -> Pct {
+    let l = &s["latency_us"];
+    let f = |k: &str| l[k].as_f64().unwrap_or(f64::NAN);
+    Pct {
+        p50: f("p50"),
+        p99: f("p99"),
+        p999: f("p999"),
+        max: f("max"),
+        n: l["count"].as_u64().unwrap_or(0).min(4096) as usize,
+    }
+}
+
+// ------------------------------------------------------------------ main
+
+struct Opts {
+    b2b_s: f64,
+    paced_s: f64,
+    realtime_s: f64,
+    rounds: usize,
+    lockstep_s: f64,
+    long_s: f64,
+}
+
+fn parse_opts() -> anyhow::Result<Opts> {
+    let mut o = Opts {
+        b2b_s: 5.0,
+        paced_s: 10.0,
+        realtime_s: 10.0,
+        rounds: 3,
+        lockstep_s: 5.0,
+        long_s: 30.0,
+    };
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut it = args.iter();
+    while let Some(flag) = it.next() {
+        let v: f64 = it
+            .next()
+            .ok_or_else(|| anyhow::anyhow!("{flag} needs a value"))?
+            .parse()?;
+        match flag.as_str() {
+            "--b2b-s" => o.b2b_s = v,
+            "--paced-s" => o.paced_s = v,
+            "--realtime-s" => o.realtime_s = v,
+            "--rounds" => o.rounds = (v as usize).max(1),
+            "--lockstep-s" => o.lockstep_s = v,
+            "--long-s" => o.long_s = v,
+            _ => anyhow::bail!(
+                "unknown flag {flag}; flags (seconds unless said): --b2b-s --paced-s --realtime-s \
+                 --rounds N --lockstep-s --long-s (0 skips the memory run)"
+            ),
+        }
+    }
+    Ok(o)
+}
+
+/// `tilting-plant` and `tilting-controller` in the profile directory (the parent of
+/// `examples/`), built first unless `LOOP_BENCH_NO_BUILD` is set.
+fn node_binaries() -> anyhow::Result<(PathBuf, PathBuf)> {
+    let exe = std::env::current_exe()?;
+    let mut dir = exe.parent().expect("exe dir").to_path_buf();
+    if dir
+        .file_name()
+        .is_some_and(|n| n == "examples" || n == "deps")
+    {
+        dir.pop();
+    }
+    if std::env::var_os("LOOP_BENCH_NO_BUILD").is_none() {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let st = Command::new(cargo)
+            .args([
+                "build",
+                "--release",
+                "-p",
+                "tilting-plant",
+                "-p",
+                "tilting-controller",
+            ])
+            .current_dir(tilting_tests::workspace_root())
+            .status()?;
+        anyhow::ensure!(st.success(), "cargo build of the node binaries failed");
+    }
+    let (p, c) = (dir.join("tilting-plant"), dir.join("tilting-controller"));
+    anyhow::ensure!(
+        p.is_file() && c.is_file(),
+        "{} or {} is missing: cargo build --release --workspace",
+        p.display(),
+        c.display()
+    );
+    Ok((p, c))
+}
+
+struct Round {
+    b2b: Vec<f64>,
+    b2b_rate: f64,
+    paced: Vec<f64>,
+    late: u64,
+    rt: LoopRun,
+    ls: LoopRun,
+}
+
+fn row(name: &str, q: &Pct, rate: &str, note: &str) {
+    println!(
+        "| {name:<50} | {:>6} | {:>7.1} | {:>7.1} | {:>7.1} | {:>7.1} | {rate:>7} | {note}",
+        q.n, q.p50, q.p99, q.p999, q.max
+    );
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_unstable_by(f64::total_cmp);
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v[v.len() / 2]
+    }
+}
+
+fn main() -> anyhow::Result<()> {
+    let argv: Vec<String> = std::env::args().collect();
+    if argv.get(1).map(String::as_str) == Some("pong") {
+        anyhow::ensure!(
+            argv.len() == 5,
+            "usage: loop_bench pong ROBOT LISTEN CONNECT"
+        );
+        return pong(&argv[2], argv[3].parse()?, argv[4].parse()?);
+    }
+    let o = parse_opts()?;
+    let bins = node_binaries()?;
+    let exe = std::env::current_exe()?;
+    let dir = std::env::temp_dir().join(format!("loop-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let load = || {
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    eprintln!(
+        "loop_bench: {} cores, load average {}",
+        std::thread::available_parallelism().map_or(0, |n| n.get()),
+        load()
+    );
+
+    // Rounds of (raw back-to-back, raw paced, real time, lockstep): the raw and the real
+    // measurements alternate so that both see the same background load and the same placement
+    // of threads on cores (on a shared 2-core machine round trips flip between two levels,
+    // about 25 and 50 us, from one run to the next).
+    let mut pp = PingPong::start(&exe, &dir)?;
+    let mut rounds = Vec::new();
+    for r in 1..=o.rounds {
+        eprintln!(
+            "round {r}/{}: raw ping-pong back-to-back {} s and paced at 1 kHz {} s; plant + \
+             controller in real time {} s and in lockstep {} s",
+            o.rounds, o.b2b_s, o.paced_s, o.realtime_s, o.lockstep_s
+        );
+        let (b2b, b2b_rate) = pp.back_to_back(o.b2b_s)?;
+        let (paced, late) = pp.paced(o.paced_s);
+        let rt = real_loop(&bins, &dir, &format!("rt{r}"), o.realtime_s, None, 1e9)?;
+        let ls = real_loop(&bins, &dir, &format!("ls{r}"), 1e6, Some(o.lockstep_s), 1e9)?;
+        rounds.push(Round {
+            b2b,
+            b2b_rate,
+            paced,
+            late,
+            rt,
+            ls,
+        });
+    }
+    pp.stop();
+    let long = if o.long_s > 0.0 {
+        eprintln!("plant + controller in real time, {} s (memory)", o.long_s);
+        Some(real_loop(&bins, &dir, "long", o.long_s, None, 5.0)?)
+    } else {
+        None
+    };
+    eprintln!("load average at the end {}", load());
+
+    println!();
+    println!(
+        "| {:<50} | {:>6} | {:>7} | {:>7} | {:>7} | {:>7} | {:>7} | ratio",
+        "round trip (us)", "n", "p50", "p99", "p99.9", "max", "per s"
+    );
+    println!(
+        "|{:-<52}|{:-<8}|{:-<9}|{:-<9}|{:-<9}|{:-<9}|{:-<9}|------",
+        "", "", "", "", "", "", ""
+    );
+    let (mut rt_ratios, mut ls_ratios) = (Vec::new(), Vec::new());
+    for (i, r) in rounds.iter().enumerate() {
+        let i = i + 1;
+        let b2b = pct(last_window(&r.b2b));
+        row(
+            &format!("{i}: raw ping-pong, back-to-back (last 4096)"),
+            &b2b,
+            &format!("{:.0}", r.b2b_rate),
+            &format!(
+                "whole run: {} round trips, p99 {:.1}",
+                r.b2b.len(),
+                pct(&r.b2b).p99
+            ),
+        );
+        let paced = pct(last_window(&r.paced));
+        row(
+            &format!("{i}: raw ping-pong, paced 1 kHz (last 4096)"),
+            &paced,
+            "1000",
+            &format!(
+                "whole run: p99 {:.1}; {} echoes after the next deadline",
+                pct(&r.paced).p99,
+                r.late
+            ),
+        );
+        let q = lat(&r.rt.summary);
+        let x = q.p99 / paced.p99;
+        rt_ratios.push(x);
+        row(
+            &format!("{i}: plant-controller, real time 1 kHz (last 4096)"),
+            &q,
+            "1000",
+            &format!(
+                "p99 {x:.2}x raw paced; p50 {:.2}x; misses {}, overruns {}",
+                q.p50 / paced.p50,
+                r.rt.summary["deadline_misses"],
+                r.rt.summary["overruns"],
+            ),
+        );
+        let q = lat(&r.ls.summary);
+        let rate = r.ls.rate.unwrap_or(f64::NAN);
+        let y = rate / r.b2b_rate;
+        ls_ratios.push(y);
+        row(
+            &format!("{i}: plant-controller, lockstep (last 4096)"),
+            &q,
+            &format!("{rate:.0}"),
+            &format!(
+                "rate {y:.2}x raw back-to-back; p50 {:.2}x, p99 {:.2}x",
+                q.p50 / b2b.p50,
+                q.p99 / b2b.p99
+            ),
+        );
+    }
+    if let Some(l) = &long {
+        let q = lat(&l.summary);
+        row(
+            &format!(
+                "plant-controller, real time, {} s run (last 4096)",
+                o.long_s
+            ),
+            &q,
+            "1000",
+            &format!(
+                "misses {}, overruns {}",
+                l.summary["deadline_misses"], l.summary["overruns"]
+            ),
+        );
+    }
+    println!();
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|r| format!("{r:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let r_rt = median(rt_ratios.clone());
+    println!(
+        "real-time loop p99 / raw paced p99: median {r_rt:.2}x over {} rounds ({}); target <= 1.2x: {}",
+        rt_ratios.len(),
+        list(&rt_ratios),
+        if r_rt <= 1.2 { "met" } else { "MISSED" }
+    );
+    let r_ls = median(ls_ratios.clone());
+    println!(
+        "lockstep rate / raw back-to-back rate: median {r_ls:.2}x over {} rounds ({}); target >= 0.8x: {}",
+        ls_ratios.len(),
+        list(&ls_ratios),
+        if r_ls >= 0.8 { "met" } else { "MISSED" }
+    );
+    if let Some(l) = &long {
+        if let (Some(first), Some(last)) = (l.rss.first(), l.rss.last()) {
+            println!(
+                "plant VmRSS over the {} s real-time run: {} kB at {:.0} s, {} kB at {:.0} s ({:+} kB); samples: {}",
+                o.long_s,
+                first.1,
+                first.0,
+                last.1,
+                last.0,
+                last.1 as i64 - first.1 as i64,
+                l.rss
+                    .iter()
+                    .map(|(t, kb)| format!("{t:.0} s {kb}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
