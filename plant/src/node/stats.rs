@@ -126,7 +126,9 @@ mod tests {
             let mut r = Ring::new();
             let mut all = Vec::new();
             for _ in 0..len {
-                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 let v = ((x >> 33) % 5000) as f64 * 0.25;
                 r.push(v);
                 all.push(v);
@@ -135,7 +137,11 @@ mod tests {
             w.sort_unstable_by(f64::total_cmp);
             let at = |q: f64| w[((q * w.len() as f64).ceil() as usize).clamp(1, w.len()) - 1];
             let p = r.percentiles();
-            assert_eq!((p.p50, p.p99, p.p999), (at(0.5), at(0.99), at(0.999)), "{len}");
+            assert_eq!(
+                (p.p50, p.p99, p.p999),
+                (at(0.5), at(0.99), at(0.999)),
+                "{len}"
+            );
         }
     }
 }
