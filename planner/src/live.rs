@@ -556,12 +556,12 @@ async fn live(
         } else if Instant::now() >= give_up {
             end = Some(End::Timeout);
         }
-        if ticks % 5 == 0 {
+        if ticks.is_multiple_of(5) {
             if let Err(e) = publisher.repeat() {
                 tracing::warn!("{e}");
             }
         }
-        if tty || ticks % 5 == 0 || end.is_some() {
+        if tty || ticks.is_multiple_of(5) || end.is_some() {
             let st = latest.lock().unwrap_or_else(|e| e.into_inner()).clone();
             let line = status_line(st.as_ref(), &recorder.view(), recorder.dropped());
             if line != printed {

@@ -365,7 +365,7 @@ pub fn plot_recording(
             mode,
             x: [a, b, ad, bd],
         };
-        if i as u64 % stride == 0 || last_mode != Some(mode) {
+        if (i as u64).is_multiple_of(stride) || last_mode != Some(mode) {
             samples.push(s);
         }
         last_mode = Some(mode);
