@@ -471,6 +471,6 @@ mod tests {
     #[test]
     fn from_orbit_finds_the_paper_orbit_energy() {
         let e = orbit_energy_avg(ORBIT_KP, ORBIT_KD).unwrap();
-        assert!((e - ORBIT_ENERGY_AVG).abs() < 1e-3, "{e}");
+        assert!((e - ORBIT_ENERGY_AVG).abs() < 1e-8, "{e}");
     }
 }
