@@ -297,6 +297,8 @@ enum End {
     ControllerExited(ExitStatus),
     /// Ctrl-C or SIGTERM.
     Interrupted,
+    /// The plant's first state did not arrive within 15 s.
+    StartTimeout,
     /// The plant did not finish in time.
     Timeout,
 }
@@ -511,7 +513,7 @@ async fn live(
             break;
         }
         if t0.elapsed() > Duration::from_secs(15) {
-            end = Some(End::Timeout);
+            end = Some(End::StartTimeout);
             break;
         }
         tokio::time::sleep(Duration::from_millis(10)).await;
@@ -598,6 +600,10 @@ async fn live(
             problems.push(format!("the controller exited during the run with {s}"))
         }
         End::Interrupted => eprintln!("live: interrupted, stopping the nodes"),
+        End::StartTimeout => problems.push(format!(
+            "no state of the plant arrived within 15 s (see {})",
+            plant.stderr.display()
+        )),
         End::Timeout => problems.push(format!(
             "the plant did not finish within {} s of wall-clock time",
             args.duration + 30.0
@@ -617,9 +623,6 @@ async fn live(
         Some((s, true)) => problems.push(format!("the controller had to be killed ({s})")),
         Some((s, false)) if !s.success() && !matches!(end, End::ControllerExited(_)) => {
             problems.push(format!("the controller exited with {s}"))
-        }
-        None if !matches!(end, End::Interrupted) => {
-            problems.push("the controller was never started".to_owned())
         }
         _ => {}
     }
@@ -706,6 +709,7 @@ async fn live(
             "peaks": view.peaks.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
         },
         "planner": {"puts": puts, "queries_answered": queries},
+        "png": plot_result.is_ok(),
         "plant_exit": plant_status.to_string(),
         "controller_exit": ctl_status.map(|s| s.0.to_string()),
         "plant": plant_summary,
@@ -809,11 +813,12 @@ fn report(
     let r = &s["record"];
     let _ = writeln!(
         out,
-        "recorded in {}: state.csv {} rows, torque.csv {} rows, events.csv {} rows, run.png, summary.json (dropped {}, missing states {})",
+        "recorded in {}: state.csv {} rows, torque.csv {} rows, events.csv {} rows, {}summary.json (dropped {}, missing states {})",
         dir.display(),
         r["states"],
         r["torques"],
         r["events"],
+        if s["png"] == true { "run.png, " } else { "" },
         r["dropped"],
         r["missing_states"],
     );
