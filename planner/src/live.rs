@@ -548,7 +548,9 @@ async fn live(
     let mut printed = String::new();
     while end.is_none() {
         tokio::time::sleep(tick).await;
-        ticks += 1;
+        // Five ticks a second: `second` marks one of them.
+        ticks = (ticks + 1) % 5;
+        let second = ticks == 0;
         if let Some(s) = plant.try_wait() {
             end = Some(End::PlantExited(s));
         } else if let Some(s) = controller.as_mut().and_then(Child::try_wait) {
@@ -558,12 +560,12 @@ async fn live(
         } else if Instant::now() >= give_up {
             end = Some(End::Timeout);
         }
-        if ticks.is_multiple_of(5) {
+        if second {
             if let Err(e) = publisher.repeat() {
                 tracing::warn!("{e}");
             }
         }
-        if tty || ticks.is_multiple_of(5) || end.is_some() {
+        if tty || second || end.is_some() {
             let st = latest.lock().unwrap_or_else(|e| e.into_inner()).clone();
             let line = status_line(st.as_ref(), &recorder.view(), recorder.dropped());
             if line != printed {

@@ -352,7 +352,9 @@ pub fn plot_recording(
     let file = File::open(dir.join(STATE_CSV)).context("cannot read state.csv")?;
     let mut last_mode = None;
     let mut last: Option<Sample> = None;
-    for (i, line) in BufReader::new(file).lines().skip(1).enumerate() {
+    // Rows to skip before the next kept one.
+    let mut skip = 0u64;
+    for line in BufReader::new(file).lines().skip(1) {
         let line = line?;
         let Some([_, t, q, a, b, ad, bd]) = numbers::<7>(&line) else {
             continue;
@@ -365,9 +367,10 @@ pub fn plot_recording(
             mode,
             x: [a, b, ad, bd],
         };
-        if (i as u64).is_multiple_of(stride) || last_mode != Some(mode) {
+        if skip == 0 || last_mode != Some(mode) {
             samples.push(s);
         }
+        skip = if skip == 0 { stride - 1 } else { skip - 1 };
         last_mode = Some(mode);
         last = Some(s);
     }
