@@ -422,25 +422,6 @@ fn star_points(r: f64) -> Vec<(i32, i32)> {
         .collect()
 }
 
-/// `[lo, hi]` of finite values with a relative margin; a flat signal gets a band.
-fn span(v: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
-    let (lo, hi) = v
-        .filter(|x| x.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-            (a.min(x), b.max(x))
-        });
-    if !lo.is_finite() {
-        return (-1.0, 1.0);
-    }
-    let w = hi - lo;
-    if w > 1e-12 * hi.abs().max(1e-12) {
-        (lo - pad * w, hi + pad * w)
-    } else {
-        let d = 0.05 * hi.abs().max(1e-3);
-        (lo - d, hi + d)
-    }
-}
-
 /// Cuts a polyline to the box `x0..x1` by `y0..y1` (Liang-Barsky on each segment): the parts
 /// inside, each as its own polyline. plotters does not clip to the plotting area.
 fn clip(
@@ -1481,7 +1462,7 @@ fn draw_fig8(
         .iter()
         .flat_map(|r| r.peaks.iter().copied())
         .chain(series.iter().flat_map(|r| r.peaks.iter().copied()));
-    let (lo, hi) = span(all, 0.05);
+    let (lo, hi) = crate::plot::padded_range(all, 0.05);
     let hi = hi + 0.12 * (hi - lo);
     let (k0, k1) = (
         rows.first().map_or(FIG8_K.0, |r| r.k),
@@ -1563,7 +1544,8 @@ fn draw_fig8(
     }
     legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     // One scale for the three series, so that period 1 looks constant.
-    let (plo, phi) = span(series.iter().flat_map(|r| r.peaks.iter().copied()), 0.08);
+    let (plo, phi) =
+        crate::plot::padded_range(series.iter().flat_map(|r| r.peaks.iter().copied()), 0.08);
     for (area, r) in bottom.split_evenly((1, 3)).iter().zip(series) {
         // The peaks kept are the last ones of the run (fewer if it stopped early).
         let n0 = series_sw.tilts.saturating_sub(r.peaks.len()) + 1;

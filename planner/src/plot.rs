@@ -33,8 +33,9 @@ const TILT_START: RGBColor = RGBColor(230, 120, 40);
 /// Colour of the markers of landings (left/right to flat).
 const LANDING: RGBColor = RGBColor(60, 140, 220);
 
-/// `[lo, hi]` of `v` with a margin; a flat signal gets a small band around its value.
-fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
+/// `[lo, hi]` of the finite values of `v` widened by `pad` times their spread on each side; a
+/// flat signal gets a band of 5 % of its value (at least 1e-3) around it.
+pub fn padded_range(v: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
     let (lo, hi) = v
         .filter(|x| x.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
@@ -43,13 +44,13 @@ fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
     if !lo.is_finite() {
         return (-1.0, 1.0);
     }
-    let span = hi - lo;
-    let pad = if span > 1e-9 * hi.abs().max(1.0) {
-        0.08 * span
+    let w = hi - lo;
+    if w > 1e-9 * hi.abs().max(1e-3) {
+        (lo - pad * w, hi + pad * w)
     } else {
-        0.05 * hi.abs().max(0.02)
-    };
-    (lo - pad, hi + pad)
+        let d = 0.05 * hi.abs().max(0.02);
+        (lo - d, hi + d)
+    }
 }
 
 /// Draws `alpha(t)` and `beta(t)` of a run in two stacked panels, with the transition times
@@ -91,7 +92,7 @@ pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> 
         (1, "Arm angle β(t) relative to the plate", "β [rad]"),
     ];
     for (panel, (i, caption, ylabel)) in panels.iter().zip(specs) {
-        let (lo, hi) = range(r.samples.iter().map(|s| s.x[i]));
+        let (lo, hi) = padded_range(r.samples.iter().map(|s| s.x[i]), 0.08);
         // Headroom above the curve for the legend.
         let top = hi + 0.3 * (hi - lo);
         let mid = 0.5 * (lo + hi);

@@ -44,55 +44,9 @@ use tilting_net::{Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_proto::{Status, TorqueCommand};
 use tilting_tests::{endpoint, free_port, peer_args, plant_args, Client, Proc, StatusWatch};
 
-// ------------------------------------------------------------------ pacing (as the plant's)
-
-fn now_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
-    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
-    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
-}
-
-/// `clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)` to `spin_ns` before the deadline, then a
-/// busy wait (the plant's `clock::sleep_until`).
-fn sleep_until(deadline_ns: u64, spin_ns: u64) -> u64 {
-    let wake_at = deadline_ns.saturating_sub(spin_ns);
-    if now_ns() < wake_at {
-        let ts = libc::timespec {
-            tv_sec: (wake_at / 1_000_000_000) as libc::time_t,
-            tv_nsec: (wake_at % 1_000_000_000) as libc::c_long,
-        };
-        loop {
-            // SAFETY: `ts` is a valid timespec; a null `rem` is allowed with TIMER_ABSTIME.
-            let rc = unsafe {
-                libc::clock_nanosleep(
-                    libc::CLOCK_MONOTONIC,
-                    libc::TIMER_ABSTIME,
-                    &ts,
-                    std::ptr::null_mut(),
-                )
-            };
-            if rc != libc::EINTR {
-                break;
-            }
-        }
-    }
-    loop {
-        let now = now_ns();
-        if now >= deadline_ns {
-            return now;
-        }
-        std::hint::spin_loop();
-    }
-}
-
-fn set_min_timer_slack() {
-    // SAFETY: PR_SET_TIMERSLACK takes an unsigned long value and no pointers.
-    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
-}
+// Pacing: the plant's own clock (absolute `clock_nanosleep` deadlines, then a short spin), so the
+// paced ping-pong and the plant wake up the same way.
+use tilting_plant::node::clock::{now_ns, set_min_timer_slack, sleep_until};
 
 // ------------------------------------------------------------------ statistics
 
@@ -240,7 +194,7 @@ impl PingPong {
                 me.pong.logs()
             );
         }
-        set_min_timer_slack();
+        let _ = set_min_timer_slack();
         for _ in 0..2000 {
             let seq = me.next();
             me.send(seq);
