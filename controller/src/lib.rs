@@ -104,12 +104,12 @@ impl ComputedTorque {
     }
 
     /// The adapted stiffness `K_P = K_P0 + k (E_av - E(x))` (1/s^2).
-    #[inline]
+    #[inline(always)]
     pub fn stiffness(&self, mode: Mode, x: &State) -> f64 {
         self.stiffness_t(mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
-    #[inline]
+    #[inline(always)]
     fn stiffness_t(&self, mode: Mode, x: &State, tr: &Terms) -> f64 {
         if self.cfg.k == 0.0 {
             self.cfg.kp
@@ -121,12 +121,12 @@ impl ComputedTorque {
 
     /// The commanded arm acceleration `v = beta_d_ddot + K_D (beta_d_dot - beta_dot) +
     /// K_P (beta_d - beta)` (rad/s^2).
-    #[inline]
+    #[inline(always)]
     pub fn acceleration(&self, t: f64, mode: Mode, x: &State) -> f64 {
         self.acceleration_t(t, mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
-    #[inline]
+    #[inline(always)]
     fn acceleration_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let (bd, bd_dot, bd_ddot) = self.cfg.reference.at(t);
         bd_ddot + self.cfg.kd * (bd_dot - x[3]) + self.stiffness_t(mode, x, tr) * (bd - x[1])
@@ -134,12 +134,12 @@ impl ComputedTorque {
 
     /// The joint torque (N m): the inverse dynamics of `mode` applied to `v`, clipped to the
     /// torque limit if one is set.
-    #[inline]
+    #[inline(always)]
     pub fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
         self.torque_t(t, mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
-    #[inline]
+    #[inline(always)]
     fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let v = self.acceleration_t(t, mode, x, tr);
         let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, tr, v);
@@ -151,12 +151,12 @@ impl ComputedTorque {
 }
 
 impl TorqueLaw for ComputedTorque {
-    #[inline]
+    #[inline(always)]
     fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
         ComputedTorque::torque(self, t, mode, x)
     }
 
-    #[inline]
+    #[inline(always)]
     fn torque_t(&self, t: f64, mode: Mode, x: &State, params: &Params, terms: &Terms) -> f64 {
         if *params == self.cfg.params {
             ComputedTorque::torque_t(self, t, mode, x, terms)

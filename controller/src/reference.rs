@@ -21,7 +21,7 @@ pub enum Reference {
 
 impl Reference {
     /// `(beta_d, beta_d_dot, beta_d_ddot)` at time `t` (rad, rad/s, rad/s^2).
-    #[inline]
+    #[inline(always)]
     pub fn at(&self, t: f64) -> (f64, f64, f64) {
         match *self {
             Reference::Hold => (FRAC_PI_2, 0.0, 0.0),
