@@ -98,17 +98,17 @@ fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
 #[derive(Debug, Clone, Args)]
 pub struct OrbitArgs {
     /// Stiffness gain K_P (1/s^2)
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
     pub kp: f64,
     /// Damping gain K_D (1/s)
-    #[arg(long, default_value_t = 14.14)]
+    #[arg(long, default_value_t = 14.14, allow_negative_numbers = true)]
     pub kd: f64,
     /// Energy adaptation gain k (1/(J s^2)); with k > 0 the orbit of the adapted loop
     /// K_P = K_P0 + k (E_av - E) is computed, E_av taken from the k = 0 orbit unless given
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub k: f64,
     /// Average energy E_av (J) for the adaptation
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub energy_avg: Option<f64>,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -215,16 +215,16 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
 #[derive(Debug, Clone, Args)]
 pub struct SinusoidArgs {
     /// Amplitude A of beta_d = A sin(w t) + pi/2 (rad)
-    #[arg(long, default_value_t = 0.33)]
+    #[arg(long, default_value_t = 0.33, allow_negative_numbers = true)]
     pub amplitude: f64,
     /// s in the landing condition t_l = T/2 + s t_t, in (-1, 1)
     #[arg(long, default_value_t = -0.5, allow_hyphen_values = true)]
     pub landing_offset: f64,
     /// Lowest frequency searched (rad/s)
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub omega_min: f64,
     /// Highest frequency searched (rad/s)
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub omega_max: f64,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -283,13 +283,13 @@ pub fn sinusoid(args: &SinusoidArgs) -> Result<(), CommandError> {
 #[derive(Debug, Clone, Args)]
 pub struct BifurcationArgs {
     /// First k (1/(J s^2))
-    #[arg(long, default_value_t = 1500.0)]
+    #[arg(long, default_value_t = 1500.0, allow_negative_numbers = true)]
     pub k_from: f64,
     /// Last k
-    #[arg(long, default_value_t = 2500.0)]
+    #[arg(long, default_value_t = 2500.0, allow_negative_numbers = true)]
     pub k_to: f64,
     /// Step of k
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub k_step: f64,
     /// Tilts simulated for each k
     #[arg(long, default_value_t = 500)]
@@ -298,10 +298,10 @@ pub struct BifurcationArgs {
     #[arg(long, default_value_t = 200)]
     pub keep: usize,
     /// K_P0 (1/s^2)
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
     pub kp: f64,
     /// K_D (1/s)
-    #[arg(long, default_value_t = 14.14)]
+    #[arg(long, default_value_t = 14.14, allow_negative_numbers = true)]
     pub kd: f64,
     /// Peaks closer than this (rad) count as equal when classifying the period
     #[arg(long, default_value_t = 1e-5)]
@@ -416,22 +416,22 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
 #[derive(Debug, Clone, Args)]
 pub struct GainsArgs {
     /// First K_P (1/s^2)
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
     pub kp_from: f64,
     /// Last K_P
-    #[arg(long, default_value_t = 140.0)]
+    #[arg(long, default_value_t = 140.0, allow_negative_numbers = true)]
     pub kp_to: f64,
     /// Step of K_P
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     pub kp_step: f64,
     /// First K_D (1/s)
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
     pub kd_from: f64,
     /// Last K_D
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     pub kd_to: f64,
     /// Step of K_D
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub kd_step: f64,
     #[command(flatten)]
     pub model: ModelArgs,
