@@ -109,7 +109,9 @@ pub trait Observer {
     fn transition(&mut self, _ev: &Transition) {}
     /// A tilt ended (landing); this was its extreme angle.
     fn tilt_peak(&mut self, _peak: &TiltPeak) {}
-    /// The state at the end of an accepted step or at an event (before the reset).
+    /// The state at the end of an accepted step or at an event (before the reset). Not called
+    /// for the state an `advance_*` call starts from: an observer that integrates over time
+    /// (a time average, say) must take the starting state itself.
     fn sample(&mut self, _t: f64, _mode: Mode, _x: &State) {}
 }
 
