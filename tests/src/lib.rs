@@ -45,7 +45,8 @@ pub fn bin_dir() -> PathBuf {
 
 static BUILD: Once = Once::new();
 
-/// Path of the binary `name` (`tilting-plant` or `tilting-controller`), built first if needed.
+/// Path of the binary `name` (`tilting-plant`, `tilting-controller` or `tilting-planner`), built
+/// first if needed.
 pub fn bin(name: &str) -> PathBuf {
     BUILD.call_once(|| {
         if std::env::var_os("TILTING_TESTS_NO_BUILD").is_some() {
@@ -60,6 +61,8 @@ pub fn bin(name: &str) -> PathBuf {
                 "tilting-plant",
                 "-p",
                 "tilting-controller",
+                "-p",
+                "tilting-planner",
             ])
             .current_dir(workspace_root())
             .status()

@@ -81,4 +81,32 @@ fn lockstep_run_equals_offline_simulation() {
         .collect();
     assert_eq!(x, last.x.to_vec());
     assert_eq!(summary["time"].as_f64().unwrap(), DURATION);
+
+    // And the offline `simulate` command itself, with the same control period: the same final
+    // state, bit for bit.
+    let out = std::process::Command::new(bin("tilting-planner"))
+        .args([
+            "simulate",
+            "--json",
+            "--control-period",
+            &PERIOD.to_string(),
+            "--duration",
+            &DURATION.to_string(),
+        ])
+        .output()
+        .expect("run tilting-planner simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let sim_x: Vec<f64> = report["final"]["x"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(report["final"]["t"].as_f64().unwrap(), DURATION);
+    assert_eq!(sim_x, x, "simulate --control-period vs the lockstep run");
 }
