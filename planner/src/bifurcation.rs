@@ -30,16 +30,33 @@ pub struct Sweep {
 }
 
 /// One `k` of the sweep.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct Row {
     /// Adaptation gain `k`.
     pub k: f64,
     /// Maximal `|alpha|` (rad) of each of the last `keep` tilts, in order.
     pub peaks: Vec<f64>,
-    /// Period of the peak sequence (1, 2, 4, ...), or `None` when irregular or faulted.
+    /// Period of the peak sequence (1, 2, 4, ...), or `None` when irregular or faulted. In JSON:
+    /// the number, `"irregular"`, or `null` after a fault.
     pub period: Option<usize>,
     /// A fault that ended the run early, if any.
     pub fault: Option<String>,
+}
+
+impl Serialize for Row {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut st = s.serialize_struct("Row", 4)?;
+        st.serialize_field("k", &self.k)?;
+        st.serialize_field("peaks", &self.peaks)?;
+        match (self.period, &self.fault) {
+            (Some(p), _) => st.serialize_field("period", &p)?,
+            (None, None) => st.serialize_field("period", "irregular")?,
+            (None, Some(_)) => st.serialize_field("period", &None::<usize>)?,
+        }
+        st.serialize_field("fault", &self.fault)?;
+        st.end()
+    }
 }
 
 /// Keeps the last `keep` tilt peaks and counts them all (bounded memory).
@@ -257,6 +274,20 @@ pub fn k_star(sw: &Sweep, k_start: f64, k_lo: f64, k_hi: f64, tol: f64) -> Optio
 #[cfg(test)]
 mod tests {
     use super::classify;
+
+    #[test]
+    fn rows_serialise_the_period_as_number_irregular_or_null() {
+        let row = |period, fault: Option<&str>| super::Row {
+            k: 1.0,
+            peaks: vec![0.1],
+            period,
+            fault: fault.map(String::from),
+        };
+        let j = |r| serde_json::to_value(&r).unwrap()["period"].clone();
+        assert_eq!(j(row(Some(2), None)), serde_json::json!(2));
+        assert_eq!(j(row(None, None)), serde_json::json!("irregular"));
+        assert_eq!(j(row(None, Some("fall"))), serde_json::Value::Null);
+    }
 
     #[test]
     fn periods_are_classified() {
