@@ -639,10 +639,11 @@ fn crossed(g0: f64, g1: f64) -> bool {
     g0 > 0.0 && g1 <= 0.0
 }
 
-/// Locates the zero of `g` in `[a, b]` with `g(a) > 0 >= g(b)` to width `tol` by the Illinois
-/// variant of regula falsi, with a bisection every fourth trial so the bracket always shrinks.
-/// Returns the right end of the final bracket, so the state there is already past the event.
-fn locate<G: Fn(f64) -> f64>(
+/// Locates the zero of `g` in `[a, b]` with `g(a) > 0 >= g(b)` to width `tol` (s) by the
+/// Illinois variant of regula falsi, with a bisection every eighth trial so the bracket always
+/// shrinks. Returns the right end of the final bracket, so the state there is already past the
+/// event. Public so that benchmarks locate events the same way.
+pub fn locate<G: Fn(f64) -> f64>(
     g: &G,
     mut a: f64,
     mut ga: f64,

@@ -150,44 +150,7 @@ fn ours_passive_ode(tol: Tolerance, event_tol: f64) -> Landing {
     }
 }
 
-/// Copy of `tilting_plant::hybrid::locate` (private there): Illinois regula falsi with a
-/// bisection every eighth trial; returns the right end of the final bracket.
-fn locate<G: Fn(f64) -> f64>(
-    g: &G,
-    mut a: f64,
-    mut ga: f64,
-    mut b: f64,
-    mut gb: f64,
-    tol: f64,
-) -> f64 {
-    let mut last_side = 0i8;
-    for iter in 0..300 {
-        if b - a <= tol.max(4.0 * f64::EPSILON * b.abs()) {
-            break;
-        }
-        let mut c = (a * gb - b * ga) / (gb - ga);
-        if iter % 8 == 7 || !(c > a && c < b) {
-            c = 0.5 * (a + b);
-        }
-        let gc = g(c);
-        if gc > 0.0 {
-            a = c;
-            ga = gc;
-            if last_side == 1 {
-                gb *= 0.5;
-            }
-            last_side = 1;
-        } else {
-            b = c;
-            gb = gc;
-            if last_side == -1 {
-                ga *= 0.5;
-            }
-            last_side = -1;
-        }
-    }
-    b
-}
+use tilting_plant::hybrid::locate;
 
 /// Steps a diffsol solver until its first root (alpha = 0) and reads the state there from its
 /// interpolant.
