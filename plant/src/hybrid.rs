@@ -412,27 +412,53 @@ impl Plant {
         tau_of: &T,
         obs: &mut O,
     ) -> Result<(), Fault> {
-        if self.mode != Mode::Flat {
-            return Ok(());
+        // Each pass either leaves the plate flat, starts a consistent tilt, or records a tilt
+        // that is undone at once; the Zeno guard ends a torque law that keeps doing the last.
+        while self.mode == Mode::Flat {
+            let tau = tau_of.torque(self.t, self.mode, &self.x);
+            if !tau.is_finite() {
+                return Err(Fault::NonFiniteTorque { t: self.t, tau });
+            }
+            let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
+            self.rhs_evals += 1;
+            let g = self.events(&self.x, &xd);
+            if g[2] <= 0.0 {
+                return Err(Fault::ContactLoss {
+                    t: self.t,
+                    mode: self.mode,
+                    force: g[2],
+                });
+            }
+            if g[0] < 0.0 {
+                self.start_tilt_checked(Mode::Left, tau_of, obs)?;
+            } else if g[1] < 0.0 {
+                self.start_tilt_checked(Mode::Right, tau_of, obs)?;
+            } else {
+                break;
+            }
         }
+        Ok(())
+    }
+
+    /// Starts a tilt and checks that the torque law, evaluated in the tilted mode, really lifts
+    /// the plate. A law that differs between modes (say, one clipped in one mode only) can put
+    /// the flat ZMP outside the support while the tilted dynamics push the plate into the
+    /// ground; such a tilt lands again at once (the plate never left the ground) instead of
+    /// running through the ground unnoticed.
+    fn start_tilt_checked<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        to: Mode,
+        tau_of: &T,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        self.start_tilt(to, obs)?;
         let tau = tau_of.torque(self.t, self.mode, &self.x);
-        if !tau.is_finite() {
-            return Err(Fault::NonFiniteTorque { t: self.t, tau });
-        }
         let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
         self.rhs_evals += 1;
-        let g = self.events(&self.x, &xd);
-        if g[2] <= 0.0 {
-            return Err(Fault::ContactLoss {
-                t: self.t,
-                mode: self.mode,
-                force: g[2],
-            });
-        }
-        if g[0] < 0.0 {
-            self.start_tilt(Mode::Left, obs)?;
-        } else if g[1] < 0.0 {
-            self.start_tilt(Mode::Right, obs)?;
+        let s = if to == Mode::Left { 1.0 } else { -1.0 };
+        // Below this the sign is round-off at a located switch (rad/s^2).
+        if s * xd[2] < -1e-9 {
+            self.land(obs)?;
         }
         Ok(())
     }
@@ -618,8 +644,14 @@ impl Plant {
                         limit: self.cfg.fall_angle,
                     });
                 }
-                (Some(Ev::A), Mode::Flat) => self.start_tilt(Mode::Left, obs)?,
-                (Some(Ev::B), Mode::Flat) => self.start_tilt(Mode::Right, obs)?,
+                (Some(Ev::A), Mode::Flat) => {
+                    self.start_tilt_checked(Mode::Left, tau_of, obs)?;
+                    self.settle(tau_of, obs)?;
+                }
+                (Some(Ev::B), Mode::Flat) => {
+                    self.start_tilt_checked(Mode::Right, tau_of, obs)?;
+                    self.settle(tau_of, obs)?;
+                }
                 (Some(Ev::A), _) => {
                     self.land(obs)?;
                     self.settle(tau_of, obs)?;

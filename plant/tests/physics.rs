@@ -598,3 +598,19 @@ fn rounding_slivers_before_a_sample_instant_do_not_fault() {
     }
     assert_eq!(plant.time(), 3.0);
 }
+
+#[test]
+fn a_law_that_contradicts_itself_across_modes_ends_in_the_zeno_guard() {
+    // In the flat mode the torque tips the plate left (ZMP outside the support); in the tilted
+    // mode it pushes the plate back into the ground. Every tilt is undone at once, the plate
+    // never moves, and the transitions pile up at one instant: the Zeno guard must stop it
+    // (and nothing may run through the ground).
+    let law = |_t: f64, m: Mode, _x: &State| if m == Mode::Flat { -20.0 } else { 40.0 };
+    let x = State::new(0.0, FRAC_PI_2, 0.0, 0.0);
+    let mut plant = Plant::new(SimConfig::default(), 0.0, Mode::Flat, x).unwrap();
+    let mut log = Log::default();
+    let err = plant.advance_continuous(&law, 1.0, &mut log).unwrap_err();
+    assert!(matches!(err, tilting_plant::Fault::Zeno { .. }), "{err}");
+    assert!(log.events.len() >= 16);
+    assert!(log.events.iter().all(|e| e.t == 0.0 && e.x_after[0] == 0.0));
+}
