@@ -18,6 +18,9 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Mutex, Once};
 use std::time::{Duration, Instant};
 
+mod common;
+use common::TempDir;
+
 const BIN: &str = env!("CARGO_BIN_EXE_tilting-planner");
 
 static BUILD: Once = Once::new();
@@ -60,26 +63,6 @@ fn bin_dir() -> PathBuf {
         );
     }
     dir
-}
-
-/// A fresh directory under the system temp dir, removed on drop (unless the test failed).
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let p = std::env::temp_dir().join(format!("tilting-live-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("cannot create a temp dir");
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
 }
 
 /// A child killed on drop.
@@ -128,7 +111,7 @@ fn live_runs_the_orbit_for_5_s_and_records_it() {
     bin_dir();
     let _turn = realtime_turn();
     let dir = TempDir::new("run");
-    let out = dir.0.join("out");
+    let out = dir.path().join("out");
     let robot = format!("live_{}", std::process::id());
     let o = Command::new(BIN)
         .args(["live", "--duration", "5", "--robot", &robot, "--out"])
@@ -254,12 +237,12 @@ fn a_late_controller_gets_the_published_reference() {
             ])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(dir.0.join("publish.log")).unwrap())
+            .stderr(std::fs::File::create(dir.path().join("publish.log")).unwrap())
             .spawn()
             .expect("cannot start publish"),
     );
     // Start the controller only once the reference is out (its only put has no subscriber).
-    let plog = dir.0.join("publish.log");
+    let plog = dir.path().join("publish.log");
     let end = Instant::now() + Duration::from_secs(20);
     while !std::fs::read_to_string(&plog)
         .unwrap_or_default()
@@ -281,12 +264,12 @@ fn a_late_controller_gets_the_published_reference() {
             .env("NO_COLOR", "1")
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(dir.0.join("controller.log")).unwrap())
+            .stderr(std::fs::File::create(dir.path().join("controller.log")).unwrap())
             .spawn()
             .expect("cannot start the controller"),
     );
     // The controller logs each law it applies.
-    let log = dir.0.join("controller.log");
+    let log = dir.path().join("controller.log");
     let end = Instant::now() + Duration::from_secs(20);
     loop {
         let text = std::fs::read_to_string(&log).unwrap_or_default();
@@ -346,7 +329,7 @@ fn a_controller_dying_mid_run_is_reported_and_the_recording_kept() {
     bin_dir();
     let _turn = realtime_turn();
     let dir = TempDir::new("death");
-    let out = dir.0.join("out");
+    let out = dir.path().join("out");
     let robot = format!("death_{}", std::process::id());
     let mut live = Proc(
         Command::new(BIN)
@@ -416,11 +399,11 @@ fn a_controller_dying_mid_run_is_reported_and_the_recording_kept() {
 #[test]
 fn live_without_the_node_binaries_says_how_to_build_them() {
     let dir = TempDir::new("nobin");
-    let exe = dir.0.join("tilting-planner");
+    let exe = dir.path().join("tilting-planner");
     std::fs::copy(BIN, &exe).unwrap();
     let o = Command::new(&exe)
         .args(["live", "--duration", "1", "--out"])
-        .arg(dir.0.join("out"))
+        .arg(dir.path().join("out"))
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(1));

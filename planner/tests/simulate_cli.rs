@@ -2,8 +2,10 @@
 //! configuration errors, the plot, and the convergence of the sampled coupling.
 
 use serde_json::Value;
-use std::path::PathBuf;
 use std::process::{Command, Output};
+
+mod common;
+use common::TempDir;
 
 const BIN: &str = env!("CARGO_BIN_EXE_tilting-planner");
 
@@ -27,35 +29,6 @@ fn simulate_json(args: &[&str]) -> Value {
     assert!(o.status.success(), "{args:?}: {}", stderr(&o));
     let text = String::from_utf8(o.stdout).expect("stdout is UTF-8");
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("not one JSON object: {e}\n{text}"))
-}
-
-/// A fresh directory under the system temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let p = std::env::temp_dir().join(format!(
-            "tilting-planner-{tag}-{}-{nanos}",
-            std::process::id()
-        ));
-        std::fs::create_dir_all(&p).expect("cannot create a temp dir");
-        TempDir(p)
-    }
-
-    fn file(&self, name: &str, contents: &str) -> String {
-        let p = self.0.join(name);
-        std::fs::write(&p, contents).expect("cannot write a temp file");
-        p.to_string_lossy().into_owned()
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 fn state4(v: &Value) -> [f64; 4] {
@@ -189,7 +162,11 @@ fn invalid_files_exit_2_and_name_the_field() {
     let bad_table = dir.file("bad_table.toml", "[params]\nl = 0\n");
     let bad_params = dir.file("params.toml", "m_f = -1\n");
     let unknown_param = dir.file("params2.toml", "mass = 1\n");
-    let missing = dir.0.join("missing.toml").to_string_lossy().into_owned();
+    let missing = dir
+        .path()
+        .join("missing.toml")
+        .to_string_lossy()
+        .into_owned();
     for (args, field) in [
         (vec!["--scenario", &unknown], "duraton"),
         (vec!["--scenario", &bad_value], "kd"),
@@ -249,7 +226,7 @@ fn a_physics_fault_is_reported_with_exit_code_0() {
 #[test]
 fn plot_writes_a_png() {
     let dir = TempDir::new("plot");
-    let png = dir.0.join("out.png");
+    let png = dir.path().join("out.png");
     let o = simulate(&["--duration", "2", "--plot", png.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let bytes = std::fs::read(&png).expect("the PNG was written");
