@@ -10,16 +10,19 @@
 //! assert!(tau > 0.0); // pushes the arm back towards upright
 //! ```
 
+#![warn(missing_docs)]
+
 #[cfg(feature = "node")]
 pub mod node;
 pub mod reference;
+pub mod wire;
 
 pub use reference::Reference;
 
 use serde::{Deserialize, Serialize};
 use tilting_plant::dynamics::{energy_t, torque_for_beta_ddot_t, Terms};
 use tilting_plant::params::{finite, non_negative};
-use tilting_plant::{ConfigError, Mode, Params, State, TorqueLaw};
+use tilting_plant::{paper, ConfigError, Mode, Params, State, TorqueLaw};
 
 /// Settings of the computed-torque PD controller with energy adaptation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -41,12 +44,13 @@ pub struct ControlConfig {
 }
 
 impl Default for ControlConfig {
-    /// The paper's gains `K_P = 100`, `K_D = 14.14`, no adaptation, hold upright, no limit.
+    /// The paper's gains `K_P = 100`, `K_D = 14.14` ([`tilting_plant::paper`]), no
+    /// adaptation, hold upright, no limit.
     fn default() -> Self {
         Self {
             params: Params::default(),
-            kp: 100.0,
-            kd: 14.14,
+            kp: paper::ORBIT_KP,
+            kd: paper::ORBIT_KD,
             k: 0.0,
             energy_avg: 0.0,
             reference: Reference::Hold,

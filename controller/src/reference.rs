@@ -37,6 +37,16 @@ impl Reference {
     }
 }
 
+impl std::fmt::Display for Reference {
+    /// `hold` or `sinusoid:A,w`, the form [`FromStr`] parses (the numbers round-trip).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Reference::Hold => f.write_str("hold"),
+            Reference::Sinusoid { amplitude, omega } => write!(f, "sinusoid:{amplitude},{omega}"),
+        }
+    }
+}
+
 impl FromStr for Reference {
     type Err = String;
     /// Parses `hold` or `sinusoid:A,w`.

@@ -35,7 +35,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use tilting_proto::{codec, DecodeError, Keys, Message};
+use tilting_proto::{codec, Keys, Message};
 use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::{Sample, SampleKind};
@@ -43,9 +43,6 @@ use zenoh::{Config, Session, Wait};
 
 pub use tilting_proto;
 pub use zenoh;
-
-/// Port of the plant's default listening endpoint.
-pub const DEFAULT_PORT: u16 = 7447;
 
 /// Where the plant listens, and the others connect, by default.
 pub const DEFAULT_PLANT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
@@ -232,15 +229,6 @@ impl<T: Message> TypedPublisher<T> {
     pub fn key(&self) -> &str {
         self.publisher.key_expr().as_str()
     }
-
-    /// Does any subscriber currently match this publisher?
-    pub fn has_subscribers(&self) -> bool {
-        self.publisher
-            .matching_status()
-            .wait()
-            .map(|s| s.matching())
-            .unwrap_or(false)
-    }
 }
 
 /// Counts the payloads received on one key and the ones dropped, and logs drops at a bounded
@@ -335,9 +323,28 @@ impl DropCounter {
     }
 }
 
-/// Decodes a whole payload outside any counter (tests, tools).
-pub fn decode<T: Message>(bytes: &[u8]) -> Result<T, DecodeError> {
-    codec::decode(bytes)
+/// Subscribes to the key of `counter` and hands every payload that decodes and validates as a
+/// `T` to `on_msg` (on a zenoh thread: keep it short and non-blocking); malformed payloads are
+/// counted and logged by `counter`. Keep the returned subscriber alive.
+pub async fn subscribe_decoded<T, F>(
+    session: &Session,
+    counter: Arc<DropCounter>,
+    on_msg: F,
+) -> anyhow::Result<zenoh::pubsub::Subscriber<()>>
+where
+    T: Message + Send + 'static,
+    F: Fn(T) + Send + Sync + 'static,
+{
+    let key = counter.key().to_owned();
+    session
+        .declare_subscriber(key.clone())
+        .callback(move |s| {
+            if let Some(m) = counter.decode_sample::<T>(&s) {
+                on_msg(m);
+            }
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {e}"))
 }
 
 /// How many liveliness tokens matching one key are alive, kept up to date by a liveliness
@@ -345,18 +352,12 @@ pub fn decode<T: Message>(bytes: &[u8]) -> Result<T, DecodeError> {
 #[derive(Debug, Default)]
 pub struct Presence {
     count: AtomicI64,
-    changes: AtomicU64,
 }
 
 impl Presence {
     /// Is at least one token alive?
     pub fn alive(&self) -> bool {
         self.count.load(Ordering::Acquire) > 0
-    }
-
-    /// Number of appearances and disappearances seen so far.
-    pub fn changes(&self) -> u64 {
-        self.changes.load(Ordering::Acquire)
     }
 }
 
@@ -395,7 +396,6 @@ where
                 }
             };
             if (before > 0) != (after > 0) {
-                p.changes.fetch_add(1, Ordering::AcqRel);
                 tracing::info!(
                     key = %key_owned,
                     "peer {}",

@@ -39,8 +39,27 @@ pub struct Row {
     /// Period of the peak sequence (1, 2, 4, ...), or `None` when irregular or faulted. In JSON:
     /// the number, `"irregular"`, or `null` after a fault.
     pub period: Option<usize>,
-    /// A fault that ended the run early, if any.
-    pub fault: Option<String>,
+    /// What ended the run early, if anything (its message text in JSON).
+    pub fault: Option<RowFault>,
+}
+
+/// Why the run of one `k` ended early.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RowFault {
+    /// The law or the start is invalid for this `k`.
+    #[error("{0}")]
+    Config(#[from] tilting_plant::ConfigError),
+    /// The plant faulted (contact loss, fall, Zeno guard, integrator).
+    #[error("{0}")]
+    Plant(#[from] tilting_plant::Fault),
+    /// No tilt for 10 s: the loop has left the orbit and come to rest.
+    #[error("no tilt between t = {from} s and {to} s")]
+    NoTilt {
+        /// Start of the window (s).
+        from: f64,
+        /// End of the window (s).
+        to: f64,
+    },
 }
 
 impl Serialize for Row {
@@ -54,7 +73,7 @@ impl Serialize for Row {
             (None, None) => st.serialize_field("period", "irregular")?,
             (None, Some(_)) => st.serialize_field("period", &None::<usize>)?,
         }
-        st.serialize_field("fault", &self.fault)?;
+        st.serialize_field("fault", &self.fault.as_ref().map(RowFault::to_string))?;
         st.end()
     }
 }
@@ -106,7 +125,7 @@ pub fn run_one(sw: &Sweep, k: f64) -> Row {
     let law = match ComputedTorque::new(control) {
         Ok(l) => l,
         Err(e) => {
-            row.fault = Some(e.to_string());
+            row.fault = Some(e.into());
             return row;
         }
     };
@@ -119,7 +138,7 @@ pub fn run_one(sw: &Sweep, k: f64) -> Row {
     let mut plant = match Plant::new(cfg, 0.0, Mode::Left, x0) {
         Ok(p) => p,
         Err(e) => {
-            row.fault = Some(e.to_string());
+            row.fault = Some(e.into());
             return row;
         }
     };
@@ -135,11 +154,14 @@ pub fn run_one(sw: &Sweep, k: f64) -> Row {
         let before = obs.count;
         t += 10.0;
         if let Err(e) = plant.advance_continuous(&law, t, &mut obs) {
-            row.fault = Some(e.to_string());
+            row.fault = Some(e.into());
             break;
         }
         if obs.count == before {
-            row.fault = Some(format!("no tilt between t = {} s and {t} s", t - 10.0));
+            row.fault = Some(RowFault::NoTilt {
+                from: t - 10.0,
+                to: t,
+            });
             break;
         }
     }

@@ -1,15 +1,24 @@
-//! Offline tools for the tilting system: closed-loop simulation now; boundary value problems,
-//! sweeps and figures to come. The `tilting-planner` binary is a thin command-line shell over
-//! these modules.
+//! Planning for the tilting system (the paper's Sec. III), and the planner node.
 //!
-//! - [`scenario`]: a simulation scenario (model, start, controller, coupling), its TOML file and
-//!   command-line flags, and validation that names the offending field;
-//! - [`simulate`]: the closed loop (continuous or zero-order-hold coupling) and its report;
-//! - [`plot`]: PNG figures with an embedded font.
+//! - [`sinusoid`]: approach 1, the frequency of a sinusoidal arm motion whose ideal-tracking
+//!   tilt lands at a chosen instant, and the `(A, w)` partition of Fig. 4;
+//! - [`orbit`]: approach 2, periodic tilting orbits of the closed loop by Newton shooting, with
+//!   their Floquet multipliers;
+//! - [`gains`]: orbits over a `(K_P, K_D)` grid (Fig. 6);
+//! - [`bifurcation`]: the sweep over the adaptation gain `k` (Fig. 8) and `k*`;
+//! - [`node`] (feature `node`): the planner node that publishes the controller's reference over
+//!   zenoh (the `tilting-planner` binary).
+//!
+//! Closed-loop runs come from `tilting-sim`, the model and simulator from `tilting-plant`.
 
-pub mod plot;
-pub mod scenario;
-pub mod simulate;
+#![warn(missing_docs)]
+
+pub mod bifurcation;
+pub mod gains;
+#[cfg(feature = "node")]
+pub mod node;
+pub mod orbit;
+pub mod sinusoid;
 
 /// The error of a command, sorted by exit code.
 #[derive(Debug)]
@@ -44,12 +53,3 @@ impl std::fmt::Display for CommandError {
 }
 
 impl std::error::Error for CommandError {}
-pub mod bifurcation;
-pub mod commands;
-pub mod figures;
-pub mod gains;
-pub mod live;
-pub mod orbit;
-pub mod publish;
-pub mod record;
-pub mod sinusoid;

@@ -450,6 +450,12 @@ fn finish(
     })
 }
 
+/// The orbit with the smallest tilt among [`find_all`]'s: the `k = 0` orbit the paper starts
+/// from, which the bifurcation sweep and the adaptation's `E_av` use.
+pub fn smallest(pb: &OrbitProblem) -> Option<OrbitSolution> {
+    find_all(pb).into_iter().next()
+}
+
 /// Finds every orbit reachable from a set of starts `beta0 = 0`, `beta_dot0` on a grid in
 /// `[0.05, 3]` rad/s, with `t_end` guessed from the first landing; distinct solutions only,
 /// sorted by maximal tilt.

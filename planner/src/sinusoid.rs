@@ -414,3 +414,96 @@ pub fn sample_ideal_tilt(p: &Params, a: f64, w: f64, n: usize) -> Vec<(f64, f64)
     }
     out
 }
+
+// ---------------------------------------------------------------------------------------------
+// The (A, w) partition of Fig. 4.
+
+/// Tilt start `t_t` and landing `t_l` (s) of the ideal motion `beta = A sin(w t) + pi/2` (`a` in
+/// rad, `w` in rad/s), if it tilts and lands.
+pub fn tilt_and_landing(p: &Params, a: f64, w: f64) -> Option<(f64, f64)> {
+    let tol = Search::default().tol;
+    let t = ideal_tilt(p, a, w, tol).ok()?;
+    Some((t.tilt_time, t.landing_time?))
+}
+
+/// The lowest frequency (rad/s) in `[lo, hi]` at which the ideal motion of amplitude `a`
+/// makes the plate tilt; `Some(lo)` if it tilts at `lo` already, `None` if never.
+pub fn no_tilt_boundary(p: &Params, a: f64, lo: f64, hi: f64) -> Option<f64> {
+    let no_tilt = |w: f64| tilt_start(p, a, w).is_none();
+    if !no_tilt(lo) {
+        return Some(lo);
+    }
+    let n = 200;
+    let mut w0 = lo;
+    for i in 1..=n {
+        let w1 = lo * (hi / lo).powf(i as f64 / n as f64);
+        if !no_tilt(w1) {
+            let (mut a0, mut a1) = (w0, w1);
+            while a1 - a0 > 1e-12 * a1 {
+                let m = 0.5 * (a0 + a1);
+                if no_tilt(m) {
+                    a0 = m;
+                } else {
+                    a1 = m;
+                }
+            }
+            return Some(a1);
+        }
+        w0 = w1;
+    }
+    None
+}
+
+/// The partition of Fig. 4, for one amplitude `a` (rad): the first `w` (rad/s) above the
+/// no-tilt boundary solving `t_l = T/2 + s t_t` for each of `ss`, over `scan` trial points. The scan is geometric in the distance to the boundary, where the
+/// solutions for `s` near -1 crowd.
+pub fn landing_curves(p: &Params, a: f64, ss: &[f64], scan: usize) -> Vec<Option<f64>> {
+    let (lo, hi) = (0.05, 60.0);
+    let Some(w_nt) = no_tilt_boundary(p, a, lo, hi) else {
+        return vec![None; ss.len()];
+    };
+    let ws: Vec<f64> = if w_nt > lo {
+        // Distances from 1e-9 to 1.5 times the boundary frequency.
+        (0..scan)
+            .map(|i| w_nt * (1.0 + 1e-9 * (1.5e9f64).powf(i as f64 / (scan - 1) as f64)))
+            .collect()
+    } else {
+        (0..scan)
+            .map(|i| lo * (hi / lo).powf(i as f64 / (scan - 1) as f64))
+            .collect()
+    };
+    let tl: Vec<Option<(f64, f64)>> = ws.iter().map(|&w| tilt_and_landing(p, a, w)).collect();
+    let residual = |s: f64, w: f64, tt: (f64, f64)| tt.1 - (PI / w + s * tt.0);
+    ss.iter()
+        .map(|&s| {
+            for i in 1..ws.len() {
+                let (Some(t0), Some(t1)) = (tl[i - 1], tl[i]) else {
+                    continue;
+                };
+                let (r0, r1) = (residual(s, ws[i - 1], t0), residual(s, ws[i], t1));
+                if (r0 > 0.0) == (r1 > 0.0) {
+                    continue;
+                }
+                let (mut w0, mut w1) = (ws[i - 1], ws[i]);
+                let pos0 = r0 > 0.0;
+                let mut ok = true;
+                while w1 - w0 > 1e-11 * w1 {
+                    let m = 0.5 * (w0 + w1);
+                    let Some(tm) = tilt_and_landing(p, a, m) else {
+                        ok = false;
+                        break;
+                    };
+                    if (residual(s, m, tm) > 0.0) == pos0 {
+                        w0 = m;
+                    } else {
+                        w1 = m;
+                    }
+                }
+                if ok {
+                    return Some(0.5 * (w0 + w1));
+                }
+            }
+            None
+        })
+        .collect()
+}

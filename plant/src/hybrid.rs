@@ -103,6 +103,31 @@ pub enum Fault {
     Integrator(#[from] OdeError),
 }
 
+impl Fault {
+    /// A short name of the kind of fault: `contact loss`, `fall`, `Zeno guard`,
+    /// `non-finite torque` or `integrator failure`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Fault::ContactLoss { .. } => "contact loss",
+            Fault::Fall { .. } => "fall",
+            Fault::Zeno { .. } => "Zeno guard",
+            Fault::NonFiniteTorque { .. } => "non-finite torque",
+            Fault::Integrator(_) => "integrator failure",
+        }
+    }
+
+    /// The simulated time of the fault (s), where the fault records one.
+    pub fn time(&self) -> Option<f64> {
+        match *self {
+            Fault::ContactLoss { t, .. }
+            | Fault::Fall { t, .. }
+            | Fault::Zeno { t, .. }
+            | Fault::NonFiniteTorque { t, .. } => Some(t),
+            Fault::Integrator(_) => None,
+        }
+    }
+}
+
 /// Receives what happens during a simulation. Every method has an empty default.
 pub trait Observer {
     /// A mode transition happened.

@@ -30,6 +30,7 @@ pub mod mode;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod ode;
+pub mod paper;
 pub mod params;
 
 pub use hybrid::{Fault, Observer, Plant, SimConfig, TiltPeak, TorqueLaw, Transition};

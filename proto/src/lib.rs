@@ -31,10 +31,10 @@
 
 pub mod codec;
 pub mod keys;
+pub mod mode;
 pub mod msg;
 
 pub use codec::{decode, encode, encode_into, DecodeError, Message};
 pub use keys::{KeyError, Keys};
-pub use msg::{
-    Mode, ModeError, ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError,
-};
+pub use mode::{Mode, ModeError};
+pub use msg::{ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError};

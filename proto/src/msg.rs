@@ -12,9 +12,8 @@
 //! offending field and the allowed range in its error. Field order is the wire order: do not
 //! reorder fields (see `docs/protocol.md`).
 
+use crate::mode::{Mode, ModeError};
 use serde::{Deserialize, Serialize};
-use std::fmt;
-use std::str::FromStr;
 use thiserror::Error;
 
 /// A message field that is out of its allowed range.
@@ -111,84 +110,6 @@ fn range(
 
 const MODE_RANGE: &str = "0..=2 (0 flat, 1 left, 2 right)";
 
-/// Discrete contact mode `q`; a `u8` on the wire.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[repr(u8)]
-pub enum Mode {
-    /// `q = 0`: the plate lies flat, `alpha = alpha_dot = 0`.
-    Flat = 0,
-    /// `q = 1`: tilted over the left edge, `alpha > 0`.
-    Left = 1,
-    /// `q = 2`: tilted over the right edge, `alpha < 0`.
-    Right = 2,
-}
-
-/// A byte or name that is not a [`Mode`].
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-pub enum ModeError {
-    /// The wire byte is above 2.
-    #[error("mode {0} is out of range; allowed: 0..=2 (0 flat, 1 left, 2 right)")]
-    OutOfRange(u8),
-    /// The name is not one of `flat`, `left`, `right`.
-    #[error("unknown mode {0:?}; allowed: \"flat\", \"left\", \"right\"")]
-    UnknownName(String),
-}
-
-impl Mode {
-    /// The wire byte (and the paper's index `q`).
-    pub const fn as_u8(self) -> u8 {
-        self as u8
-    }
-
-    /// `"flat"`, `"left"` or `"right"`.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            Mode::Flat => "flat",
-            Mode::Left => "left",
-            Mode::Right => "right",
-        }
-    }
-}
-
-impl fmt::Display for Mode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl FromStr for Mode {
-    type Err = ModeError;
-
-    /// Parses exactly `"flat"`, `"left"` or `"right"`.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "flat" => Ok(Mode::Flat),
-            "left" => Ok(Mode::Left),
-            "right" => Ok(Mode::Right),
-            _ => Err(ModeError::UnknownName(s.to_owned())),
-        }
-    }
-}
-
-impl TryFrom<u8> for Mode {
-    type Error = ModeError;
-
-    fn try_from(q: u8) -> Result<Self, Self::Error> {
-        match q {
-            0 => Ok(Mode::Flat),
-            1 => Ok(Mode::Left),
-            2 => Ok(Mode::Right),
-            _ => Err(ModeError::OutOfRange(q)),
-        }
-    }
-}
-
-impl From<Mode> for u8 {
-    fn from(mode: Mode) -> u8 {
-        mode.as_u8()
-    }
-}
-
 /// Plant state sample, published by the plant once per control period; 49 bytes on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PlantState {
@@ -221,6 +142,16 @@ impl PlantState {
         finite(M, "alpha_dot", self.alpha_dot)?;
         finite(M, "beta_dot", self.beta_dot)?;
         at_most(M, "mode", self.mode, 2, MODE_RANGE)
+    }
+
+    /// The contact mode, decoded from the `mode` byte.
+    pub fn mode(&self) -> Result<Mode, ModeError> {
+        Mode::try_from(self.mode)
+    }
+
+    /// The continuous state `[alpha, beta, alpha_dot, beta_dot]` (rad, rad/s).
+    pub fn x(&self) -> [f64; 4] {
+        [self.alpha, self.beta, self.alpha_dot, self.beta_dot]
     }
 }
 
@@ -284,6 +215,11 @@ impl ModeEvent {
         }
         Ok(())
     }
+
+    /// The modes before and after the event, decoded from the `from` and `to` bytes.
+    pub fn modes(&self) -> Result<(Mode, Mode), ModeError> {
+        Ok((Mode::try_from(self.from)?, Mode::try_from(self.to)?))
+    }
 }
 
 /// Plant health and counters, published by the plant at a low rate; variable size.
@@ -343,6 +279,24 @@ impl Status {
     pub const MIN_SIZE: usize = 122;
     /// Largest valid wire size, bytes.
     pub const MAX_SIZE: usize = Self::MIN_SIZE + Self::MAX_FAULT_LEN;
+
+    /// The contact mode, decoded from the `mode` byte.
+    pub fn mode(&self) -> Result<Mode, ModeError> {
+        Mode::try_from(self.mode)
+    }
+
+    /// The name of the run state: `starting`, `running`, `safe mode`, `faulted` or `stopped`
+    /// (`?` for a byte out of range).
+    pub fn state_name(&self) -> &'static str {
+        match self.state {
+            Status::STARTING => "starting",
+            Status::RUNNING => "running",
+            Status::SAFE_MODE => "safe mode",
+            Status::FAULTED => "faulted",
+            Status::STOPPED => "stopped",
+            _ => "?",
+        }
+    }
 
     /// Sets `fault`, truncated to at most [`Status::MAX_FAULT_LEN`] bytes on a UTF-8 character
     /// boundary, so the message always validates.
@@ -461,32 +415,6 @@ impl Reference {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn mode_conversions() {
-        for (m, b, s) in [
-            (Mode::Flat, 0u8, "flat"),
-            (Mode::Left, 1, "left"),
-            (Mode::Right, 2, "right"),
-        ] {
-            assert_eq!(m.as_u8(), b);
-            assert_eq!(u8::from(m), b);
-            assert_eq!(m.as_str(), s);
-            assert_eq!(m.to_string(), s);
-            assert_eq!(Mode::try_from(b), Ok(m));
-            assert_eq!(s.parse::<Mode>(), Ok(m));
-        }
-        for b in 3..=255u8 {
-            assert_eq!(Mode::try_from(b), Err(ModeError::OutOfRange(b)));
-        }
-        let text = Mode::try_from(3).unwrap_err().to_string();
-        assert!(text.contains('3') && text.contains("0..=2"), "{text}");
-        for bad in ["", "Flat", "LEFT", " right", "2", "up"] {
-            let err = bad.parse::<Mode>().unwrap_err();
-            assert_eq!(err, ModeError::UnknownName(bad.to_owned()));
-            assert!(err.to_string().contains("\"flat\", \"left\", \"right\""));
-        }
-    }
 
     #[test]
     fn set_fault_truncates_on_char_boundary() {

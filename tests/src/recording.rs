@@ -68,7 +68,7 @@ pub fn offline(duration: f64, period: f64) -> Vec<Row> {
         let x = plant.state();
         let row = |tau| Row {
             t: plant.time(),
-            mode: plant.mode().index(),
+            mode: plant.mode().as_u8(),
             x: [x[0], x[1], x[2], x[3]],
             tau,
             seq: k,

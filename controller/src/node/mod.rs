@@ -15,6 +15,7 @@
 //!
 //! At Ctrl-C or SIGTERM the node prints a JSON summary of its counters on stdout.
 
+use anyhow::Context as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -22,7 +23,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
-use tilting_plant::{Mode, Params, State};
+use tilting_plant::{paper, Params, State};
 use tilting_proto::{Keys, PlantState, TorqueCommand};
 
 use crate::{ComputedTorque, ControlConfig, Reference};
@@ -40,16 +41,16 @@ pub struct ControllerArgs {
     #[command(flatten)]
     pub zenoh: ZenohArgs,
     /// Base stiffness K_P0 (1/s^2)
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = paper::ORBIT_KP)]
     pub kp: f64,
     /// Damping K_D (1/s)
-    #[arg(long, default_value_t = 14.14)]
+    #[arg(long, default_value_t = paper::ORBIT_KD)]
     pub kd: f64,
     /// Energy adaptation gain k (1/(J s^2)); 0 = off
-    #[arg(long, default_value_t = 500.0)]
+    #[arg(long, default_value_t = paper::ORBIT_K)]
     pub k: f64,
     /// Target average energy E_av (J) of the adaptation
-    #[arg(long, default_value_t = 19.963439703027)]
+    #[arg(long, default_value_t = paper::ORBIT_ENERGY_AVG)]
     pub energy_avg: f64,
     /// Desired arm trajectory: hold or sinusoid:A,w (A in rad, w in rad/s)
     #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
@@ -91,31 +92,6 @@ impl ControllerArgs {
     }
 }
 
-/// The controller settings described by a planner's `Reference`, with the model `params`.
-pub fn config_from_reference(
-    params: Params,
-    r: &tilting_proto::Reference,
-) -> Result<ControlConfig, tilting_plant::ConfigError> {
-    let cfg = ControlConfig {
-        params,
-        kp: r.kp,
-        kd: r.kd,
-        k: r.k,
-        energy_avg: r.energy_avg,
-        reference: if r.kind == tilting_proto::Reference::SINUSOID {
-            Reference::Sinusoid {
-                amplitude: r.amplitude,
-                omega: r.omega,
-            }
-        } else {
-            Reference::Hold
-        },
-        torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
-    };
-    cfg.validate()?;
-    Ok(cfg)
-}
-
 struct Node {
     params: Params,
     law: Mutex<ComputedTorque>,
@@ -137,10 +113,10 @@ impl Node {
         let Some(s) = self.states.decode::<PlantState>(bytes) else {
             return;
         };
-        let Some(mode) = Mode::from_index(s.mode) else {
+        let Ok(mode) = s.mode() else {
             return; // unreachable: decode validated the mode
         };
-        let x = State::new(s.alpha, s.beta, s.alpha_dot, s.beta_dot);
+        let x = State::from(s.x());
         let tau = {
             let law = self.law.lock().unwrap_or_else(|e| e.into_inner());
             law.torque(s.time, mode, &x)
@@ -180,7 +156,7 @@ impl Node {
         if !live && self.live_reference.load(Ordering::Acquire) {
             return; // a query answer older than what the topic already gave
         }
-        match config_from_reference(self.params, &r).and_then(ComputedTorque::new) {
+        match ControlConfig::from_wire(self.params, &r).and_then(ComputedTorque::new) {
             Ok(c) => {
                 if live {
                     self.live_reference.store(true, Ordering::Release);
@@ -210,29 +186,80 @@ impl Node {
         }
     }
 
-    fn summary(&self) -> serde_json::Value {
+    fn summary(&self) -> ControllerSummary {
         let law = *self.law.lock().unwrap_or_else(|e| e.into_inner()).config();
-        let reference = match law.reference {
-            Reference::Hold => serde_json::json!({"kind": "hold"}),
-            Reference::Sinusoid { amplitude, omega } => {
-                serde_json::json!({"kind": "sinusoid", "amplitude": amplitude, "omega": omega})
-            }
-        };
-        serde_json::json!({
-            "states_received": self.states.received(),
-            "states_dropped": self.states.dropped(),
-            "torques_published": self.torques_published.load(Ordering::Relaxed),
-            "torques_not_finite": self.torques_not_finite.load(Ordering::Relaxed),
-            "publish_errors": self.publish_errors.load(Ordering::Relaxed),
-            "references_received": self.references.received(),
-            "references_dropped": self.references.dropped(),
-            "references_rejected": self.references_rejected.load(Ordering::Relaxed),
-            "references_applied": self.references_applied.load(Ordering::Relaxed),
-            "law": {
-                "kp": law.kp, "kd": law.kd, "k": law.k, "energy_avg": law.energy_avg,
-                "torque_limit": law.torque_limit, "reference": reference,
+        ControllerSummary {
+            states_received: self.states.received(),
+            states_dropped: self.states.dropped(),
+            torques_published: self.torques_published.load(Ordering::Relaxed),
+            torques_not_finite: self.torques_not_finite.load(Ordering::Relaxed),
+            publish_errors: self.publish_errors.load(Ordering::Relaxed),
+            references_received: self.references.received(),
+            references_dropped: self.references.dropped(),
+            references_rejected: self.references_rejected.load(Ordering::Relaxed),
+            references_applied: self.references_applied.load(Ordering::Relaxed),
+            law: LawSummary {
+                kp: law.kp,
+                kd: law.kd,
+                k: law.k,
+                energy_avg: law.energy_avg,
+                torque_limit: law.torque_limit,
+                reference: law.reference,
             },
-        })
+        }
+    }
+}
+
+/// The controller node's summary, one JSON object on stdout at Ctrl-C or SIGTERM; shared by
+/// the node, `tilting live` and the tests.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ControllerSummary {
+    /// State messages received, valid or not.
+    pub states_received: u64,
+    /// State messages dropped as malformed or invalid.
+    pub states_dropped: u64,
+    /// Torques published.
+    pub torques_published: u64,
+    /// States whose torque came out NaN or infinite (not published).
+    pub torques_not_finite: u64,
+    /// Publications that failed.
+    pub publish_errors: u64,
+    /// Reference messages received, valid or not.
+    pub references_received: u64,
+    /// Reference messages dropped as malformed or invalid.
+    pub references_dropped: u64,
+    /// Valid references whose law was refused.
+    pub references_rejected: u64,
+    /// References applied.
+    pub references_applied: u64,
+    /// The law in force at the end.
+    pub law: LawSummary,
+}
+
+/// The law in force, as the controller summary reports it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LawSummary {
+    /// `K_P0` (1/s^2).
+    pub kp: f64,
+    /// `K_D` (1/s).
+    pub kd: f64,
+    /// `k` (1/(J s^2)).
+    pub k: f64,
+    /// `E_av` (J).
+    pub energy_avg: f64,
+    /// Torque limit (N m), `null` for none.
+    pub torque_limit: Option<f64>,
+    /// The desired arm trajectory.
+    pub reference: Reference,
+}
+
+impl ControllerSummary {
+    /// The last line of `stdout` that parses as a summary.
+    pub fn from_stdout(stdout: &str) -> Option<Self> {
+        stdout
+            .lines()
+            .rev()
+            .find_map(|l| serde_json::from_str(l).ok())
     }
 }
 
@@ -326,7 +353,10 @@ async fn run_async(
     tracing::info!("stopping");
     querier.abort();
     drop(_token);
-    println!("{}", node.summary());
+    println!(
+        "{}",
+        serde_json::to_string(&node.summary()).context("cannot serialise the summary")?
+    );
     let _ = session.close().await;
     Ok(ExitCode::SUCCESS)
 }
@@ -382,7 +412,7 @@ mod tests {
             energy_avg: 1.0,
             torque_limit: 0.0,
         };
-        let c = config_from_reference(Params::default(), &r).unwrap();
+        let c = ControlConfig::from_wire(Params::default(), &r).unwrap();
         assert_eq!(
             c.reference,
             Reference::Sinusoid {
@@ -396,7 +426,7 @@ mod tests {
             torque_limit: 5.0,
             ..r
         };
-        let c = config_from_reference(Params::default(), &hold).unwrap();
+        let c = ControlConfig::from_wire(Params::default(), &hold).unwrap();
         assert_eq!((c.reference, c.torque_limit), (Reference::Hold, Some(5.0)));
     }
 }

@@ -36,6 +36,7 @@
 
 pub mod clock;
 pub mod stats;
+pub mod summary;
 
 use std::collections::VecDeque;
 use std::f64::consts::FRAC_PI_2;
@@ -51,27 +52,18 @@ use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_proto::{Keys, ModeEvent, PlantState, Status, TorqueCommand};
 
 use crate::{
-    Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, Tolerance,
+    paper, Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, Tolerance,
     Transition,
 };
 use stats::Ring;
+pub use summary::{PlantSummary, RunResult, Window};
 
 /// Exit code of a run that ended with a fault of the model.
 pub const EXIT_FAULT: u8 = 3;
 
-/// `beta0` of the paper's tilting orbit: the default start is `beta = pi/2 + ORBIT_BETA0`.
-pub const ORBIT_BETA0: f64 = -0.000214877415;
-/// `beta_dot0` (rad/s) of the paper's tilting orbit.
-pub const ORBIT_BETA_DOT0: f64 = 0.498257789692;
-
-/// The default initial state: the start of a left tilt on the paper's orbit (the same as
-/// `tilting-planner simulate`).
-pub fn orbit_x0() -> [f64; 4] {
-    [0.0, FRAC_PI_2 + ORBIT_BETA0, 0.0, ORBIT_BETA_DOT0]
-}
-
 /// How plant time advances.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum ClockMode {
     /// Paced by the wall clock, one period per `1/rate` s.
     Realtime,
@@ -130,10 +122,10 @@ pub struct PlantArgs {
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
     /// Initial contact mode: flat, left or right
-    #[arg(long, default_value = "left")]
+    #[arg(long, default_value_t = paper::ORBIT_MODE)]
     pub mode: Mode,
-    /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad/s) [default: start of the paper's
-    /// tilting orbit, 0,pi/2-0.000214877415,0,0.498257789692]
+    /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad/s) [default: the start of the
+    /// paper's tilting orbit, `tilting_plant::paper::orbit_x0`]
     #[arg(long, value_name = "A,B,AD,BD", value_parser = parse_x0, allow_hyphen_values = true)]
     pub x0: Option<[f64; 4]>,
     /// Landing impact law: paper or striking-edge
@@ -306,7 +298,7 @@ impl Observer for Obs {
 enum Outcome {
     Completed,
     Stopped,
-    Faulted(String),
+    Faulted(Fault),
 }
 
 struct Publishers {
@@ -359,7 +351,7 @@ impl Loop {
             beta: x[1],
             alpha_dot: x[2],
             beta_dot: x[3],
-            mode: self.plant.mode().index(),
+            mode: self.plant.mode().as_u8(),
         };
         self.shared.current_seq.store(self.seq, Ordering::Release);
         self.t_pub = clock::now_ns();
@@ -375,7 +367,7 @@ impl Loop {
             seq: self.seq,
             time: self.plant.time(),
             state: self.status_state,
-            mode: self.plant.mode().index(),
+            mode: self.plant.mode().as_u8(),
             tilts: self.obs.tilts,
             steps: self.seq,
             torques_received: self.shared.torques.received(),
@@ -609,7 +601,7 @@ impl Loop {
                 w,
                 "{},{},{},{},{},{},{},{}",
                 self.plant.time(),
-                self.plant.mode().index(),
+                self.plant.mode().as_u8(),
                 x[0],
                 x[1],
                 x[2],
@@ -642,8 +634,8 @@ impl Loop {
             let msg = ModeEvent {
                 seq: self.seq,
                 time: ev.t,
-                from: ev.from.index(),
-                to: ev.to.index(),
+                from: ev.from.as_u8(),
+                to: ev.to.as_u8(),
                 x_before: [
                     ev.x_before[0],
                     ev.x_before[1],
@@ -687,7 +679,7 @@ impl Loop {
             match self.step(tau) {
                 Ok(true) => return Outcome::Completed,
                 Ok(false) => {}
-                Err(f) => return Outcome::Faulted(f.to_string()),
+                Err(f) => return Outcome::Faulted(f),
             }
             let done = clock::now_ns();
             let next_deadline = start + ((k + 2) as f64 * h_ns).round() as u64;
@@ -717,7 +709,7 @@ impl Loop {
             match self.step(tau) {
                 Ok(true) => return Outcome::Completed,
                 Ok(false) => {}
-                Err(f) => return Outcome::Faulted(f.to_string()),
+                Err(f) => return Outcome::Faulted(f),
             }
             self.maybe_status();
         }
@@ -759,7 +751,8 @@ impl Loop {
             ClockMode::Lockstep => self.run_lockstep(),
         };
         match &outcome {
-            Outcome::Faulted(msg) => {
+            Outcome::Faulted(f) => {
+                let msg = f.to_string();
                 self.fault = msg.clone();
                 tracing::error!("fault: {msg}");
                 self.set_state(Status::FAULTED);
@@ -777,41 +770,62 @@ impl Loop {
         outcome
     }
 
-    fn summary(&mut self, outcome: &Outcome) -> serde_json::Value {
+    fn summary(&mut self, outcome: &Outcome) -> PlantSummary {
         let j = self.jitter.percentiles();
         let l = self.latency.percentiles();
         let c = self.step_cost.percentiles();
-        let x = self.plant.state();
         let (result, fault) = match outcome {
-            Outcome::Completed => ("completed", None),
-            Outcome::Stopped => ("stopped", None),
-            Outcome::Faulted(m) => ("faulted", Some(m.clone())),
+            Outcome::Completed => (RunResult::Completed, None),
+            Outcome::Stopped => (RunResult::Stopped, None),
+            Outcome::Faulted(f) => (RunResult::Faulted, Some(f.to_string())),
         };
-        serde_json::json!({
-            "result": result,
-            "fault": fault,
-            "clock": match self.args.clock { ClockMode::Realtime => "realtime", ClockMode::Lockstep => "lockstep" },
-            "period": self.h,
-            "seq": self.seq,
-            "time": self.plant.time(),
-            "mode": self.plant.mode().as_str(),
-            "x": [x[0], x[1], x[2], x[3]],
-            "steps": self.seq,
-            "tilts": self.obs.tilts,
-            "transitions": self.plant.transitions(),
-            "torques_received": self.shared.torques.received(),
-            "torques_dropped": self.shared.torques.dropped(),
-            "torques_stale": self.shared.stale.load(Ordering::Relaxed),
-            "deadline_misses": self.deadline_misses,
-            "watchdog_trips": self.watchdog_trips,
-            "safe_periods": self.safe_periods,
-            "overruns": self.overruns,
-            "max_overrun_us": self.step_overrun_max,
-            "jitter_us": {"p50": j.p50, "p99": j.p99, "p999": j.p999, "max": self.jitter.max(), "window": Ring::CAPACITY},
-            "latency_us": {"p50": l.p50, "p99": l.p99, "p999": l.p999, "max": self.latency.max(), "count": self.latency.count(), "window": Ring::CAPACITY},
-            "step_us": {"p50": c.p50, "p99": c.p99, "max": self.step_cost.max()},
-            "tilt_peaks": self.obs.peaks.iter().map(|p| [p.t, p.alpha]).collect::<Vec<_>>(),
-        })
+        let window = Some(Ring::CAPACITY as u64);
+        PlantSummary {
+            result,
+            fault,
+            clock: self.args.clock,
+            period: self.h,
+            seq: self.seq,
+            time: self.plant.time(),
+            mode: self.plant.mode(),
+            x: self.plant.state().into(),
+            steps: self.seq,
+            tilts: self.obs.tilts,
+            transitions: self.plant.transitions(),
+            torques_received: self.shared.torques.received(),
+            torques_dropped: self.shared.torques.dropped(),
+            torques_stale: self.shared.stale.load(Ordering::Relaxed),
+            deadline_misses: self.deadline_misses,
+            watchdog_trips: self.watchdog_trips,
+            safe_periods: self.safe_periods,
+            overruns: self.overruns,
+            max_overrun_us: self.step_overrun_max,
+            jitter_us: Window {
+                p50: j.p50,
+                p99: j.p99,
+                p999: Some(j.p999),
+                max: self.jitter.max(),
+                count: None,
+                window,
+            },
+            latency_us: Window {
+                p50: l.p50,
+                p99: l.p99,
+                p999: Some(l.p999),
+                max: self.latency.max(),
+                count: Some(self.latency.count()),
+                window,
+            },
+            step_us: Window {
+                p50: c.p50,
+                p99: c.p99,
+                p999: None,
+                max: self.step_cost.max(),
+                count: None,
+                window: None,
+            },
+            tilt_peaks: self.obs.peaks.iter().map(|p| [p.t, p.alpha]).collect(),
+        }
     }
 }
 
@@ -820,7 +834,7 @@ pub fn run(args: PlantArgs) -> anyhow::Result<ExitCode> {
     args.validate()?;
     let keys = args.zenoh.keys()?;
     let cfg = args.sim_config()?;
-    let x0 = State::from(args.x0.unwrap_or_else(orbit_x0));
+    let x0 = State::from(args.x0.unwrap_or_else(paper::orbit_x0));
     let plant = Plant::new(cfg, 0.0, args.mode, x0).context("initial state")?;
     let record = match &args.record {
         Some(path) => Some(std::io::BufWriter::with_capacity(
@@ -925,7 +939,10 @@ async fn run_async(
         .await
         .context("pacing thread join")?
         .map_err(|_| anyhow::anyhow!("the pacing thread panicked"))?;
-    println!("{summary}");
+    println!(
+        "{}",
+        serde_json::to_string(&summary).context("cannot serialise the summary")?
+    );
     // Let the last status and event leave before the session closes.
     tokio::time::sleep(Duration::from_millis(100)).await;
     drop(_token);
@@ -979,8 +996,8 @@ mod tests {
 
     #[test]
     fn default_start_is_the_orbit() {
-        let x = orbit_x0();
-        assert_eq!(x[1], FRAC_PI_2 - 0.000214877415);
-        assert_eq!(x[3], 0.498257789692);
+        let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
+        assert_eq!(a.mode, paper::ORBIT_MODE);
+        assert_eq!(a.x0, None); // resolved to paper::orbit_x0() by `run`
     }
 }

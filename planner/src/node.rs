@@ -1,4 +1,4 @@
-//! The `publish` command: the planner as a zenoh node. It publishes the controller's law (gains,
+//! The planner node (`tilting-planner`): the planner as a zenoh node. It publishes the controller's law (gains,
 //! energy target, reference trajectory, torque limit) as a `tilting_proto::Reference` on
 //! `tilting/{robot}/planner/reference`, following the late-joiner convention of
 //! `docs/protocol.md`:
@@ -15,7 +15,6 @@
 //! `live`.
 
 use crate::orbit::{find_all, OrbitProblem};
-use crate::scenario::{reference_to_string, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP};
 use crate::CommandError;
 use anyhow::{anyhow, Context as _};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -23,6 +22,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_controller::{ControlConfig, Reference as Trajectory};
 use tilting_net::{Qos, Role, TypedPublisher, ZenohArgs};
+use tilting_plant::paper::{ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP};
 use tilting_plant::{ImpactLaw, Params};
 use tilting_proto::{codec, Keys, Reference};
 use zenoh::{Session, Wait as _};
@@ -77,31 +77,23 @@ impl LawArgs {
         if self.from_orbit {
             energy_avg = orbit_energy_avg(self.kp, self.kd)?;
         }
-        let (kind, amplitude, omega) = match self.reference {
-            Trajectory::Hold => (Reference::HOLD, 0.0, 0.0),
-            Trajectory::Sinusoid { amplitude, omega } => (Reference::SINUSOID, amplitude, omega),
-        };
-        let r = Reference {
-            kind,
-            amplitude,
-            omega,
+        let r = ControlConfig {
             kp: self.kp,
             kd: self.kd,
             k: self.k,
             energy_avg,
-            torque_limit: self.torque_limit,
-        };
+            reference: self.reference,
+            torque_limit: (self.torque_limit > 0.0).then_some(self.torque_limit),
+            ..ControlConfig::default()
+        }
+        .to_wire();
         check_reference(&r).map_err(CommandError::Usage)?;
         Ok(r)
     }
 
     /// The controller flags of the same law (for a `tilting-controller` child).
     pub fn controller_flags(r: &Reference) -> Vec<String> {
-        let traj = if r.kind == Reference::SINUSOID {
-            format!("sinusoid:{},{}", r.amplitude, r.omega)
-        } else {
-            "hold".to_owned()
-        };
+        let traj = Trajectory::from(r).to_string();
         vec![
             "--kp".into(),
             r.kp.to_string(),
@@ -121,35 +113,15 @@ impl LawArgs {
 /// Checks a reference as the controller will: valid message and a valid control law.
 pub fn check_reference(r: &Reference) -> anyhow::Result<()> {
     r.validate().map_err(|e| anyhow!("{e}"))?;
-    let cfg = ControlConfig {
-        kp: r.kp,
-        kd: r.kd,
-        k: r.k,
-        energy_avg: r.energy_avg,
-        reference: trajectory(r),
-        torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
-        ..ControlConfig::default()
-    };
-    cfg.validate().map_err(|e| anyhow!("{e}"))?;
+    ControlConfig::from_wire(Params::default(), r).map_err(|e| anyhow!("{e}"))?;
     Ok(())
-}
-
-fn trajectory(r: &Reference) -> Trajectory {
-    if r.kind == Reference::SINUSOID {
-        Trajectory::Sinusoid {
-            amplitude: r.amplitude,
-            omega: r.omega,
-        }
-    } else {
-        Trajectory::Hold
-    }
 }
 
 /// One line describing a reference, e.g. `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J`.
 pub fn describe(r: &Reference) -> String {
     format!(
         "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit {}",
-        reference_to_string(&trajectory(r)),
+        Trajectory::from(r),
         r.kp,
         r.kd,
         r.k,
@@ -282,8 +254,17 @@ impl ReferencePublisher {
     }
 }
 
-/// Flags of `tilting-planner publish`.
-#[derive(Debug, Clone, clap::Args)]
+/// Flags of the planner node, `tilting-planner`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    name = "tilting-planner",
+    version,
+    about = "The planner node: publishes the controller's law (gains, E_av, reference trajectory) \
+             over zenoh, answers late joiners and holds the planner's liveliness token",
+    after_help = "The offline tools that used to live here are now subcommands of `tilting` \
+                  (`tilting live`, `tilting simulate`, `tilting plan ...`, `tilting figures`); \
+                  their old names still work for one release and say where they went."
+)]
 pub struct PublishArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
@@ -317,7 +298,7 @@ pub fn check_seconds(flag: &str, v: f64, allow_zero: bool) -> Result<(), Command
     }
 }
 
-/// `tilting-planner publish`.
+/// Runs the planner node (`tilting-planner`, also `tilting-planner publish`).
 pub fn run(args: &PublishArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn,tilting_planner=info,tilting_net=info");
     check_seconds("--repeat", args.repeat, true)?;

@@ -28,36 +28,13 @@
 //! ```
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
-use std::f64::consts::FRAC_PI_2;
 use std::path::{Path, PathBuf};
 use tilting_controller::{ComputedTorque, ControlConfig, Reference};
 use tilting_plant::dynamics::accelerations;
+use tilting_plant::paper::{
+    orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE,
+};
 use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, SimConfig, State, Tolerance};
-
-// The paper's stabilised tilting orbit (approach 2 of Sec. III-B, default parameters, paper impact
-// law, continuous coupling): the periodic orbit of the hybrid system under the PD law with
-// K_P0 = 100, K_D = 14.14 and `beta_d = pi/2`, and the time average of its energy over one period,
-// which the adaptation `K_P = K_P0 + k (E_av - E)` uses. These are the values that the `orbit`
-// command recomputes (shooting on `(beta0, beta_dot0, t_end)`); keep them in step with it.
-
-/// Mode at the start of the orbit: the beginning of a left tilt.
-pub const ORBIT_MODE: Mode = Mode::Left;
-/// `beta0` (rad): the orbit starts at `beta = pi/2 + ORBIT_BETA0`.
-pub const ORBIT_BETA0: f64 = -0.000214877415;
-/// `beta_dot0` (rad/s) at the start of the orbit.
-pub const ORBIT_BETA_DOT0: f64 = 0.498257789692;
-/// Duration of the left tilt (s): half the orbit's period; the orbit lands at this time and
-/// tilts right at once (the mirror image of the left half).
-pub const ORBIT_HALF_PERIOD: f64 = 0.435260234280;
-/// The stiffness gain `K_P0` (1/s^2) the orbit was computed with.
-pub const ORBIT_KP: f64 = 100.0;
-/// The damping gain `K_D` (1/s) the orbit was computed with.
-pub const ORBIT_KD: f64 = 14.14;
-/// The energy adaptation gain `k` (1/(J s^2)) of the default scenario: stabilises the orbit
-/// (period doubling sets in near `k = 1925`).
-pub const ORBIT_K: f64 = 500.0;
-/// The time average `E_av` (J) of the energy over one period of the orbit.
-pub const ORBIT_ENERGY_AVG: f64 = 19.963439703027;
 
 /// Default run length (s).
 pub const DEFAULT_DURATION: f64 = 10.0;
@@ -65,11 +42,6 @@ pub const DEFAULT_DURATION: f64 = 10.0;
 pub const RTOL_RANGE: (f64, f64) = (1e-13, 1e-3);
 /// Most zero-order-hold periods in one run (a guard against a period typed in the wrong unit).
 pub const MAX_PERIODS: f64 = 1e8;
-
-/// The initial state of the paper orbit `(alpha, beta, alpha_dot, beta_dot)`.
-pub fn orbit_x0() -> [f64; 4] {
-    [0.0, FRAC_PI_2 + ORBIT_BETA0, 0.0, ORBIT_BETA_DOT0]
-}
 
 /// A scenario file error or an invalid value. The message names the field (as spelled in the
 /// scenario file, with the command-line flag) and its allowed range.
@@ -188,7 +160,7 @@ mod reference_text {
 
     pub fn serialize<S: Serializer>(r: &Option<Reference>, s: S) -> Result<S::Ok, S::Error> {
         match r {
-            Some(r) => s.serialize_some(&super::reference_to_string(r)),
+            Some(r) => s.serialize_some(&r.to_string()),
             None => s.serialize_none(),
         }
     }
@@ -197,14 +169,6 @@ mod reference_text {
         let s = Option::<String>::deserialize(d)?;
         s.map(|s| s.parse().map_err(serde::de::Error::custom))
             .transpose()
-    }
-}
-
-/// `"hold"` or `"sinusoid:A,w"`, the inverse of `Reference::from_str`.
-pub fn reference_to_string(r: &Reference) -> String {
-    match *r {
-        Reference::Hold => "hold".into(),
-        Reference::Sinusoid { amplitude, omega } => format!("sinusoid:{amplitude},{omega}"),
     }
 }
 
@@ -243,7 +207,7 @@ pub struct Scenario {
 }
 
 fn serialize_reference<S: Serializer>(r: &Reference, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(&reference_to_string(r))
+    s.collect_str(r)
 }
 
 impl Default for Scenario {
@@ -441,7 +405,7 @@ impl Scenario {
                 return Err(out_of_range(
                     "reference",
                     "--reference",
-                    reference_to_string(&self.reference),
+                    self.reference,
                     "hold or sinusoid:A,w with A finite (rad) and w finite and > 0 (rad/s)",
                 ));
             }
@@ -698,6 +662,7 @@ pub fn parse_x0(s: &str) -> Result<[f64; 4], String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::FRAC_PI_2;
 
     #[test]
     fn default_is_valid_and_the_orbit() {

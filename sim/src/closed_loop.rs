@@ -1,6 +1,6 @@
-//! The `simulate` command: runs the closed loop of the hybrid plant and the computed-torque
-//! controller for one [`Scenario`] and reports the mode transitions, the tilt peaks, the final
-//! state and any fault.
+//! The closed loop of the hybrid plant and the computed-torque controller: the two couplings,
+//! and [`simulate`], which runs one [`Scenario`] and reports the mode transitions, the tilt
+//! peaks, the final state and any fault.
 //!
 //! Two couplings:
 //! - continuous (`control_period = 0`): the torque law is evaluated inside the right-hand side
@@ -8,30 +8,10 @@
 //! - sampled (`control_period = T > 0`): the controller runs at `t_k = k T` on the state at that
 //!   instant and its torque is held until `t_{k+1}` ([`Plant::advance_held`]), as over a network.
 
-use crate::plot;
-use crate::scenario::{Scenario, ScenarioArgs};
-use crate::CommandError;
-use anyhow::Context;
+use crate::scenario::{Scenario, ScenarioError};
 use serde::Serialize;
-use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
 use std::time::Instant;
-use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, Transition};
-
-/// Flags of `tilting-planner simulate`.
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct SimulateArgs {
-    /// The scenario.
-    #[command(flatten)]
-    pub scenario: ScenarioArgs,
-    /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
-    /// summary
-    #[arg(long)]
-    pub json: bool,
-    /// Draw alpha(t) and beta(t) with the event times into this PNG file
-    #[arg(long, value_name = "FILE.png")]
-    pub plot: Option<PathBuf>,
-}
+use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, TorqueLaw, Transition};
 
 /// Options of [`simulate`] that do not change the result.
 #[derive(Debug, Clone, Copy, Default)]
@@ -127,13 +107,22 @@ pub struct SimulationReport {
     /// Hybrid state at the end.
     #[serde(rename = "final")]
     pub final_state: FinalRecord,
-    /// The fault that ended the run early, if any.
-    pub fault: Option<String>,
+    /// The fault that ended the run early, if any (its message text in JSON).
+    #[serde(serialize_with = "fault_text")]
+    pub fault: Option<Fault>,
     /// Work counters.
     pub stats: RunStats,
     /// The trajectory, if recorded (not serialised).
     #[serde(skip)]
     pub samples: Vec<Sample>,
+}
+
+/// A fault as its message text: the JSON of `simulate --json` carries the message.
+fn fault_text<S: serde::Serializer>(f: &Option<Fault>, s: S) -> Result<S::Ok, S::Error> {
+    match f {
+        Some(f) => s.collect_str(f),
+        None => s.serialize_none(),
+    }
 }
 
 /// Collects events, peaks and (optionally) a decimated trajectory.
@@ -195,16 +184,86 @@ const MIN_CHUNK: f64 = 1.0;
 /// Samples recorded for a plot, about.
 const PLOT_SAMPLES: f64 = 20_000.0;
 
+/// The sampled closed loop, the code that a lockstep plant node reproduces bit for bit: at
+/// `t_k = k T` (a product, not a running sum, which would drift) the controller reads the
+/// plant's state, and its torque is held over `[t_k, t_{k+1}]` ([`Plant::advance_held`]). The
+/// plant must stand at `t = 0`. The last period is cut at `t_end`; a remainder below a
+/// billionth of a period is merged into it (a zero-length hold would underflow the
+/// integrator's step). `progress` gets the plant time about a thousand times per run.
+///
+/// Returns how the run ended and the number of controller evaluations.
+pub fn run_sampled<L: TorqueLaw, O: Observer>(
+    plant: &mut Plant,
+    law: &L,
+    period: f64,
+    t_end: f64,
+    obs: &mut O,
+    progress: &mut dyn FnMut(f64),
+) -> (Result<(), Fault>, u64) {
+    let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
+    let mut next_update = every;
+    let mut samples = 0u64;
+    let mut k: u64 = 0;
+    loop {
+        let t_k = k as f64 * period;
+        debug_assert_eq!(t_k, plant.time());
+        let tau = law.torque(t_k, plant.mode(), &plant.state());
+        samples += 1;
+        let next = (k + 1) as f64 * period;
+        let t_next = if next >= t_end - 1e-9 * period {
+            t_end
+        } else {
+            next
+        };
+        if let Err(f) = plant.advance_held(tau, t_next, obs) {
+            return (Err(f), samples);
+        }
+        if t_next >= t_end {
+            return (Ok(()), samples);
+        }
+        k += 1;
+        if k >= next_update {
+            next_update += every;
+            progress(t_next);
+        }
+    }
+}
+
+/// The continuous closed loop, the paper's setting: `law` inside the right-hand side
+/// ([`Plant::advance_continuous`]) up to `t_end` (s), in `pieces` equal calls (each cut ends an
+/// integrator step early, so the result depends on `pieces`; `progress` gets the plant time
+/// after each).
+pub fn run_continuous<L: TorqueLaw, O: Observer>(
+    plant: &mut Plant,
+    law: &L,
+    t_end: f64,
+    pieces: u64,
+    obs: &mut O,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(), Fault> {
+    let pieces = pieces.max(1);
+    for j in 1..=pieces {
+        let t_j = if j == pieces {
+            t_end
+        } else {
+            t_end * j as f64 / pieces as f64
+        };
+        plant.advance_continuous(law, t_j, obs)?;
+        progress(t_j);
+    }
+    Ok(())
+}
+
 /// Runs the scenario. Fails only on an invalid scenario; a fault of the plant (contact loss,
 /// fall, Zeno, integrator failure) ends the run and is reported in the result.
 pub fn simulate(
     sc: &Scenario,
     opts: SimOptions,
-) -> Result<SimulationReport, crate::scenario::ScenarioError> {
+) -> Result<SimulationReport, ScenarioError> {
     sc.validate()?;
     let ctrl = sc.controller()?;
     let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).map_err(|e| {
-        crate::scenario::ScenarioError::File {
+        ScenarioError::File {
             path: "initial state".into(),
             message: e.to_string(),
         }
@@ -219,59 +278,17 @@ pub fn simulate(
     let bar = opts.progress.then(|| progress_bar(sc.duration));
     let t_end = sc.duration;
     let start = Instant::now();
-    let mut controller_samples = 0u64;
-    let result: Result<(), Fault> = if sc.is_sampled() {
-        let period = sc.control_period;
-        // Update the bar about a thousand times per run.
-        let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
-        let mut next_update = every;
-        let mut k: u64 = 0;
-        loop {
-            // Sample instants are k T, not a running sum (which drifts); the plant stands at t_k.
-            let t_k = k as f64 * period;
-            debug_assert_eq!(t_k, plant.time());
-            let tau = ctrl.torque(t_k, plant.mode(), &plant.state());
-            controller_samples += 1;
-            let next = (k + 1) as f64 * period;
-            // The last period is cut at the end; a remainder below a billionth of a period is
-            // merged into it (a zero-length hold would underflow the integrator's step).
-            let t_next = if next >= t_end - 1e-9 * period {
-                t_end
-            } else {
-                next
-            };
-            if let Err(f) = plant.advance_held(tau, t_next, &mut rec) {
-                break Err(f);
-            }
-            if t_next >= t_end {
-                break Ok(());
-            }
-            k += 1;
-            if k >= next_update {
-                next_update += every;
-                if let Some(b) = &bar {
-                    set_progress(b, t_next, t_end);
-                }
-            }
+    let mut tick = |t: f64| {
+        if let Some(b) = &bar {
+            set_progress(b, t, t_end);
         }
+    };
+    let (result, controller_samples) = if sc.is_sampled() {
+        run_sampled(&mut plant, &ctrl, sc.control_period, t_end, &mut rec, &mut tick)
     } else {
-        let mut res = Ok(());
-        let chunks = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
-        for j in 1..=chunks {
-            let t_j = if j == chunks {
-                t_end
-            } else {
-                t_end * j as f64 / chunks as f64
-            };
-            if let Err(f) = plant.advance_continuous(&ctrl, t_j, &mut rec) {
-                res = Err(f);
-                break;
-            }
-            if let Some(b) = &bar {
-                set_progress(b, t_j, t_end);
-            }
-        }
-        res
+        let pieces = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
+        let r = run_continuous(&mut plant, &ctrl, t_end, pieces, &mut rec, &mut tick);
+        (r, 0)
     };
     let wall = start.elapsed().as_secs_f64();
     if let Some(b) = bar {
@@ -287,7 +304,7 @@ pub fn simulate(
             mode: plant.mode(),
             x: plant.state().into(),
         },
-        fault: result.err().map(|f| f.to_string()),
+        fault: result.err(),
         stats: RunStats {
             coupling: if sc.is_sampled() {
                 "sampled"
@@ -373,7 +390,9 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
     let _ = writeln!(
         s,
         "fault: {}",
-        r.fault.as_deref().unwrap_or("none (ran to the end)")
+        r.fault
+            .as_ref()
+            .map_or_else(|| "none (ran to the end)".to_owned(), Fault::to_string)
     );
     let _ = writeln!(
         s,
@@ -385,69 +404,6 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
         r.stats.wall_time_s
     );
     s
-}
-
-/// Writes `text` to stdout; a closed pipe (`| head`) is not an error.
-fn print_stdout(text: &str) -> Result<(), CommandError> {
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(CommandError::Failed(
-            anyhow::Error::new(e).context("cannot write to stdout"),
-        )),
-        _ => Ok(()),
-    }
-}
-
-/// `tilting-planner simulate`.
-pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
-    let sc = args
-        .scenario
-        .load()
-        .map_err(|e| CommandError::Usage(e.into()))?;
-    if let Some(p) = &args.plot {
-        let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
-        if !png {
-            return Err(CommandError::Usage(anyhow::anyhow!(
-                "invalid `--plot` = {}: must be a file name ending in .png",
-                p.display()
-            )));
-        }
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            if !dir.is_dir() {
-                return Err(CommandError::Usage(anyhow::anyhow!(
-                    "invalid `--plot` = {}: the directory {} does not exist",
-                    p.display(),
-                    dir.display()
-                )));
-            }
-        }
-    }
-    let opts = SimOptions {
-        record_samples: args.plot.is_some(),
-        progress: !args.json && std::io::stderr().is_terminal(),
-    };
-    let report = simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
-    if args.json {
-        let mut text = serde_json::to_string(&report)
-            .context("cannot serialise the report")
-            .map_err(CommandError::Failed)?;
-        text.push('\n');
-        print_stdout(&text)?;
-    } else {
-        print_stdout(&summary(&sc, &report))?;
-    }
-    if let Some(f) = &report.fault {
-        eprintln!("warning: the simulation stopped early: {f}");
-    }
-    if let Some(p) = &args.plot {
-        plot::plot_run(p, &sc, &report)
-            .with_context(|| format!("cannot draw the plot {}", p.display()))
-            .map_err(CommandError::Failed)?;
-        if !args.json {
-            print_stdout(&format!("plot: {}\n", p.display()))?;
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -1,8 +1,9 @@
 //! PNG figures with plotters. The font is embedded (`assets/DejaVuSans.ttf`, registered as
 //! `sans-serif`), so drawing needs no system font.
 
-use crate::scenario::Scenario;
-use crate::simulate::SimulationReport;
+use tilting_sim::Scenario;
+use tilting_sim::closed_loop::{EventRecord, Sample};
+use tilting_sim::SimulationReport;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
@@ -53,9 +54,34 @@ pub fn padded_range(v: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
     }
 }
 
-/// Draws `alpha(t)` and `beta(t)` of a run in two stacked panels, with the transition times
-/// marked: vertical lines at tilt starts and at landings.
+/// Draws `alpha(t)` and `beta(t)` of an offline run (`simulate --plot`) in two stacked panels,
+/// with the transition times marked: vertical lines at tilt starts and at landings.
 pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> {
+    let trace = Trace {
+        samples: &r.samples,
+        events: &r.events,
+        end: r.final_state.t,
+        stopped_early: r.fault.is_some(),
+    };
+    plot_trace(path, sc, &trace)
+}
+
+/// A trajectory to draw: an offline run's or a live recording's.
+#[derive(Debug, Clone, Copy)]
+pub struct Trace<'a> {
+    /// The trajectory, in time order (decimated as the caller likes).
+    pub samples: &'a [Sample],
+    /// The mode transitions.
+    pub events: &'a [EventRecord],
+    /// Plant time at the end of the run (s).
+    pub end: f64,
+    /// The run ended before its planned duration (a fault, or a node that failed).
+    pub stopped_early: bool,
+}
+
+/// Draws a [`Trace`] as [`plot_run`] does; `sc` gives the gains, the coupling and the planned
+/// duration for the title and the time axis.
+pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
     register_fonts()?;
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
@@ -70,19 +96,16 @@ pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> 
         sc.kd,
         sc.k,
         sc.impact.as_str(),
-        match &r.fault {
-            Some(_) => " (stopped by a fault)",
-            None => "",
+        if r.stopped_early {
+            " (stopped by a fault)"
+        } else {
+            ""
         }
     );
     let root = root.titled(&title, ("sans-serif", 28))?;
     let panels = root.split_evenly((2, 1));
-    let t_max = r
-        .final_state
-        .t
-        .max(sc.duration * 1e-6)
-        .max(f64::MIN_POSITIVE);
-    let t_max = if r.fault.is_some() {
+    let t_max = r.end.max(sc.duration * 1e-6).max(f64::MIN_POSITIVE);
+    let t_max = if r.stopped_early {
         t_max
     } else {
         sc.duration
@@ -116,7 +139,7 @@ pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> 
         // A landing and the re-tilt it triggers share one instant: landings are marked in the
         // lower half of the panel, tilt starts in the upper half, so both stay visible.
         let mut labelled = [false; 2];
-        for e in &r.events {
+        for e in r.events {
             let landing = e.to == Mode::Flat;
             let (color, y0, y1, label) = if landing {
                 (LANDING, lo, mid, "landing (tilted → flat), lower half")

@@ -1,0 +1,103 @@
+//! The plant node's run summary: one JSON object printed on stdout at the end of a run.
+//!
+//! One type for the node that writes it, `tilting live` that embeds it in its own summary, and
+//! the tests that read it: a renamed field fails to compile instead of reading as `null`.
+
+use serde::{Deserialize, Serialize};
+
+use super::ClockMode;
+use crate::Mode;
+
+/// How a plant run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RunResult {
+    /// Ran for `--duration`.
+    Completed,
+    /// Stopped early by Ctrl-C or SIGTERM (or a lockstep controller that went away).
+    Stopped,
+    /// The model faulted (fall, contact loss, Zeno guard, non-finite torque).
+    Faulted,
+}
+
+/// Percentiles of a window of samples, in µs (zeros for an empty window).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Window {
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// 99.9th percentile (absent for the step cost).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p999: Option<f64>,
+    /// Largest sample of the whole run.
+    pub max: f64,
+    /// Samples of the whole run (for the latency).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub count: Option<u64>,
+    /// Size of the window the percentiles are taken over.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<u64>,
+}
+
+/// The summary of one plant run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlantSummary {
+    /// How the run ended.
+    pub result: RunResult,
+    /// The fault's message, when `result` is `faulted`.
+    pub fault: Option<String>,
+    /// `realtime` or `lockstep`.
+    pub clock: ClockMode,
+    /// Control period (s).
+    pub period: f64,
+    /// `seq` of the last published state.
+    pub seq: u64,
+    /// Plant time at the end (s).
+    pub time: f64,
+    /// Contact mode at the end.
+    pub mode: Mode,
+    /// State at the end `(alpha, beta, alpha_dot, beta_dot)` (rad, rad/s).
+    pub x: [f64; 4],
+    /// Control periods run.
+    pub steps: u64,
+    /// Tilts started.
+    pub tilts: u64,
+    /// Mode transitions.
+    pub transitions: u64,
+    /// Torque messages received, valid or not.
+    pub torques_received: u64,
+    /// Torque messages dropped as malformed or invalid.
+    pub torques_dropped: u64,
+    /// Valid torques that did not answer the latest state.
+    pub torques_stale: u64,
+    /// Periods whose torque did not arrive in time.
+    pub deadline_misses: u64,
+    /// Times the watchdog put the plant in safe mode.
+    pub watchdog_trips: u64,
+    /// Periods run in safe mode.
+    pub safe_periods: u64,
+    /// Periods whose integration overran the deadline.
+    pub overruns: u64,
+    /// Largest overrun (µs).
+    pub max_overrun_us: f64,
+    /// Wake-up jitter of the pacing thread (µs).
+    pub jitter_us: Window,
+    /// Loop latency, state published to its torque received (µs).
+    pub latency_us: Window,
+    /// Cost of integrating one period (µs).
+    pub step_us: Window,
+    /// `(t, alpha)` of the last tilt peaks (s, rad).
+    pub tilt_peaks: Vec<[f64; 2]>,
+}
+
+impl PlantSummary {
+    /// The last line of `stdout` that parses as a summary (a node prints logs on stderr only,
+    /// but a caller may hand over a whole captured stream).
+    pub fn from_stdout(stdout: &str) -> Option<Self> {
+        stdout
+            .lines()
+            .rev()
+            .find_map(|l| serde_json::from_str(l).ok())
+    }
+}

@@ -1,0 +1,241 @@
+//! Fig. 7: the unstable orbit left alone, and stabilised by the energy adaptation.
+
+use super::*;
+use super::fig5::{short_fault, simulate, Trace};
+
+// ---------------------------------------------------------------------------------------------
+// Fig. 7.
+
+struct Fig7Run {
+    name: &'static str,
+    color: RGBColor,
+    trace: Trace,
+    fault: Option<Fault>,
+}
+
+pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
+    let pb = ctx.orbit_problem();
+    let o = orbit::smallest(&pb).ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
+    bar.inc(1);
+    let law = |k: f64| {
+        ComputedTorque::new(ControlConfig {
+            k,
+            energy_avg: o.energy_avg,
+            ..pb.control
+        })
+    };
+    let runs = [
+        (0.0, -FIG7_PERTURBATION),
+        (FIG7_K, FIG7_PERTURBATION),
+        (0.0, FIG7_PERTURBATION),
+    ];
+    let traces: Vec<Result<(Trace, Option<Fault>)>> = runs
+        .par_iter()
+        .map(|&(k, d)| {
+            let r = law(k).map_err(anyhow::Error::from).and_then(|l| {
+                simulate(
+                    ctx,
+                    &l,
+                    Mode::Left,
+                    OrbitProblem::start(o.beta0, o.beta_dot0 + d),
+                    ctx.set.fig7_duration,
+                )
+            });
+            bar.inc(1);
+            r
+        })
+        .collect();
+    let mut traces = traces.into_iter().collect::<Result<Vec<_>>>()?;
+    // Name the k = 0 runs by what they do: compare their last peaks.
+    let last_peak = |tr: &Trace| tr.peaks.last().map_or(0.0, |p| p.alpha.abs());
+    let (a, b) = (last_peak(&traces[0].0), last_peak(&traces[2].0));
+    if a > b {
+        traces.swap(0, 2);
+    }
+    let names = [
+        ("k = 0, decreasing", BLUE),
+        ("k = 500, controlled", GREEN),
+        ("k = 0, increasing", RED),
+    ];
+    let runs: Vec<Fig7Run> = traces
+        .into_iter()
+        .zip(names)
+        .map(|((trace, fault), (name, color))| Fig7Run {
+            name,
+            color,
+            trace,
+            fault,
+        })
+        .collect();
+    // The unstable orbit itself, one period from its exact start.
+    let (orbit_trace, _) = simulate(
+        ctx,
+        &law(0.0)?,
+        Mode::Left,
+        OrbitProblem::start(o.beta0, o.beta_dot0),
+        o.period,
+    )?;
+    draw_fig7(&ctx.path(7), &o, &orbit_trace, &runs, ctx.set.fig7_duration)?;
+    let text = runs
+        .iter()
+        .map(|r| {
+            let peaks: Vec<f64> = r.trace.peaks.iter().map(|p| p.alpha.abs()).collect();
+            format!(
+                "{}: {} tilts, last peak {}{}",
+                r.name,
+                peaks.len(),
+                peaks
+                    .last()
+                    .map_or("none".into(), |p| format!("{p:.4} rad")),
+                r.fault
+                    .as_ref()
+                    .map_or(String::new(), |f| format!(" ({})", short_fault(f)))
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    Ok(json!({
+        "text": format!("orbit max tilt {:.4} rad, E_av = {:.6} J; {text}", o.max_tilt, o.energy_avg),
+        "orbit": o,
+        "runs": runs.iter().map(|r| json!({
+            "name": r.name,
+            "peaks": r.trace.peaks.iter().map(|p| p.alpha).collect::<Vec<_>>(),
+            "fault": r.fault.as_ref().map(Fault::to_string),
+        })).collect::<Vec<_>>(),
+    }))
+}
+
+fn draw_fig7(
+    path: &Path,
+    o: &OrbitSolution,
+    orbit_trace: &Trace,
+    runs: &[Fig7Run],
+    duration: f64,
+) -> Result<()> {
+    let root = BitMapBackend::new(path, (1600, 1250)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        &format!(
+            "Fig. 7: stabilisation of the unstable orbit by K_P = K_P0 + k (E_av − E), K_P0 = {KP}, K_D = {KD}, start: the orbit's dβ/dt(0) ± {FIG7_PERTURBATION} rad/s"
+        ),
+        (FONT, 24),
+    )?;
+    let (top, bottom) = root.split_vertically(680);
+    // Phase portrait, scaled to the controlled orbit: the diverging run leaves the frame.
+    let ctrl = &runs[1].trace;
+    let (a_lo, a_hi) = symmetric(ctrl.alpha.iter().copied(), 0.0);
+    let (v_lo, v_hi) = symmetric(ctrl.alpha_dot.iter().copied(), 0.0);
+    let scale = 2.2;
+    let mut chart = ChartBuilder::on(&top)
+        .caption(
+            format!(
+                "phase portrait (α, dα/dt): the unstable orbit lies between the decaying and the growing run; k = {FIG7_K} holds the adapted loop on its own orbit (last peak {:.4} rad)",
+                runs[1].trace.peaks.last().map_or(f64::NAN, |p| p.alpha.abs())
+            ),
+            (FONT, 21),
+        )
+        .margin(14)
+        .margin_right(40)
+        .x_label_area_size(55)
+        .y_label_area_size(90)
+        .build_cartesian_2d(scale * a_lo..scale * a_hi, scale * v_lo..scale * v_hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("tilt angle α [rad]")
+        .y_desc("tilt rate dα/dt [rad/s]")
+        .axis_desc_style((FONT, 20))
+        .label_style((FONT, 16))
+        .light_line_style(WHITE.mix(0.0))
+        .bold_line_style(BLACK.mix(0.08))
+        .x_label_formatter(&tick3)
+        .draw()?;
+    // Draw the k = 0 runs first and the controlled orbit on top.
+    for i in [0, 2, 1] {
+        let r = &runs[i];
+        let parts = clip(
+            r.trace
+                .alpha
+                .iter()
+                .copied()
+                .zip(r.trace.alpha_dot.iter().copied()),
+            (scale * a_lo, scale * a_hi),
+            (scale * v_lo, scale * v_hi),
+        );
+        let width = if i == 1 { 3 } else { 1 };
+        for part in parts.iter().skip(1) {
+            chart.draw_series(LineSeries::new(
+                part.iter().copied(),
+                r.color.mix(0.9).stroke_width(width),
+            ))?;
+        }
+        chart
+            .draw_series(LineSeries::new(
+                parts.first().into_iter().flatten().copied(),
+                r.color.mix(0.9).stroke_width(width),
+            ))?
+            .label(format!(
+                "{}{}",
+                r.name,
+                r.fault
+                    .as_ref()
+                    .map_or(String::new(), |f| format!(" ({})", short_fault(f)))
+            ))
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 24, y)], r.color.stroke_width(3))
+            });
+    }
+    chart
+        .draw_series(DashedLineSeries::new(
+            orbit_trace
+                .alpha
+                .iter()
+                .copied()
+                .zip(orbit_trace.alpha_dot.iter().copied()),
+            8,
+            5,
+            BLACK.stroke_width(2),
+        ))?
+        .label(format!(
+            "unstable k = 0 orbit, one period (max tilt {:.4} rad)",
+            o.max_tilt
+        ))
+        .legend(|(x, y)| {
+            EmptyElement::at((x, y))
+                + PathElement::new(vec![(0, 0), (10, 0)], BLACK.stroke_width(2))
+                + PathElement::new(vec![(15, 0), (24, 0)], BLACK.stroke_width(2))
+        });
+    legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    // Bottom: alpha(t) side by side.
+    for (area, r) in bottom.split_evenly((1, 3)).iter().zip(runs) {
+        let (lo, hi) = symmetric(r.trace.alpha.iter().copied(), 0.08);
+        let caption = format!(
+            "{}{}",
+            r.name,
+            r.fault
+                .as_ref()
+                .map_or(String::new(), |f| format!(": {}", short_fault(f)))
+        );
+        let mut c = ChartBuilder::on(area)
+            .caption(caption, (FONT, 20))
+            .margin(12)
+            .margin_right(24)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.0..duration, lo..hi)?;
+        c.configure_mesh()
+            .x_desc("time t [s]")
+            .y_desc("α [rad]")
+            .axis_desc_style((FONT, 19))
+            .label_style((FONT, 15))
+            .light_line_style(WHITE.mix(0.0))
+            .bold_line_style(BLACK.mix(0.08))
+            .y_label_formatter(&tick3)
+            .draw()?;
+        c.draw_series(LineSeries::new(
+            r.trace.t.iter().copied().zip(r.trace.alpha.iter().copied()),
+            r.color.stroke_width(2),
+        ))?;
+    }
+    root.present()?;
+    Ok(())
+}

@@ -1,0 +1,211 @@
+//! The paper's Figs. 4 to 8 as PNG files, computed from scratch with the planner and the
+//! closed loop and drawn with plotters. [`Figures::draw`] draws one; the `tilting figures`
+//! command draws them all with a progress bar.
+//!
+//! - Fig. 4 ([`sinusoid`]): the partition of the `(A, w)` plane: the pairs whose ideal arm
+//!   motion never tilts the plate, and the curves `t_l = T/2 + s t_t` for `s = -1, 0, 1`;
+//! - Fig. 5: the closed loop (PD, `K_P = 100`, `K_D = 14.14`, impacts) tracking the sinusoid of
+//!   four planned `(A, w)` pairs, the simulated tilt against the planned one;
+//! - Fig. 6 ([`gains`]): the maximal tilt of the periodic orbits of approach 2 over `(K_P, K_D)`;
+//! - Fig. 7: the unstable orbit left alone (perturbed up and down) and stabilised by the energy
+//!   adaptation `k = 500`;
+//! - Fig. 8 ([`bifurcation`]): the tilt peaks over the adaptation gain `k`, with `k*`, and three
+//!   peak series.
+
+mod fig4;
+mod fig5;
+mod fig6;
+mod fig7;
+mod fig8;
+mod style;
+
+use crate::plot::register_fonts;
+use anyhow::{anyhow, Context, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::path::{Path, PathBuf};
+use style::{
+    clip, legend, star_points, style_mesh, symmetric, tick3, Area, BLUE, FONT, GREEN, GREY, PALETTE,
+    RED,
+};
+use tilting_controller::{ComputedTorque, ControlConfig, Reference};
+use tilting_plant::paper::{ORBIT_KD as KD, ORBIT_KP as KP};
+use tilting_plant::{
+    Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak,
+};
+use tilting_planner::bifurcation::{self, Sweep};
+use tilting_planner::gains;
+use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
+use tilting_planner::sinusoid::{self, Search};
+
+/// The figures there are: 4 to 8, as numbered in the paper.
+pub const ALL: std::ops::RangeInclusive<u8> = 4..=8;
+
+/// Grid sizes and run lengths; [`Settings::quick`] for previews and tests.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// Fig. 4: amplitude step of the curves (rad).
+    a_step: f64,
+    /// Fig. 4: amplitude step of the no-tilt grid (rad).
+    grid_a_step: f64,
+    /// Fig. 4: frequency step of the no-tilt grid (rad/s).
+    grid_w_step: f64,
+    /// Fig. 4: scan points above the no-tilt boundary.
+    scan: usize,
+    /// Fig. 5: periods simulated.
+    periods: f64,
+    /// Fig. 6: steps of K_P and K_D.
+    kp_step: f64,
+    kd_step: f64,
+    /// Fig. 7: duration of each run (s).
+    fig7_duration: f64,
+    /// Fig. 8: step of k, tilts per k, tilts kept.
+    k_step: f64,
+    tilts: usize,
+    keep: usize,
+    /// Fig. 8: tilts per time series, and how many of the last are shown.
+    series_tilts: usize,
+    series_keep: usize,
+}
+
+impl Settings {
+    /// The grids and run lengths of the published figures (minutes on 2 cores).
+    pub fn full() -> Self {
+        Self {
+            a_step: 0.01,
+            grid_a_step: 0.02,
+            grid_w_step: 0.25,
+            scan: 90,
+            periods: 3.0,
+            kp_step: 10.0,
+            kd_step: 0.5,
+            fig7_duration: 15.0,
+            k_step: 5.0,
+            tilts: 600,
+            keep: 150,
+            series_tilts: 600,
+            series_keep: 60,
+        }
+    }
+
+    /// Coarse grids and short runs: a preview in seconds.
+    pub fn quick() -> Self {
+        Self {
+            a_step: 0.05,
+            grid_a_step: 0.05,
+            grid_w_step: 1.0,
+            scan: 40,
+            periods: 2.0,
+            kp_step: 40.0,
+            kd_step: 3.0,
+            fig7_duration: 6.0,
+            k_step: 100.0,
+            tilts: 150,
+            keep: 40,
+            series_tilts: 150,
+            series_keep: 30,
+        }
+    }
+}
+
+/// Amplitude range of Fig. 4 (rad) and the frequency range of its no-tilt grid (rad/s).
+
+const FIG4_A: (f64, f64) = (0.02, 0.6);
+const FIG4_W: (f64, f64) = (0.5, 16.0);
+/// Fig. 5: amplitude and landing offsets (the paper's).
+const FIG5_A: f64 = 0.33;
+const FIG5_S: [(f64, &str); 4] = [
+    (-0.5, "1/2"),
+    (-0.25, "1/4"),
+    (-1.0 / 6.0, "1/6"),
+    (-0.125, "1/8"),
+];
+/// The paper's gains.
+/// Fig. 7: adaptation gain and the perturbation of `beta_dot0` (rad/s).
+const FIG7_K: f64 = 500.0;
+const FIG7_PERTURBATION: f64 = 1e-3;
+/// Fig. 8: range of k and the three gains of the time series.
+const FIG8_K: (f64, f64) = (1500.0, 2500.0);
+const FIG8_SERIES: [f64; 3] = [1900.0, 2210.0, 2300.0];
+
+/// What every figure needs: the model, the grids and where the PNGs go.
+pub struct Figures {
+    /// Model parameters.
+    pub params: Params,
+    /// Landing impact law.
+    pub impact: ImpactLaw,
+    /// Grids and run lengths.
+    pub set: Settings,
+    /// Output directory (it must exist).
+    pub out: PathBuf,
+}
+
+/// The figures' own name for their context.
+type Ctx = Figures;
+
+impl Figures {
+    /// The file of figure `n`: `{out}/fig{n}.png`.
+    pub fn path(&self, n: u8) -> PathBuf {
+        self.out.join(format!("fig{n}.png"))
+    }
+
+    fn amplitudes(&self) -> Vec<f64> {
+        gains::range(FIG4_A.0, FIG4_A.1, self.set.a_step)
+    }
+
+    fn kps(&self) -> Vec<f64> {
+        gains::range(60.0, 140.0, self.set.kp_step)
+    }
+
+    fn kds(&self) -> Vec<f64> {
+        gains::range(8.0, 20.0, self.set.kd_step)
+    }
+
+    fn ks(&self) -> Vec<f64> {
+        gains::range(FIG8_K.0, FIG8_K.1, self.set.k_step)
+    }
+
+    /// Progress units of figure `n` (the ticks [`Figures::draw`] gives its bar).
+    pub fn units(&self, n: u8) -> u64 {
+        (match n {
+            4 => self.amplitudes().len() + 1,
+            5 => FIG5_S.len(),
+            6 => self.kps().len() + 1,
+            7 => 4,
+            8 => self.ks().len() + FIG8_SERIES.len() + 2,
+            _ => 0,
+        }) as u64
+    }
+
+    fn sim_config(&self) -> SimConfig {
+        SimConfig {
+            params: self.params,
+            impact: self.impact,
+            // Small steps: the samples are drawn as a polyline.
+            h_max: 2e-3,
+            ..SimConfig::default()
+        }
+    }
+
+    fn orbit_problem(&self) -> OrbitProblem {
+        OrbitProblem::new(self.params, self.impact, KP, KD)
+    }
+
+    /// Computes and draws figure `n` (4 to 8) into [`Figures::path`], ticking `bar`; returns a
+    /// JSON summary with a one-line `text` and the figure's numbers.
+    pub fn draw(&self, n: u8, bar: &indicatif::ProgressBar) -> Result<Value> {
+        register_fonts()?;
+        match n {
+            4 => fig4::fig4(self, bar),
+            5 => fig5::fig5(self, bar),
+            6 => fig6::fig6(self, bar),
+            7 => fig7::fig7(self, bar),
+            8 => fig8::fig8(self, bar),
+            _ => Err(anyhow!("no figure {n}: the figures are numbered 4 to 8")),
+        }
+    }
+}
