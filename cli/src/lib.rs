@@ -1,1 +1,22 @@
-//! placeholder
+//! The front door of the tilting system: the `tilting` binary and what it runs.
+//!
+//! - [`commands`]: the subcommands, grouped by what a person wants (run: `live`, `simulate`;
+//!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`);
+//! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
+//!   and a report;
+//! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);
+//! - [`supervise`]: child processes (node binaries, free ports, orderly stops), shared with the
+//!   process-level tests.
+//!
+//! The three node binaries of the design stay separate: `tilting-plant`, `tilting-controller`
+//! and `tilting-planner` (the planner node that publishes references). `tilting live` starts the
+//! first two as children and runs the planner's publisher in-process.
+
+#![warn(missing_docs)]
+
+pub mod commands;
+pub mod live;
+pub mod record;
+pub mod supervise;
+
+pub use tilting_planner::CommandError;

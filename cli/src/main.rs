@@ -1,13 +1,42 @@
-//! `tilting-planner`: offline simulation, boundary value problems, sweeps and figures for the
-//! tilting system. A thin shell: each subcommand parses its flags and calls its library module.
+//! `tilting`: the front door. A thin shell: each subcommand parses its flags and calls the
+//! library (see `tilting --help`).
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting_planner::commands;
-use tilting_planner::simulate::{self, SimulateArgs};
+use tilting::commands::{figures, plan, simulate};
+use tilting::live;
+
+/// The help page lists the subcommands in groups, by what a person wants to do.
+const HELP: &str = "\
+{about}
+
+{usage-heading} {usage}
+
+Run:
+  live        The main job: plant, controller and planner live on localhost at 1 kHz on the
+              paper's stabilised orbit; status line, recording, plot
+  simulate    The closed loop offline for one scenario (default: the paper's orbit)
+
+Plan:
+  plan        orbit | sinusoid | bifurcation | gains: the paper's boundary value problems,
+              stability and sweeps
+
+Look:
+  figures     The paper's Figs. 4 to 8 as PNG files
+
+The nodes of the design are separate binaries: tilting-plant, tilting-controller and
+tilting-planner (publishes the reference). `tilting <command> --help` tells more.
+
+Options:
+{options}";
 
 #[derive(Debug, Parser)]
-#[command(name = "tilting-planner", version, about, long_about = None)]
+#[command(
+    name = "tilting",
+    version,
+    about = "A tilting mechatronic system: run it live, simulate it, plan its motions, draw the paper's figures",
+    help_template = HELP
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -15,40 +44,43 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
-    /// default the paper's stabilised tilting orbit
-    Simulate(SimulateArgs),
-    /// Approach 1: the frequency w of beta_d = A sin(w t) + pi/2 whose ideal-tracking tilt lands
-    /// at t_l = T/2 + s t_t
-    Sinusoid(commands::SinusoidArgs),
-    /// Approach 2: every periodic tilting orbit for a gain pair, with Floquet multipliers
-    Orbit(commands::OrbitArgs),
-    /// Sweep the energy-adaptation gain k (Fig. 8): tilt peaks, their period, and k*
-    Bifurcation(commands::BifurcationArgs),
-    /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
-    Gains(commands::GainsArgs),
-    /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png) in a directory
-    Figures(tilting_planner::figures::FiguresArgs),
-    /// Publish the controller's law as the planner's reference over zenoh (put on change and
-    /// every second, a queryable for late joiners, the planner's liveliness token)
-    Publish(tilting_planner::publish::PublishArgs),
     /// The main job: plant and controller as child processes and the planner in-process on
     /// localhost, the paper's stabilised orbit live at 1 kHz; status line, recording, plot
-    Live(tilting_planner::live::LiveArgs),
+    Live(live::LiveArgs),
+    /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
+    /// default the paper's stabilised tilting orbit
+    Simulate(simulate::SimulateArgs),
+    /// Plan: the paper's boundary value problems, stability and sweeps
+    #[command(subcommand)]
+    Plan(Plan),
+    /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png) in a directory
+    Figures(figures::FiguresArgs),
+}
+
+#[derive(Debug, Subcommand)]
+enum Plan {
+    /// Approach 2: every periodic tilting orbit for a gain pair, with Floquet multipliers
+    Orbit(plan::OrbitArgs),
+    /// Approach 1: the frequency w of beta_d = A sin(w t) + pi/2 whose ideal-tracking tilt lands
+    /// at t_l = T/2 + s t_t
+    Sinusoid(plan::SinusoidArgs),
+    /// Sweep the energy-adaptation gain k (Fig. 8): tilt peaks, their period, and k*
+    Bifurcation(plan::BifurcationArgs),
+    /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
+    Gains(plan::GainsArgs),
 }
 
 fn main() -> ExitCode {
     // Usage errors exit with code 2 (clap's convention), --help and --version with 0.
     let cli = Cli::parse();
     let result = match &cli.command {
+        Command::Live(args) => live::run(args),
         Command::Simulate(args) => simulate::run(args),
-        Command::Sinusoid(args) => commands::sinusoid(args),
-        Command::Orbit(args) => commands::orbit(args),
-        Command::Bifurcation(args) => commands::bifurcation(args),
-        Command::Gains(args) => commands::gains(args),
-        Command::Figures(args) => tilting_planner::figures::figures(args),
-        Command::Publish(args) => tilting_planner::publish::run(args),
-        Command::Live(args) => tilting_planner::live::run(args),
+        Command::Plan(Plan::Orbit(args)) => plan::orbit(args),
+        Command::Plan(Plan::Sinusoid(args)) => plan::sinusoid(args),
+        Command::Plan(Plan::Bifurcation(args)) => plan::bifurcation(args),
+        Command::Plan(Plan::Gains(args)) => plan::gains(args),
+        Command::Figures(args) => figures::figures(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

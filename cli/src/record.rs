@@ -16,9 +16,9 @@
 //! samples (the plant re-publishes state 0 while it waits for a controller, and its controller
 //! answers each copy) are written once.
 
-use crate::plot;
-use crate::scenario::Scenario;
-use crate::simulate::{EventRecord, FinalRecord, RunStats, Sample, SimulationReport};
+use tilting_sim::closed_loop::{EventRecord, Sample};
+use tilting_sim::Scenario;
+use tilting_viz::plot::{plot_trace, Trace};
 use anyhow::{anyhow, Context as _, Result};
 use std::collections::VecDeque;
 use std::fs::File;
@@ -40,8 +40,8 @@ pub const EVENTS_CSV: &str = "events.csv";
 /// The figure.
 pub const RUN_PNG: &str = "run.png";
 
-/// Header of `state.csv`.
-pub const STATE_HEADER: &str = "seq,t,mode,alpha,beta,alpha_dot,beta_dot";
+/// Header of `state.csv`: the state columns of every CSV of the project.
+pub const STATE_HEADER: &str = tilting_plant::node::STATE_COLUMNS;
 /// Header of `torque.csv`.
 pub const TORQUE_HEADER: &str = "seq,tau";
 /// Header of `events.csv`.
@@ -337,15 +337,15 @@ fn numbers<const N: usize>(line: &str) -> Option<[f64; N]> {
 }
 
 /// Draws `alpha(t)` and `beta(t)` of the recording in `dir` into `png` (via
-/// [`plot::plot_run`]), decimated to about 20 000 points (mode changes are always kept).
+/// [`plot_trace`]), decimated to about 20 000 points (mode changes are always kept).
 /// `states` is the number of rows of `state.csv` (to pick the decimation); `scenario` gives
-/// the gains and the control period for the title; `fault` marks an early end.
+/// the gains and the control period for the title; `stopped_early` marks an early end.
 pub fn plot_recording(
     dir: &Path,
     png: &Path,
     states: u64,
     scenario: &Scenario,
-    fault: Option<String>,
+    stopped_early: bool,
 ) -> Result<()> {
     let stride = states.div_ceil(PLOT_POINTS).max(1);
     let mut samples: Vec<Sample> = Vec::with_capacity((states / stride + 1024) as usize);
@@ -359,7 +359,7 @@ pub fn plot_recording(
         let Some([_, t, q, a, b, ad, bd]) = numbers::<7>(&line) else {
             continue;
         };
-        let Some(mode) = Mode::from_index(q as u8) else {
+        let Ok(mode) = Mode::try_from(q as u8) else {
             continue;
         };
         let s = Sample {
@@ -389,8 +389,7 @@ pub fn plot_recording(
         let Some(v) = numbers::<11>(&line) else {
             continue;
         };
-        let (Some(from), Some(to)) = (Mode::from_index(v[1] as u8), Mode::from_index(v[2] as u8))
-        else {
+        let (Ok(from), Ok(to)) = (Mode::try_from(v[1] as u8), Mode::try_from(v[2] as u8)) else {
             continue;
         };
         events.push(EventRecord {
@@ -405,43 +404,18 @@ pub fn plot_recording(
         duration: end.t.max(1e-3),
         ..scenario.clone()
     };
-    let report = SimulationReport {
-        events,
-        tilt_peaks: Vec::new(),
-        final_state: FinalRecord {
-            t: end.t,
-            mode: end.mode,
-            x: end.x,
-        },
-        fault,
-        stats: RunStats {
-            coupling: "sampled",
-            control_period: sc.control_period,
-            duration: sc.duration,
-            rhs_evals: 0,
-            steps: 0,
-            rejected_steps: 0,
-            dense_outputs: 0,
-            transitions: 0,
-            tilts: 0,
-            controller_samples: 0,
-            wall_time_s: 0.0,
-        },
-        samples,
+    let trace = Trace {
+        samples: &samples,
+        events: &events,
+        end: end.t,
+        stopped_early,
     };
-    plot::plot_run(png, &sc, &report)
+    plot_trace(png, &sc, &trace)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn scratch(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("tilting-record-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
 
     fn state(seq: u64, mode: u8, alpha: f64) -> PlantState {
         PlantState {
@@ -457,7 +431,8 @@ mod tests {
 
     #[test]
     fn writes_dedups_tracks_peaks_and_plots() {
-        let dir = scratch("unit");
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().to_path_buf();
         let rec = Recorder::create(&dir).unwrap();
         let tx = rec.sender();
         tx.send(Record::State(state(0, 1, 0.0)));
@@ -508,14 +483,15 @@ mod tests {
         let ev = std::fs::read_to_string(dir.join(EVENTS_CSV)).unwrap();
         assert_eq!(ev.lines().nth(2), Some("0.0495,0,2,0,1,0,-0.2,0,1,0,-0.2"));
         let png = dir.join(RUN_PNG);
-        plot_recording(&dir, &png, v.states, &Scenario::default(), None).unwrap();
+        plot_recording(&dir, &png, v.states, &Scenario::default(), false).unwrap();
         assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
         let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
     fn a_full_queue_drops_without_blocking() {
-        let dir = scratch("full");
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().to_path_buf();
         let rec = Recorder::create(&dir).unwrap();
         let tx = rec.sender();
         for k in 0..(4 * CHANNEL as u64) {

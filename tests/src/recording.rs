@@ -1,11 +1,10 @@
 //! The plant's `--record` CSV and the offline closed loop it must reproduce.
 
-use std::f64::consts::FRAC_PI_2;
 use tilting_controller::{ComputedTorque, ControlConfig};
-use tilting_plant::{Mode, Plant, SimConfig, State, Tolerance};
+use tilting_plant::{paper, Plant, SimConfig, Tolerance};
 
-/// One CSV row of `--record`: t, mode, alpha, beta, alpha_dot, beta_dot, tau (empty on the last
-/// row), seq.
+/// One CSV row of `--record`: seq, t, mode, alpha, beta, alpha_dot, beta_dot, tau (empty on the
+/// last row).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Row {
     /// Plant time (s).
@@ -25,7 +24,7 @@ pub fn parse_csv(text: &str) -> Vec<Row> {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("t,mode,alpha,beta,alpha_dot,beta_dot,tau,seq")
+        Some("seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau")
     );
     lines
         .map(|l| {
@@ -33,11 +32,11 @@ pub fn parse_csv(text: &str) -> Vec<Row> {
             assert_eq!(f.len(), 8, "{l}");
             let p = |s: &str| s.parse::<f64>().unwrap_or_else(|e| panic!("{s}: {e}"));
             Row {
-                t: p(f[0]),
-                mode: f[1].parse().unwrap(),
-                x: [p(f[2]), p(f[3]), p(f[4]), p(f[5])],
-                tau: (!f[6].is_empty()).then(|| p(f[6])),
-                seq: f[7].parse().unwrap(),
+                seq: f[0].parse().unwrap(),
+                t: p(f[1]),
+                mode: f[2].parse().unwrap(),
+                x: [p(f[3]), p(f[4]), p(f[5]), p(f[6])],
+                tau: (!f[7].is_empty()).then(|| p(f[7])),
             }
         })
         .collect()
@@ -54,11 +53,10 @@ pub fn offline(duration: f64, period: f64) -> Vec<Row> {
         },
         ..SimConfig::default()
     };
-    let x0 = State::new(0.0, FRAC_PI_2 - 0.000214877415, 0.0, 0.498257789692);
-    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
+    let mut plant = Plant::new(cfg, 0.0, paper::ORBIT_MODE, paper::orbit_state()).unwrap();
     let c = ComputedTorque::new(ControlConfig {
-        k: 500.0,
-        energy_avg: 19.963439703027,
+        k: paper::ORBIT_K,
+        energy_avg: paper::ORBIT_ENERGY_AVG,
         ..ControlConfig::default()
     })
     .unwrap();

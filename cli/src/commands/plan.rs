@@ -1,107 +1,25 @@
-//! Command-line glue for the planning commands `orbit`, `sinusoid`, `bifurcation` and `gains`:
-//! flags, validation that names the field, progress bars and output (a human summary, or one
-//! JSON object with `--json`). The computations live in [`crate::orbit`], [`crate::sinusoid`],
-//! [`crate::bifurcation`] and [`crate::gains`].
+//! `tilting plan orbit|sinusoid|bifurcation|gains`: the planning commands of the paper's
+//! Sec. III. The computations live in `tilting_planner`'s [`orbit`], [`sinusoid`],
+//! [`bifurcation`] and [`gains`].
 
-use crate::bifurcation::{self, Sweep};
-use crate::orbit::{self, OrbitProblem, OrbitSolution};
-use crate::sinusoid;
-use crate::{gains, CommandError};
+use super::{bar, check, emit, usage, ModelArgs};
 use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
-use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
-use tilting_plant::{ImpactLaw, Params};
+use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
+use tilting_planner::bifurcation::{self, Sweep};
+use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
+use tilting_planner::{gains, sinusoid, CommandError};
 
-/// Model flags shared by the planning commands.
-#[derive(Debug, Clone, Args)]
-pub struct ModelArgs {
-    /// TOML file with the physical parameters (m_f, m_l, l, f, g); missing fields keep the
-    /// paper's values
-    #[arg(long, value_name = "FILE.toml")]
-    pub params: Option<PathBuf>,
-    /// Landing impact law
-    #[arg(long, default_value = "paper", value_parser = parse_impact)]
-    pub impact: ImpactLaw,
-    /// Print one JSON object instead of a human summary
-    #[arg(long)]
-    pub json: bool,
-}
-
-fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
-    s.parse()
-}
-
-impl ModelArgs {
-    fn params(&self) -> Result<Params, CommandError> {
-        match &self.params {
-            Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into())),
-            None => Ok(Params::default()),
-        }
-    }
-}
-
-fn usage(msg: String) -> CommandError {
-    CommandError::Usage(anyhow!(msg))
-}
-
-fn check(field: &str, v: f64, ok: bool, allowed: &str) -> Result<f64, CommandError> {
-    if v.is_finite() && ok {
-        Ok(v)
-    } else {
-        Err(usage(format!(
-            "invalid `--{field}` = {v}: must be {allowed}"
-        )))
-    }
-}
-
-fn emit<T: Serialize>(
-    json: bool,
-    value: &T,
-    human: impl FnOnce() -> String,
-) -> Result<(), CommandError> {
-    let text = if json {
-        let mut s = serde_json::to_string(value).map_err(|e| CommandError::Failed(e.into()))?;
-        s.push('\n');
-        s
-    } else {
-        human()
-    };
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()) {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
-            Err(CommandError::Failed(anyhow!("cannot write to stdout: {e}")))
-        }
-        _ => Ok(()),
-    }
-}
-
-fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
-    if json || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let b = indicatif::ProgressBar::new(len);
-    b.set_style(
-        indicatif::ProgressStyle::with_template(&format!(
-            "{what} [{{bar:40}}] {{pos}}/{{len}} {{elapsed_precise}} (eta {{eta}})"
-        ))
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    b
-}
-
-// ---------------------------------------------------------------------------------------------
 
 /// `orbit`: the periodic orbits of approach 2 for one gain pair.
 #[derive(Debug, Clone, Args)]
 pub struct OrbitArgs {
     /// Stiffness gain K_P (1/s^2)
-    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ORBIT_KP, allow_negative_numbers = true)]
     pub kp: f64,
     /// Damping gain K_D (1/s)
-    #[arg(long, default_value_t = 14.14, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ORBIT_KD, allow_negative_numbers = true)]
     pub kd: f64,
     /// Energy adaptation gain k (1/(J s^2)); with k > 0 the orbit of the adapted loop
     /// K_P = K_P0 + k (E_av - E) is computed, E_av taken from the k = 0 orbit unless given
@@ -110,6 +28,7 @@ pub struct OrbitArgs {
     /// Average energy E_av (J) for the adaptation
     #[arg(long, allow_negative_numbers = true)]
     pub energy_avg: Option<f64>,
+    /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -226,6 +145,7 @@ pub struct SinusoidArgs {
     /// Highest frequency searched (rad/s)
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub omega_max: f64,
+    /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -298,14 +218,15 @@ pub struct BifurcationArgs {
     #[arg(long, default_value_t = 200)]
     pub keep: usize,
     /// K_P0 (1/s^2)
-    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ORBIT_KP, allow_negative_numbers = true)]
     pub kp: f64,
     /// K_D (1/s)
-    #[arg(long, default_value_t = 14.14, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ORBIT_KD, allow_negative_numbers = true)]
     pub kd: f64,
     /// Peaks closer than this (rad) count as equal when classifying the period
     #[arg(long, default_value_t = 1e-5)]
     pub period_tol: f64,
+    /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -324,8 +245,8 @@ pub struct BifurcationReport {
 }
 
 /// The `k = 0` orbit the sweep starts from (the one with the smallest tilt).
-pub fn base_orbit(pb: &OrbitProblem) -> Result<OrbitSolution, CommandError> {
-    orbit::find_all(pb).into_iter().next().ok_or_else(|| {
+fn base_orbit(pb: &OrbitProblem) -> Result<OrbitSolution, CommandError> {
+    orbit::smallest(pb).ok_or_else(|| {
         CommandError::Failed(anyhow!(
             "no periodic orbit for K_P = {}, K_D = {}",
             pb.control.kp,
@@ -374,7 +295,7 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
     b.finish_and_clear();
     // The attracting adapted orbit is found by simulation at k = 500 (the paper's stabilised
     // case), or at k_from if that is lower, and continued from there.
-    let k_star = bifurcation::k_star(&sw, 500.0, args.k_from, args.k_to, 1e-3);
+    let k_star = bifurcation::k_star(&sw, ORBIT_K, args.k_from, args.k_to, 1e-3);
     let report = BifurcationReport {
         energy_avg: o.energy_avg,
         k_star,
@@ -433,6 +354,7 @@ pub struct GainsArgs {
     /// Step of K_D
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub kd_step: f64,
+    /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
 }

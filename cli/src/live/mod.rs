@@ -3,15 +3,15 @@
 //! publisher in-process, all on 127.0.0.1 with explicit endpoints on free ports, and runs the
 //! paper's stabilised tilting orbit in real time at 1 kHz:
 //!
-//! - a status line on stderr (mode, alpha, tilts, loop latency, deadline misses), refreshed
-//!   5 times a second on a terminal and once a second otherwise;
+//! - a status line on stderr ([`status`]: mode, alpha, tilts, loop latency, deadline misses),
+//!   refreshed 5 times a second on a terminal and once a second otherwise;
 //! - a clean stop after `--duration` (the plant ends its run itself) or at Ctrl-C/SIGTERM: the
 //!   children get SIGINT, then SIGTERM, then SIGKILL if they do not exit in time (a second
 //!   Ctrl-C kills at once);
 //! - a recording in `--out DIR` (default `runs/<UTC timestamp>/`): `state.csv`, `torque.csv`,
-//!   `events.csv` (see [`crate::record`]), `run.png`, `summary.json`, and the children's
-//!   output (`plant.log`, `plant.json`, `controller.log`, `controller.json`);
-//! - a summary on stdout: tilts, peak |alpha| of the last tilts, loop latency p50/p99/p99.9,
+//!   `events.csv` (see [`crate::record`]), `run.png`, `summary.json` ([`summary`]), and the
+//!   children's output (`plant.log`, `plant.json`, `controller.log`, `controller.json`);
+//! - a report on stdout: tilts, peak |alpha| of the last tilts, loop latency p50/p99/p99.9,
 //!   deadline misses, faults.
 //!
 //! If a child dies during the run, the command says which one and how, stops the other, still
@@ -19,31 +19,31 @@
 //!
 //! The topology: the plant listens on its port; the in-process planner session listens on its
 //! own port and connects to the plant; the controller listens on a third port and connects to
-//! both. Children run in their own process group (so a terminal's Ctrl-C reaches only this
-//! process, which stops them in order) and get SIGTERM if this process dies.
+//! both. The children are started and stopped by [`crate::supervise`].
 
-use crate::publish::{check_seconds, describe, LawArgs, ReferencePublisher};
-use crate::record::{self, Record, RecordView, Recorder};
-use crate::scenario::Scenario;
-use crate::CommandError;
+pub mod status;
+pub mod summary;
+
+use crate::record::{self, Record, Recorder};
+use crate::supervise::{endpoint, free_port, utc_timestamp, Child, NodeBinaries};
 use anyhow::{anyhow, Context as _};
-use serde_json::{json, Value};
+use status::{status_line, LatestStatus};
 use std::io::{IsTerminal as _, Write as _};
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitStatus, Stdio};
+use std::process::ExitStatus;
 use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tilting_net::{DropCounter, Role, ZenohArgs};
-use tilting_plant::Mode;
+use summary::{Endpoints, LawRecord, LiveResult, LiveSummary, PlannerCounts, RecordCounts};
+use tilting_controller::node::ControllerSummary;
+use tilting_net::{subscribe_decoded, DropCounter, Role, ZenohArgs};
+use tilting_plant::node::PlantSummary;
+use tilting_planner::node::{check_seconds, describe, LawArgs, ReferencePublisher};
+use tilting_planner::CommandError;
 use tilting_proto::{Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
+use tilting_sim::Scenario;
 
-/// Name of the plant binary.
-pub const PLANT_BIN: &str = "tilting-plant";
-/// Name of the controller binary.
-pub const CONTROLLER_BIN: &str = "tilting-controller";
-
-/// Flags of `tilting-planner live`.
+/// Flags of `tilting live`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct LiveArgs {
     /// Run length (s of plant time, which is wall-clock time at real time)
@@ -66,78 +66,6 @@ pub struct LiveArgs {
     pub law: LawArgs,
 }
 
-/// The paths of the two node binaries.
-#[derive(Debug, Clone)]
-pub struct NodeBinaries {
-    /// `tilting-plant`.
-    pub plant: PathBuf,
-    /// `tilting-controller`.
-    pub controller: PathBuf,
-}
-
-impl NodeBinaries {
-    /// Finds `tilting-plant` and `tilting-controller` next to the current executable.
-    pub fn next_to_current_exe() -> anyhow::Result<Self> {
-        let exe = std::env::current_exe().context("cannot locate the current executable")?;
-        let dir = exe
-            .parent()
-            .ok_or_else(|| anyhow!("the executable {} has no directory", exe.display()))?;
-        let find = |name: &str| {
-            let p = dir.join(name);
-            if p.is_file() {
-                Ok(p)
-            } else {
-                Err(anyhow!(
-                    "cannot find `{name}` next to {} (looked for {}): build the workspace first \
-                     with `cargo build --release --workspace`",
-                    exe.display(),
-                    p.display()
-                ))
-            }
-        };
-        Ok(Self {
-            plant: find(PLANT_BIN)?,
-            controller: find(CONTROLLER_BIN)?,
-        })
-    }
-}
-
-/// A free TCP port on 127.0.0.1 (chosen by the OS, released before use).
-pub fn free_port() -> anyhow::Result<u16> {
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")
-        .context("cannot bind 127.0.0.1:0")?
-        .local_addr()?
-        .port())
-}
-
-fn endpoint(port: u16) -> String {
-    format!("tcp/127.0.0.1:{port}")
-}
-
-/// `YYYY-MM-DDTHH-MM-SSZ` of the current UTC time (no colons, so it is a valid file name
-/// everywhere).
-pub fn utc_timestamp() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
-    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}-{:02}-{:02}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
-}
 
 /// Ctrl-C/SIGTERM count, updated by a task that starts with the runtime.
 #[derive(Clone, Default)]
@@ -160,134 +88,6 @@ impl Signals {
     }
 }
 
-/// A child node: own process group, SIGTERM when this process dies, stdout and stderr in
-/// files. Killed on drop if still running.
-struct Child {
-    name: &'static str,
-    child: std::process::Child,
-    stdout: PathBuf,
-    stderr: PathBuf,
-    status: Option<ExitStatus>,
-}
-
-impl Child {
-    fn spawn(name: &'static str, bin: &Path, args: &[String], dir: &Path) -> anyhow::Result<Self> {
-        use std::os::unix::process::CommandExt as _;
-        let stdout = dir.join(format!("{name}.json"));
-        let stderr = dir.join(format!("{name}.log"));
-        let mut cmd = Command::new(bin);
-        cmd.args(args)
-            .stdin(Stdio::null())
-            .stdout(std::fs::File::create(&stdout)?)
-            .stderr(std::fs::File::create(&stderr)?)
-            .env("NO_COLOR", "1")
-            .process_group(0);
-        // SAFETY: the closure runs in the child between fork and exec and only calls
-        // prctl(2), which is async-signal-safe, and allocates nothing.
-        unsafe {
-            cmd.pre_exec(|| {
-                libc::prctl(
-                    libc::PR_SET_PDEATHSIG,
-                    libc::SIGTERM as libc::c_ulong,
-                    0,
-                    0,
-                    0,
-                );
-                Ok(())
-            });
-        }
-        let child = cmd
-            .spawn()
-            .with_context(|| format!("cannot start {}", bin.display()))?;
-        Ok(Self {
-            name,
-            child,
-            stdout,
-            stderr,
-            status: None,
-        })
-    }
-
-    fn signal(&self, sig: i32) {
-        if self.status.is_none() {
-            // SAFETY: kill(2) on the pid of our own child, which has not been reaped yet.
-            unsafe { libc::kill(self.child.id() as libc::pid_t, sig) };
-        }
-    }
-
-    fn try_wait(&mut self) -> Option<ExitStatus> {
-        if self.status.is_none() {
-            self.status = self.child.try_wait().ok().flatten();
-        }
-        self.status
-    }
-
-    /// Waits up to `timeout`; gives up early on a second Ctrl-C (`force`).
-    async fn wait_for(
-        &mut self,
-        timeout: Duration,
-        force: &dyn Fn() -> bool,
-    ) -> Option<ExitStatus> {
-        let end = Instant::now() + timeout;
-        loop {
-            if let Some(s) = self.try_wait() {
-                return Some(s);
-            }
-            if Instant::now() >= end || force() {
-                return None;
-            }
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
-    }
-
-    /// SIGINT, wait 5 s; SIGTERM, wait 2 s; SIGKILL. Returns the exit status and whether it
-    /// had to be killed.
-    async fn stop(&mut self, force: &dyn Fn() -> bool) -> (ExitStatus, bool) {
-        if let Some(s) = self.try_wait() {
-            return (s, false);
-        }
-        for (sig, secs) in [(libc::SIGINT, 5), (libc::SIGTERM, 2)] {
-            self.signal(sig);
-            if let Some(s) = self.wait_for(Duration::from_secs(secs), force).await {
-                return (s, false);
-            }
-        }
-        let _ = self.child.kill();
-        let s = self.child.wait().unwrap_or_else(|_| {
-            use std::os::unix::process::ExitStatusExt as _;
-            ExitStatus::from_raw(9)
-        });
-        self.status = Some(s);
-        (s, true)
-    }
-
-    /// The last line of stdout that parses as a JSON object (the node's summary).
-    fn summary(&self) -> Option<Value> {
-        let out = std::fs::read_to_string(&self.stdout).ok()?;
-        out.lines().rev().find_map(|l| {
-            serde_json::from_str::<Value>(l)
-                .ok()
-                .filter(Value::is_object)
-        })
-    }
-
-    /// The last `n` lines of stderr.
-    fn log_tail(&self, n: usize) -> String {
-        let log = std::fs::read_to_string(&self.stderr).unwrap_or_default();
-        let lines: Vec<&str> = log.lines().collect();
-        lines[lines.len().saturating_sub(n)..].join("\n")
-    }
-}
-
-impl Drop for Child {
-    fn drop(&mut self) {
-        if self.try_wait().is_none() {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
-}
-
 /// Why the monitoring loop ended.
 #[derive(Debug)]
 enum End {
@@ -303,66 +103,7 @@ enum End {
     Timeout,
 }
 
-/// The shared latest status of the plant.
-type LatestStatus = Arc<Mutex<Option<Status>>>;
-
-fn state_name(s: u8) -> &'static str {
-    match s {
-        Status::STARTING => "starting",
-        Status::RUNNING => "running",
-        Status::SAFE_MODE => "SAFE MODE",
-        Status::FAULTED => "FAULTED",
-        Status::STOPPED => "stopped",
-        _ => "?",
-    }
-}
-
-fn mode_name(q: u8) -> &'static str {
-    Mode::from_index(q).map_or("?", Mode::as_str)
-}
-
-/// The status line.
-fn status_line(st: Option<&Status>, v: &RecordView, dropped: u64) -> String {
-    let Some(st) = st else {
-        return format!(
-            "waiting for the plant's status | recorded {} states",
-            v.states
-        );
-    };
-    let (alpha, mode) = v.last_state.map_or((0.0, st.mode), |s| (s.alpha, s.mode));
-    let peaks: Vec<String> = v
-        .peaks
-        .iter()
-        .rev()
-        .take(2)
-        .rev()
-        .map(|p| format!("{:+.4}", p.1))
-        .collect();
-    let mut line = format!(
-        "t {:7.2} s | {} | {:<5} alpha {:+.4} rad | tilts {:3} (last peaks {}) | latency p50 {:.0} us p99 {:.0} us | misses {}",
-        st.time,
-        state_name(st.state),
-        mode_name(mode),
-        alpha,
-        st.tilts,
-        if peaks.is_empty() { "-".to_owned() } else { peaks.join(" ") },
-        st.latency_p50_us,
-        st.latency_p99_us,
-        st.deadline_misses,
-    );
-    if st.watchdog_trips > 0 {
-        line.push_str(&format!(" | watchdog trips {}", st.watchdog_trips));
-    }
-    if dropped > 0 || v.missing_states > 0 {
-        line.push_str(&format!(
-            " | recording dropped {dropped}, missing {}",
-            v.missing_states
-        ));
-    }
-    line
-}
-
-/// `tilting-planner live`.
+/// `tilting live`.
 pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn");
     check_seconds("--duration", args.duration, false)?;
@@ -451,52 +192,33 @@ async fn live(
     );
     let session = tilting_net::open_session(&zargs, Role::Peer).await?;
     let latest: LatestStatus = Arc::default();
-    let counters = Arc::new([
-        DropCounter::new(keys.plant_state()),
-        DropCounter::new(keys.controller_torque()),
-        DropCounter::new(keys.plant_event()),
-        DropCounter::new(keys.plant_status()),
-    ]);
-    let (tx, c) = (recorder.sender(), counters.clone());
-    let state_sub = session
-        .declare_subscriber(keys.plant_state().to_owned())
-        .callback(move |s| {
-            if let Some(m) = c[0].decode_sample::<PlantState>(&s) {
-                tx.send(Record::State(m));
-            }
-        })
-        .await
-        .map_err(|e| anyhow!("cannot subscribe to the state: {e}"))?;
-    let (tx, c) = (recorder.sender(), counters.clone());
-    let torque_sub = session
-        .declare_subscriber(keys.controller_torque().to_owned())
-        .callback(move |s| {
-            if let Some(m) = c[1].decode_sample::<TorqueCommand>(&s) {
-                tx.send(Record::Torque(m));
-            }
-        })
-        .await
-        .map_err(|e| anyhow!("cannot subscribe to the torque: {e}"))?;
-    let (tx, c) = (recorder.sender(), counters.clone());
-    let event_sub = session
-        .declare_subscriber(keys.plant_event().to_owned())
-        .callback(move |s| {
-            if let Some(m) = c[2].decode_sample::<ModeEvent>(&s) {
-                tx.send(Record::Event(m));
-            }
-        })
-        .await
-        .map_err(|e| anyhow!("cannot subscribe to the events: {e}"))?;
-    let (l, c) = (latest.clone(), counters.clone());
-    let status_sub = session
-        .declare_subscriber(keys.plant_status().to_owned())
-        .callback(move |s| {
-            if let Some(m) = c[3].decode_sample::<Status>(&s) {
-                *l.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
-            }
-        })
-        .await
-        .map_err(|e| anyhow!("cannot subscribe to the status: {e}"))?;
+    let counters = [
+        keys.plant_state(),
+        keys.controller_torque(),
+        keys.plant_event(),
+        keys.plant_status(),
+    ]
+    .map(|k| Arc::new(DropCounter::new(k)));
+    let tx = recorder.sender();
+    let state_sub = subscribe_decoded(&session, counters[0].clone(), move |m: PlantState| {
+        tx.send(Record::State(m))
+    })
+    .await?;
+    let tx = recorder.sender();
+    let torque_sub = subscribe_decoded(&session, counters[1].clone(), move |m: TorqueCommand| {
+        tx.send(Record::Torque(m))
+    })
+    .await?;
+    let tx = recorder.sender();
+    let event_sub = subscribe_decoded(&session, counters[2].clone(), move |m: ModeEvent| {
+        tx.send(Record::Event(m))
+    })
+    .await?;
+    let l = latest.clone();
+    let status_sub = subscribe_decoded(&session, counters[3].clone(), move |m: Status| {
+        *l.lock().unwrap_or_else(|e| e.into_inner()) = Some(m)
+    })
+    .await?;
     let publisher = ReferencePublisher::start(&session, &keys, reference).await?;
 
     // 3. Wait until the plant's state 0 reaches us (our subscription is in place), then start
@@ -604,18 +326,17 @@ async fn live(
         End::Interrupted => eprintln!("live: interrupted, stopping the nodes"),
         End::StartTimeout => problems.push(format!(
             "no state of the plant arrived within 15 s (see {})",
-            plant.stderr.display()
+            plant.stderr_path().display()
         )),
         End::Timeout => problems.push(format!(
             "the plant did not finish within {} s of wall-clock time",
             args.duration + 30.0
         )),
     }
-    let (plant_status, plant_killed) = plant.stop(&force).await;
-    let ctl_status = match controller.as_mut() {
-        Some(c) => Some(c.stop(&force).await),
-        None => None,
-    };
+    let (plant_status, plant_killed) = tokio::task::block_in_place(|| plant.stop(&force));
+    let ctl_status = controller
+        .as_mut()
+        .map(|c| tokio::task::block_in_place(|| c.stop(&force)));
     if plant_killed {
         problems.push(format!("the plant had to be killed ({plant_status})"));
     } else if !plant_status.success() && !matches!(end, End::PlantExited(_)) {
@@ -637,11 +358,11 @@ async fn live(
     let dropped = recorder.dropped();
     let view = recorder.finish()?;
     let last_status = latest.lock().unwrap_or_else(|e| e.into_inner()).clone();
-    let plant_summary = plant.summary();
-    let ctl_summary = controller.as_ref().and_then(Child::summary);
+    let plant_summary: Option<PlantSummary> = plant.summary();
+    let ctl_summary: Option<ControllerSummary> = controller.as_ref().and_then(Child::summary);
     let fault = plant_summary
         .as_ref()
-        .and_then(|s| s["fault"].as_str().map(str::to_owned))
+        .and_then(|s| s.fault.clone())
         .or_else(|| {
             last_status
                 .as_ref()
@@ -649,12 +370,12 @@ async fn live(
                 .map(|s| s.fault.clone())
         });
     for child in std::iter::once(&plant).chain(controller.as_ref()) {
-        let failed = child.status.is_some_and(|s| !s.success());
+        let failed = child.status().is_some_and(|s| !s.success());
         if failed {
             eprintln!(
                 "--- last lines of {} ({}) ---\n{}",
-                child.name,
-                child.stderr.display(),
+                child.name(),
+                child.stderr_path().display(),
                 child.log_tail(15)
             );
         }
@@ -672,9 +393,7 @@ async fn live(
         torque_limit: (reference.torque_limit > 0.0).then_some(reference.torque_limit),
         ..Scenario::default()
     };
-    let early = fault
-        .clone()
-        .or_else(|| (!problems.is_empty()).then(|| problems.join("; ")));
+    let early = fault.is_some() || !problems.is_empty();
     let plot_result = if view.states > 0 {
         record::plot_recording(dir, &png, view.states, &scenario, early)
     } else {
@@ -685,44 +404,52 @@ async fn live(
     }
     let ok = problems.is_empty();
     let result = match (&end, ok) {
-        (End::Interrupted, true) => "interrupted",
-        (_, true) => "completed",
-        (_, false) => "failed",
+        (End::Interrupted, true) => LiveResult::Interrupted,
+        (_, true) => LiveResult::Completed,
+        (_, false) => LiveResult::Failed,
     };
-    let summary = json!({
-        "result": result,
-        "problems": problems,
-        "duration": args.duration,
-        "rate": args.rate,
-        "robot": keys.robot(),
-        "out": dir,
-        "reference": {
-            "kind": if reference.kind == Reference::SINUSOID { "sinusoid" } else { "hold" },
-            "amplitude": reference.amplitude, "omega": reference.omega,
-            "kp": reference.kp, "kd": reference.kd, "k": reference.k,
-            "energy_avg": reference.energy_avg, "torque_limit": reference.torque_limit,
+    let summary = LiveSummary {
+        result,
+        problems: problems.clone(),
+        duration: args.duration,
+        rate: args.rate,
+        robot: keys.robot().to_owned(),
+        out: dir.to_path_buf(),
+        reference: LawRecord::from(&reference),
+        endpoints: Endpoints {
+            plant: endpoint(plant_port),
+            controller: endpoint(ctl_port),
+            planner: endpoint(my_port),
         },
-        "endpoints": {"plant": endpoint(plant_port), "controller": endpoint(ctl_port), "planner": endpoint(my_port)},
-        "record": {
-            "states": view.states, "torques": view.torques, "events": view.events,
-            "tilts": view.tilts, "dropped": dropped, "missing_states": view.missing_states,
-            "repeated_states": view.repeated_states, "repeated_torques": view.repeated_torques,
-            "invalid": counters.iter().map(DropCounter::dropped).sum::<u64>(),
-            "peaks": view.peaks.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
+        record: RecordCounts {
+            states: view.states,
+            torques: view.torques,
+            events: view.events,
+            tilts: view.tilts,
+            dropped,
+            missing_states: view.missing_states,
+            repeated_states: view.repeated_states,
+            repeated_torques: view.repeated_torques,
+            invalid: counters.iter().map(|c| c.dropped()).sum(),
+            peaks: view.peaks.iter().map(|p| [p.0, p.1]).collect(),
         },
-        "planner": {"puts": puts, "queries_answered": queries},
-        "png": plot_result.is_ok(),
-        "plant_exit": plant_status.to_string(),
-        "controller_exit": ctl_status.map(|s| s.0.to_string()),
-        "plant": plant_summary,
-        "controller": ctl_summary,
-    });
+        planner: PlannerCounts {
+            puts,
+            queries_answered: queries,
+        },
+        png: plot_result.is_ok(),
+        plant_exit: plant_status.to_string(),
+        controller_exit: ctl_status.map(|s| s.0.to_string()),
+        plant: plant_summary,
+        controller: ctl_summary,
+    };
     let summary_path = dir.join("summary.json");
-    std::fs::write(&summary_path, format!("{summary:#}\n"))
+    let text = serde_json::to_string_pretty(&summary).context("cannot serialise the summary")?;
+    std::fs::write(&summary_path, format!("{text}\n"))
         .with_context(|| format!("cannot write {}", summary_path.display()))?;
     print!(
         "{}",
-        report(&summary, &view, last_status.as_ref(), fault.as_deref(), dir)
+        summary.report(&view, last_status.as_ref(), fault.as_deref())
     );
     let _ = std::io::stdout().flush();
     for p in &problems {
@@ -731,151 +458,3 @@ async fn live(
     Ok(ok)
 }
 
-/// The human-readable summary printed at the end.
-fn report(
-    s: &Value,
-    view: &RecordView,
-    status: Option<&Status>,
-    fault: Option<&str>,
-    dir: &Path,
-) -> String {
-    use std::fmt::Write as _;
-    let mut out = String::new();
-    let p = &s["plant"];
-    let _ = writeln!(
-        out,
-        "live run {}: {} s planned at {} Hz, robot {}; plant {}, controller {}",
-        s["result"].as_str().unwrap_or("?"),
-        s["duration"],
-        s["rate"],
-        s["robot"].as_str().unwrap_or("?"),
-        s["plant_exit"].as_str().unwrap_or("?"),
-        s["controller_exit"].as_str().unwrap_or("not started"),
-    );
-    if p.is_object() {
-        let _ = writeln!(
-            out,
-            "plant: {} at t = {} s after {} periods, mode {}",
-            p["result"].as_str().unwrap_or("?"),
-            p["time"],
-            p["steps"],
-            p["mode"].as_str().unwrap_or("?")
-        );
-    }
-    let tilts = p["tilts"]
-        .as_u64()
-        .or(status.map(|s| s.tilts))
-        .unwrap_or(view.tilts);
-    let peaks: Vec<f64> = match p["tilt_peaks"].as_array() {
-        Some(a) if !a.is_empty() => a.iter().filter_map(|x| x[1].as_f64()).collect(),
-        _ => view.peaks.iter().map(|x| x.1).collect(),
-    };
-    let last: Vec<String> = peaks[peaks.len().saturating_sub(6)..]
-        .iter()
-        .map(|a| format!("{:.5}", a.abs()))
-        .collect();
-    let _ = writeln!(
-        out,
-        "tilts: {tilts}; peak |alpha| of the last {} tilts (rad): {}",
-        last.len(),
-        if last.is_empty() {
-            "-".to_owned()
-        } else {
-            last.join(" ")
-        }
-    );
-    let lat = &p["latency_us"];
-    if lat.is_object() {
-        let _ = writeln!(
-            out,
-            "loop latency (state out -> torque back, us, last {} periods): p50 {:.1}, p99 {:.1}, p99.9 {:.1}, max {:.1}",
-            lat["count"].as_u64().unwrap_or(0).min(lat["window"].as_u64().unwrap_or(4096)),
-            lat["p50"].as_f64().unwrap_or(f64::NAN),
-            lat["p99"].as_f64().unwrap_or(f64::NAN),
-            lat["p999"].as_f64().unwrap_or(f64::NAN),
-            lat["max"].as_f64().unwrap_or(f64::NAN),
-        );
-        let _ = writeln!(
-            out,
-            "deadline misses: {}, watchdog trips: {}, overruns: {} (max {:.0} us), jitter p99 {:.1} us",
-            p["deadline_misses"],
-            p["watchdog_trips"],
-            p["overruns"],
-            p["max_overrun_us"].as_f64().unwrap_or(0.0),
-            p["jitter_us"]["p99"].as_f64().unwrap_or(f64::NAN),
-        );
-    } else if let Some(st) = status {
-        let _ = writeln!(
-            out,
-            "loop latency (us, from the last status): p50 {:.1}, p99 {:.1}; deadline misses {}, watchdog trips {}",
-            st.latency_p50_us, st.latency_p99_us, st.deadline_misses, st.watchdog_trips
-        );
-    }
-    let _ = writeln!(out, "faults: {}", fault.unwrap_or("none"));
-    let r = &s["record"];
-    let _ = writeln!(
-        out,
-        "recorded in {}: state.csv {} rows, torque.csv {} rows, events.csv {} rows, {}summary.json (dropped {}, missing states {})",
-        dir.display(),
-        r["states"],
-        r["torques"],
-        r["events"],
-        if s["png"] == true { "run.png, " } else { "" },
-        r["dropped"],
-        r["missing_states"],
-    );
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn timestamp_is_a_file_name() {
-        let t = utc_timestamp();
-        assert_eq!(t.len(), "2026-11-21T21-35-48Z".len(), "{t}");
-        assert!(t.starts_with("20"), "{t}");
-        assert!(!t.contains(':'));
-    }
-
-    #[test]
-    fn status_line_shows_the_essentials() {
-        let st = Status {
-            seq: 1000,
-            time: 1.0,
-            state: Status::RUNNING,
-            mode: 1,
-            tilts: 3,
-            steps: 1000,
-            torques_received: 1000,
-            torques_dropped: 0,
-            torques_stale: 0,
-            deadline_misses: 2,
-            watchdog_trips: 0,
-            jitter_p50_us: 1.0,
-            jitter_p99_us: 2.0,
-            max_overrun_us: 0.0,
-            latency_p50_us: 40.0,
-            latency_p99_us: 90.0,
-            fault: String::new(),
-        };
-        let v = RecordView {
-            peaks: [(0.2, 0.04), (0.6, -0.041)].into_iter().collect(),
-            ..RecordView::default()
-        };
-        let l = status_line(Some(&st), &v, 0);
-        for needle in [
-            "running",
-            "left",
-            "tilts   3",
-            "p50 40 us",
-            "p99 90 us",
-            "misses 2",
-            "-0.0410",
-        ] {
-            assert!(l.contains(needle), "{needle:?} not in {l:?}");
-        }
-        assert!(status_line(None, &v, 0).contains("waiting"));
-    }
-}

@@ -58,6 +58,11 @@ use crate::{
 use stats::Ring;
 pub use summary::{PlantSummary, RunResult, Window};
 
+/// The columns of a state row in every CSV the project writes (the plant's `--record`, the
+/// `state.csv` of `tilting live`): sample number, plant time (s), mode byte (0 flat, 1 left,
+/// 2 right), then `alpha, beta` (rad) and their rates (rad/s).
+pub const STATE_COLUMNS: &str = "seq,t,mode,alpha,beta,alpha_dot,beta_dot";
+
 /// Exit code of a run that ended with a fault of the model.
 pub const EXIT_FAULT: u8 = 3;
 
@@ -140,7 +145,8 @@ pub struct PlantArgs {
     /// Hard torque limit (N m) applied by the plant; 0 = none
     #[arg(long, default_value_t = 0.0, value_name = "NM")]
     pub torque_limit: f64,
-    /// Write every sample to this CSV file: t,mode,alpha,beta,alpha_dot,beta_dot,tau,seq
+    /// Write every sample to this CSV file: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau (the
+    /// state columns in the order of `tilting live`'s state.csv, then the torque applied)
     #[arg(long, value_name = "FILE.csv")]
     pub record: Option<PathBuf>,
     /// Start at once instead of waiting for a controller (its liveliness token or an answer)
@@ -600,6 +606,7 @@ impl Loop {
             let r = writeln!(
                 w,
                 "{},{},{},{},{},{},{},{}",
+                self.seq,
                 self.plant.time(),
                 self.plant.mode().as_u8(),
                 x[0],
@@ -607,7 +614,6 @@ impl Loop {
                 x[2],
                 x[3],
                 tau,
-                self.seq
             );
             if let Err(e) = r {
                 tracing::warn!("--record: write failed, recording stops: {e}");
@@ -717,7 +723,7 @@ impl Loop {
 
     fn run(&mut self) -> Outcome {
         if let Some(w) = &mut self.record {
-            if let Err(e) = writeln!(w, "t,mode,alpha,beta,alpha_dot,beta_dot,tau,seq") {
+            if let Err(e) = writeln!(w, "{STATE_COLUMNS},tau") {
                 tracing::warn!("--record: {e}");
                 self.record = None;
             }

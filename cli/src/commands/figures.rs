@@ -1,0 +1,171 @@
+//! `tilting figures`: the paper's Figs. 4 to 8 as PNG files, drawn by `tilting_viz::figures`,
+//! with a progress bar and a summary of what each figure shows.
+
+use super::ModelArgs;
+use anyhow::anyhow;
+use clap::Args;
+use serde_json::{json, Value};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tilting_plant::Params;
+use tilting_planner::CommandError;
+use tilting_viz::figures::{Figures, Settings, ALL};
+
+/// Flags of `tilting figures`.
+#[derive(Debug, Clone, Args)]
+pub struct FiguresArgs {
+    /// Directory for fig4.png ... fig8.png (created if missing)
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Draw only these figures (comma-separated numbers from 4 to 8)
+    #[arg(long, value_name = "N,...", value_delimiter = ',', value_parser = parse_figure)]
+    pub only: Vec<u8>,
+    /// Coarse grids and short runs: a fast preview (used by the tests)
+    #[arg(long)]
+    pub quick: bool,
+    /// The model, impact law and output format.
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+fn parse_figure(s: &str) -> Result<u8, String> {
+    match s.trim().parse::<u8>() {
+        Ok(n) if ALL.contains(&n) => Ok(n),
+        _ => Err(format!(
+            "no figure `{s}`: the figures are numbered 4 to 8 (e.g. --only 4,7)"
+        )),
+    }
+}
+
+/// `tilting figures`: the PNGs of the paper's Figs. 4 to 8.
+pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
+    let start = Instant::now();
+    let params = match &args.model.params {
+        Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into()))?,
+        None => Params::default(),
+    };
+    let out = prepare_out(&args.out)?;
+    let mut which: Vec<u8> = if args.only.is_empty() {
+        ALL.collect()
+    } else {
+        args.only.clone()
+    };
+    which.sort_unstable();
+    which.dedup();
+    let set = if args.quick {
+        Settings::quick()
+    } else {
+        Settings::full()
+    };
+    let ctx = Figures {
+        params,
+        impact: args.model.impact,
+        set,
+        out,
+    };
+    let units: u64 = which.iter().map(|&n| ctx.units(n)).sum();
+    let bar = progress(units, args.model.json);
+    let mut done = Vec::new();
+    let mut failed = Vec::new();
+    for &n in &which {
+        bar.set_message(format!("fig{n}"));
+        let t0 = Instant::now();
+        let r = ctx.draw(n, &bar);
+        match r {
+            Ok(summary) => done.push(json!({
+                "figure": n,
+                "path": ctx.path(n).display().to_string(),
+                "seconds": t0.elapsed().as_secs_f64(),
+                "summary": summary,
+            })),
+            Err(e) => failed.push(format!("fig{n}: {e:#}")),
+        }
+    }
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    let report = json!({
+        "out": ctx.out.display().to_string(),
+        "quick": args.quick,
+        "impact": ctx.impact.as_str(),
+        "seconds": seconds,
+        "figures": done,
+        "failed": failed,
+    });
+    let text = if args.model.json {
+        format!("{report}\n")
+    } else {
+        human(&report)
+    };
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = stdout.write_all(text.as_bytes()) {
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            return Err(CommandError::Failed(anyhow!("cannot write to stdout: {e}")));
+        }
+    }
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(CommandError::Failed(anyhow!(
+            "{} of {} figures failed: {}",
+            failed.len(),
+            which.len(),
+            failed.join("; ")
+        )))
+    }
+}
+
+/// Checks `--out`: an existing directory, or a path that can be created as one.
+fn prepare_out(out: &Path) -> Result<PathBuf, CommandError> {
+    if out.exists() && !out.is_dir() {
+        return Err(CommandError::Usage(anyhow!(
+            "invalid `--out` = {}: it exists and is not a directory",
+            out.display()
+        )));
+    }
+    std::fs::create_dir_all(out).map_err(|e| {
+        CommandError::Usage(anyhow!(
+            "invalid `--out` = {}: cannot create the directory: {e}",
+            out.display()
+        ))
+    })?;
+    Ok(out.to_path_buf())
+}
+
+fn progress(len: u64, json: bool) -> indicatif::ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let b = indicatif::ProgressBar::new(len);
+    b.set_style(
+        indicatif::ProgressStyle::with_template(
+            "figures {msg:5} [{bar:40}] {pos}/{len} {elapsed_precise} (eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    b
+}
+
+fn human(report: &Value) -> String {
+    let mut s = format!(
+        "figures written to {} in {:.1} s{}\n",
+        report["out"].as_str().unwrap_or(""),
+        report["seconds"].as_f64().unwrap_or(0.0),
+        if report["quick"].as_bool() == Some(true) {
+            " (quick preview)"
+        } else {
+            ""
+        }
+    );
+    for f in report["figures"].as_array().into_iter().flatten() {
+        s += &format!(
+            "  {} ({:.1} s): {}\n",
+            f["path"].as_str().unwrap_or(""),
+            f["seconds"].as_f64().unwrap_or(0.0),
+            f["summary"]["text"].as_str().unwrap_or("")
+        );
+    }
+    s
+}
+

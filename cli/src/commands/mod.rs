@@ -1,0 +1,110 @@
+//! The subcommands of `tilting`, grouped by what a person wants to do: [`simulate`] (run),
+//! [`plan`] (plan), [`figures`] (look); `live` is [`crate::live`]. Each is a thin shell: flags,
+//! validation that names the field and its range, a progress bar, and output (a human summary,
+//! or one JSON object with `--json`); the computations live in the library crates.
+
+pub mod figures;
+pub mod plan;
+pub mod simulate;
+
+use anyhow::anyhow;
+use clap::Args;
+use serde::Serialize;
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use tilting_plant::{ImpactLaw, Params};
+use tilting_planner::CommandError;
+
+/// Model flags shared by the planning commands.
+#[derive(Debug, Clone, Args)]
+pub struct ModelArgs {
+    /// TOML file with the physical parameters (m_f, m_l, l, f, g); missing fields keep the
+    /// paper's values
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// Landing impact law
+    #[arg(long, default_value = "paper", value_parser = parse_impact)]
+    pub impact: ImpactLaw,
+    /// Print one JSON object instead of a human summary
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
+    s.parse()
+}
+
+impl ModelArgs {
+    /// The parameters of `--params`, or the paper's.
+    pub fn params(&self) -> Result<Params, CommandError> {
+        match &self.params {
+            Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into())),
+            None => Ok(Params::default()),
+        }
+    }
+}
+
+/// A usage error (exit code 2).
+pub fn usage(msg: String) -> CommandError {
+    CommandError::Usage(anyhow!(msg))
+}
+
+/// `v` if it is finite and `ok`; otherwise a usage error naming `--{field}` and `allowed`.
+pub fn check(field: &str, v: f64, ok: bool, allowed: &str) -> Result<f64, CommandError> {
+    if v.is_finite() && ok {
+        Ok(v)
+    } else {
+        Err(usage(format!(
+            "invalid `--{field}` = {v}: must be {allowed}"
+        )))
+    }
+}
+
+/// Prints `value` as one JSON line, or `human()`; a closed pipe is not an error.
+pub fn emit<T: Serialize>(
+    json: bool,
+    value: &T,
+    human: impl FnOnce() -> String,
+) -> Result<(), CommandError> {
+    let text = if json {
+        let mut s = serde_json::to_string(value).map_err(|e| CommandError::Failed(e.into()))?;
+        s.push('\n');
+        s
+    } else {
+        human()
+    };
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(CommandError::Failed(anyhow!("cannot write to stdout: {e}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// A progress bar on stderr (hidden with `--json` or when stderr is not a terminal).
+pub fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let b = indicatif::ProgressBar::new(len);
+    b.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{what} [{{bar:40}}] {{pos}}/{{len}} {{elapsed_precise}} (eta {{eta}})"
+        ))
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    b
+}
+
+/// Writes `text` to stdout; a closed pipe (`| head`) is not an error.
+pub fn print_stdout(text: &str) -> Result<(), CommandError> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(CommandError::Failed(
+            anyhow::Error::new(e).context("cannot write to stdout"),
+        )),
+        _ => Ok(()),
+    }
+}

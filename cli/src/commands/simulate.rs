@@ -1,0 +1,78 @@
+//! `tilting simulate`: the closed loop offline for one scenario (by default the paper's
+//! stabilised orbit), as a summary or JSON, with an optional plot.
+
+use super::print_stdout;
+use anyhow::Context as _;
+use std::io::IsTerminal as _;
+use std::path::PathBuf;
+use tilting_planner::CommandError;
+use tilting_sim::{ScenarioArgs, SimOptions};
+use tilting_viz::plot::plot_run;
+
+/// Flags of `tilting simulate`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SimulateArgs {
+    /// The scenario.
+    #[command(flatten)]
+    pub scenario: ScenarioArgs,
+    /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
+    /// summary
+    #[arg(long)]
+    pub json: bool,
+    /// Draw alpha(t) and beta(t) with the event times into this PNG file
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+}
+
+/// `tilting simulate`.
+pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
+    let sc = args
+        .scenario
+        .load()
+        .map_err(|e| CommandError::Usage(e.into()))?;
+    if let Some(p) = &args.plot {
+        let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        if !png {
+            return Err(CommandError::Usage(anyhow::anyhow!(
+                "invalid `--plot` = {}: must be a file name ending in .png",
+                p.display()
+            )));
+        }
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            if !dir.is_dir() {
+                return Err(CommandError::Usage(anyhow::anyhow!(
+                    "invalid `--plot` = {}: the directory {} does not exist",
+                    p.display(),
+                    dir.display()
+                )));
+            }
+        }
+    }
+    let opts = SimOptions {
+        record_samples: args.plot.is_some(),
+        progress: !args.json && std::io::stderr().is_terminal(),
+    };
+    let report = tilting_sim::simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
+    if args.json {
+        let mut text = serde_json::to_string(&report)
+            .context("cannot serialise the report")
+            .map_err(CommandError::Failed)?;
+        text.push('\n');
+        print_stdout(&text)?;
+    } else {
+        print_stdout(&tilting_sim::closed_loop::summary(&sc, &report))?;
+    }
+    if let Some(f) = &report.fault {
+        eprintln!("warning: the simulation stopped early: {f}");
+    }
+    if let Some(p) = &args.plot {
+        plot_run(p, &sc, &report)
+            .with_context(|| format!("cannot draw the plot {}", p.display()))
+            .map_err(CommandError::Failed)?;
+        if !args.json {
+            print_stdout(&format!("plot: {}\n", p.display()))?;
+        }
+    }
+    Ok(())
+}
+

@@ -1,0 +1,235 @@
+//! The summary of a live run: `summary.json` in the run's directory, and the human report
+//! printed at the end. One type for the command that writes it and the tests that read it.
+
+use crate::record::RecordView;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use tilting_controller::node::ControllerSummary;
+use tilting_plant::node::PlantSummary;
+use tilting_proto::{Reference, Status};
+
+/// How a live run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LiveResult {
+    /// Ran for `--duration` and every node ended cleanly.
+    Completed,
+    /// Stopped by Ctrl-C or SIGTERM, cleanly.
+    Interrupted,
+    /// A node failed, faulted or had to be killed (see `problems`).
+    Failed,
+}
+
+/// The law that was published, as in the `Reference` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LawRecord {
+    /// `hold` or `sinusoid`.
+    pub kind: String,
+    /// Sinusoid amplitude (rad).
+    pub amplitude: f64,
+    /// Sinusoid frequency (rad/s).
+    pub omega: f64,
+    /// `K_P0` (1/s^2).
+    pub kp: f64,
+    /// `K_D` (1/s).
+    pub kd: f64,
+    /// `k` (1/(J s^2)).
+    pub k: f64,
+    /// `E_av` (J).
+    pub energy_avg: f64,
+    /// Torque limit (N m), 0 for none.
+    pub torque_limit: f64,
+}
+
+impl From<&Reference> for LawRecord {
+    fn from(r: &Reference) -> Self {
+        Self {
+            kind: if r.kind == Reference::SINUSOID {
+                "sinusoid"
+            } else {
+                "hold"
+            }
+            .to_owned(),
+            amplitude: r.amplitude,
+            omega: r.omega,
+            kp: r.kp,
+            kd: r.kd,
+            k: r.k,
+            energy_avg: r.energy_avg,
+            torque_limit: r.torque_limit,
+        }
+    }
+}
+
+/// The zenoh endpoints of the three sessions.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Endpoints {
+    /// Where the plant listens.
+    pub plant: String,
+    /// Where the controller listens.
+    pub controller: String,
+    /// Where the in-process planner listens.
+    pub planner: String,
+}
+
+/// What the recording holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordCounts {
+    /// Rows of `state.csv`.
+    pub states: u64,
+    /// Rows of `torque.csv`.
+    pub torques: u64,
+    /// Rows of `events.csv`.
+    pub events: u64,
+    /// Tilts seen in the events.
+    pub tilts: u64,
+    /// Messages the recorder had to drop (its queue was full).
+    pub dropped: u64,
+    /// Gaps in the state `seq`.
+    pub missing_states: u64,
+    /// Re-published states skipped.
+    pub repeated_states: u64,
+    /// Repeated torques skipped.
+    pub repeated_torques: u64,
+    /// Payloads that did not decode or validate, on any topic.
+    pub invalid: u64,
+    /// `(t, alpha)` of the last tilt peaks (s, rad).
+    pub peaks: Vec<[f64; 2]>,
+}
+
+/// The planner's counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PlannerCounts {
+    /// References put on the key.
+    pub puts: u64,
+    /// Queries answered.
+    pub queries_answered: u64,
+}
+
+/// `summary.json` of a live run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LiveSummary {
+    /// How the run ended.
+    pub result: LiveResult,
+    /// What went wrong, one sentence each.
+    pub problems: Vec<String>,
+    /// Planned run length (s).
+    pub duration: f64,
+    /// Control rate (Hz).
+    pub rate: f64,
+    /// Robot name.
+    pub robot: String,
+    /// The run's directory.
+    pub out: PathBuf,
+    /// The published law.
+    pub reference: LawRecord,
+    /// The sessions' endpoints.
+    pub endpoints: Endpoints,
+    /// The recording.
+    pub record: RecordCounts,
+    /// The planner's counters.
+    pub planner: PlannerCounts,
+    /// `run.png` was drawn.
+    pub png: bool,
+    /// The plant's exit status.
+    pub plant_exit: String,
+    /// The controller's exit status (`null` if it never started).
+    pub controller_exit: Option<String>,
+    /// The plant's own summary.
+    pub plant: Option<PlantSummary>,
+    /// The controller's own summary.
+    pub controller: Option<ControllerSummary>,
+}
+
+impl LiveSummary {
+    /// The human-readable report printed at the end; `status` is the plant's last status,
+    /// `fault` the fault that ended the run, if any.
+    pub fn report(&self, view: &RecordView, status: Option<&Status>, fault: Option<&str>) -> String {
+        use std::fmt::Write as _;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "live run {}: {} s planned at {} Hz, robot {}; plant {}, controller {}",
+            serde_json::to_value(self.result)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_owned))
+                .unwrap_or_default(),
+            self.duration,
+            self.rate,
+            self.robot,
+            self.plant_exit,
+            self.controller_exit.as_deref().unwrap_or("not started"),
+        );
+        let p = self.plant.as_ref();
+        if let Some(p) = p {
+            let result = serde_json::to_value(p.result)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_owned))
+                .unwrap_or_default();
+            let _ = writeln!(
+                out,
+                "plant: {result} at t = {} s after {} periods, mode {}",
+                p.time, p.steps, p.mode
+            );
+        }
+        let tilts = p
+            .map(|p| p.tilts)
+            .or(status.map(|s| s.tilts))
+            .unwrap_or(view.tilts);
+        let peaks: Vec<f64> = match p {
+            Some(p) if !p.tilt_peaks.is_empty() => p.tilt_peaks.iter().map(|x| x[1]).collect(),
+            _ => view.peaks.iter().map(|x| x.1).collect(),
+        };
+        let last: Vec<String> = peaks[peaks.len().saturating_sub(6)..]
+            .iter()
+            .map(|a| format!("{:.5}", a.abs()))
+            .collect();
+        let _ = writeln!(
+            out,
+            "tilts: {tilts}; peak |alpha| of the last {} tilts (rad): {}",
+            last.len(),
+            if last.is_empty() {
+                "-".to_owned()
+            } else {
+                last.join(" ")
+            }
+        );
+        if let Some(p) = p {
+            let lat = &p.latency_us;
+            let _ = writeln!(
+                out,
+                "loop latency (state out -> torque back, us, last {} periods): p50 {:.1}, p99 {:.1}, p99.9 {:.1}, max {:.1}",
+                lat.count.unwrap_or(0).min(lat.window.unwrap_or(4096)),
+                lat.p50,
+                lat.p99,
+                lat.p999.unwrap_or(f64::NAN),
+                lat.max,
+            );
+            let _ = writeln!(
+                out,
+                "deadline misses: {}, watchdog trips: {}, overruns: {} (max {:.0} us), jitter p99 {:.1} us",
+                p.deadline_misses, p.watchdog_trips, p.overruns, p.max_overrun_us, p.jitter_us.p99,
+            );
+        } else if let Some(st) = status {
+            let _ = writeln!(
+                out,
+                "loop latency (us, from the last status): p50 {:.1}, p99 {:.1}; deadline misses {}, watchdog trips {}",
+                st.latency_p50_us, st.latency_p99_us, st.deadline_misses, st.watchdog_trips
+            );
+        }
+        let _ = writeln!(out, "faults: {}", fault.unwrap_or("none"));
+        let r = &self.record;
+        let _ = writeln!(
+            out,
+            "recorded in {}: state.csv {} rows, torque.csv {} rows, events.csv {} rows, {}summary.json (dropped {}, missing states {})",
+            self.out.display(),
+            r.states,
+            r.torques,
+            r.events,
+            if self.png { "run.png, " } else { "" },
+            r.dropped,
+            r.missing_states,
+        );
+        out
+    }
+}
