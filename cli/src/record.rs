@@ -16,9 +16,6 @@
 //! samples (the plant re-publishes state 0 while it waits for a controller, and its controller
 //! answers each copy) are written once.
 
-use tilting_sim::closed_loop::{EventRecord, Sample};
-use tilting_sim::Scenario;
-use tilting_viz::plot::{plot_trace, Trace};
 use anyhow::{anyhow, Context as _, Result};
 use std::collections::VecDeque;
 use std::fs::File;
@@ -30,6 +27,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use tilting_plant::Mode;
 use tilting_proto::{ModeEvent, PlantState, TorqueCommand};
+use tilting_sim::closed_loop::{EventRecord, Sample};
+use tilting_sim::Scenario;
+use tilting_viz::plot::{plot_trace, Trace};
 
 /// Names of the files in the output directory.
 pub const STATE_CSV: &str = "state.csv";

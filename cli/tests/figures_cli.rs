@@ -1,4 +1,4 @@
-//! Runs the built `tilting-planner figures` binary: the quick preview writes the five PNGs,
+//! Runs the built `tilting figures` binary: the quick preview writes the five PNGs,
 //! `--only` and `--json` select and report, and a bad `--out` or figure number fails clearly.
 
 use serde_json::Value;
@@ -6,9 +6,8 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 mod common;
-use common::TempDir;
+use common::{TempDir, BIN};
 
-const BIN: &str = env!("CARGO_BIN_EXE_tilting-planner");
 const PNG_MAGIC: &[u8] = b"\x89PNG\r\n\x1a\n";
 
 fn figures(args: &[&str]) -> Output {
@@ -16,7 +15,7 @@ fn figures(args: &[&str]) -> Output {
         .arg("figures")
         .args(args)
         .output()
-        .expect("cannot run tilting-planner")
+        .expect("cannot run tilting")
 }
 
 fn stderr(o: &Output) -> String {

@@ -1,20 +1,18 @@
-//! Runs the built `tilting-planner simulate` binary: JSON shape and content, usage and
+//! Runs the built `tilting simulate` binary: JSON shape and content, usage and
 //! configuration errors, the plot, and the convergence of the sampled coupling.
 
 use serde_json::Value;
 use std::process::{Command, Output};
 
 mod common;
-use common::TempDir;
-
-const BIN: &str = env!("CARGO_BIN_EXE_tilting-planner");
+use common::{TempDir, BIN};
 
 fn simulate(args: &[&str]) -> Output {
     Command::new(BIN)
         .arg("simulate")
         .args(args)
         .output()
-        .expect("cannot run tilting-planner")
+        .expect("cannot run tilting")
 }
 
 fn stderr(o: &Output) -> String {

@@ -299,16 +299,23 @@ mod tests {
 
     #[test]
     fn rows_serialise_the_period_as_number_irregular_or_null() {
-        let row = |period, fault: Option<&str>| super::Row {
+        let row = |period, fault: Option<super::RowFault>| super::Row {
             k: 1.0,
             peaks: vec![0.1],
             period,
-            fault: fault.map(String::from),
+            fault,
         };
-        let j = |r| serde_json::to_value(&r).unwrap()["period"].clone();
-        assert_eq!(j(row(Some(2), None)), serde_json::json!(2));
-        assert_eq!(j(row(None, None)), serde_json::json!("irregular"));
-        assert_eq!(j(row(None, Some("fall"))), serde_json::Value::Null);
+        let j = |r| serde_json::to_value(&r).unwrap();
+        assert_eq!(j(row(Some(2), None))["period"], serde_json::json!(2));
+        assert_eq!(j(row(None, None))["period"], serde_json::json!("irregular"));
+        let no_tilt = super::RowFault::NoTilt {
+            from: 10.0,
+            to: 20.0,
+        };
+        let faulted = j(row(None, Some(no_tilt)));
+        assert_eq!(faulted["period"], serde_json::Value::Null);
+        // The fault travels as its message.
+        assert_eq!(faulted["fault"], "no tilt between t = 10 s and 20 s");
     }
 
     #[test]

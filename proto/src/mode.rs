@@ -140,13 +140,15 @@ mod tests {
         }
     }
 
-
     #[test]
     fn mirror_is_an_involution_that_swaps_the_edges() {
         for m in [Mode::Flat, Mode::Left, Mode::Right] {
             assert_eq!(m.mirrored().mirrored(), m);
             assert_eq!(m.mirrored().is_tilted(), m.is_tilted());
-            assert_eq!(m.mirrored().signed_f(0.5), if m.is_tilted() { -m.signed_f(0.5) } else { 0.5 });
+            assert_eq!(
+                m.mirrored().signed_f(0.5),
+                if m.is_tilted() { -m.signed_f(0.5) } else { 0.5 }
+            );
         }
     }
 }

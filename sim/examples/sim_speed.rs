@@ -1,9 +1,9 @@
 //! Simulation speed on the paper's stabilised orbit (a benchmark, not a test).
 //!
-//! `cargo run --release -p tilting-planner --example sim_speed [-- SECONDS]`
+//! `cargo run --release -p tilting-sim --example sim_speed [-- SECONDS]`
 //!
 //! Runs the `simulate` command's closed loop (K_P0 = 100, K_D = 14.14, k = 500, E_av and start
-//! from `scenario.rs`) over SECONDS simulated seconds (default 200), once with the continuous
+//! from `tilting_plant::paper`) over SECONDS simulated seconds (default 200), once with the continuous
 //! coupling and once with a 1 ms zero-order hold, and prints simulated seconds per wall second
 //! and right-hand-side evaluations per simulated second (`plant.stats().evals`).
 //!
@@ -19,10 +19,10 @@
 use std::hint::black_box;
 use std::time::Instant;
 use tilting_controller::ComputedTorque;
-use tilting_planner::scenario::{Scenario, ScenarioFile};
-use tilting_planner::simulate::{simulate, SimOptions, SimulationReport};
 use tilting_plant::dynamics::accelerations;
 use tilting_plant::{Mode, State};
+use tilting_sim::closed_loop::{simulate, SimOptions, SimulationReport};
+use tilting_sim::scenario::{Scenario, ScenarioFile};
 
 const REPEATS: usize = 5;
 

@@ -256,10 +256,7 @@ pub fn run_continuous<L: TorqueLaw, O: Observer>(
 
 /// Runs the scenario. Fails only on an invalid scenario; a fault of the plant (contact loss,
 /// fall, Zeno, integrator failure) ends the run and is reported in the result.
-pub fn simulate(
-    sc: &Scenario,
-    opts: SimOptions,
-) -> Result<SimulationReport, ScenarioError> {
+pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, ScenarioError> {
     sc.validate()?;
     let ctrl = sc.controller()?;
     let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).map_err(|e| {
@@ -284,7 +281,14 @@ pub fn simulate(
         }
     };
     let (result, controller_samples) = if sc.is_sampled() {
-        run_sampled(&mut plant, &ctrl, sc.control_period, t_end, &mut rec, &mut tick)
+        run_sampled(
+            &mut plant,
+            &ctrl,
+            sc.control_period,
+            t_end,
+            &mut rec,
+            &mut tick,
+        )
     } else {
         let pieces = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
         let r = run_continuous(&mut plant, &ctrl, t_end, pieces, &mut rec, &mut tick);
@@ -427,12 +431,12 @@ mod tests {
         let land = r.events[0];
         assert_eq!((land.from, land.to), (Mode::Left, Mode::Flat));
         assert!(
-            (land.t - crate::scenario::ORBIT_HALF_PERIOD).abs() < 1e-7,
+            (land.t - tilting_plant::paper::ORBIT_HALF_PERIOD).abs() < 1e-7,
             "{}",
             land.t
         );
         // On the orbit the landing state is the mirror of the start.
-        let x0 = crate::scenario::orbit_x0();
+        let x0 = tilting_plant::paper::orbit_x0();
         assert!((land.x_after[1] - (std::f64::consts::PI - x0[1])).abs() < 1e-7);
         assert!((land.x_after[3] + x0[3]).abs() < 1e-6);
         assert_eq!(r.final_state.t, 1.0);

@@ -28,7 +28,5 @@
 pub mod closed_loop;
 pub mod scenario;
 
-pub use closed_loop::{
-    run_continuous, run_sampled, simulate, SimOptions, SimulationReport,
-};
+pub use closed_loop::{run_continuous, run_sampled, simulate, SimOptions, SimulationReport};
 pub use scenario::{Scenario, ScenarioArgs, ScenarioError, ScenarioFile};

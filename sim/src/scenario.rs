@@ -31,9 +31,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::path::{Path, PathBuf};
 use tilting_controller::{ComputedTorque, ControlConfig, Reference};
 use tilting_plant::dynamics::accelerations;
-use tilting_plant::paper::{
-    orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE,
-};
+use tilting_plant::paper::{orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE};
 use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, SimConfig, State, Tolerance};
 
 /// Default run length (s).

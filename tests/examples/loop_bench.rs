@@ -36,13 +36,15 @@
 //! lockstep rate at least 0.8x of the raw (back-to-back) ping-pong rate.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use tilting_net::{Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_proto::{Status, TorqueCommand};
-use tilting_tests::{endpoint, free_port, peer_args, plant_args, Client, Proc, StatusWatch};
+use tilting_tests::{
+    bin, endpoint, free_port, peer_args, plant_args, Client, PlantSummary, Proc, StatusWatch,
+};
 
 // Pacing: the plant's own clock (absolute `clock_nanosleep` deadlines, then a short spin), so the
 // paced ping-pong and the plant wake up the same way.
@@ -291,7 +293,7 @@ impl PingPong {
 // ------------------------------------------------------------------ the real loop
 
 struct LoopRun {
-    summary: serde_json::Value,
+    summary: PlantSummary,
     /// Lockstep: steps per second between two statuses.
     rate: Option<f64>,
     /// `(seconds since start, VmRSS kB)` samples of the plant.
@@ -376,7 +378,7 @@ fn real_loop(
     }
     let exit = plant.expect_exit(Duration::from_secs_f64(duration.min(1e5) + 60.0));
     anyhow::ensure!(exit.success(), "plant: {exit}\n{}", plant.logs());
-    let summary = plant.summary();
+    let summary = plant.plant_summary();
     let _ = ctl.interrupt(Duration::from_secs(10));
     drop(status);
     rt.block_on(async {
@@ -385,15 +387,14 @@ fn real_loop(
     Ok(LoopRun { summary, rate, rss })
 }
 
-fn lat(s: &serde_json::Value) -> Pct {
-    let l = &s["latency_us"];
-    let f = |k: &str| l[k].as_f64().unwrap_or(f64::NAN);
+fn lat(s: &PlantSummary) -> Pct {
+    let l = &s.latency_us;
     Pct {
-        p50: f("p50"),
-        p99: f("p99"),
-        p999: f("p999"),
-        max: f("max"),
-        n: l["count"].as_u64().unwrap_or(0).min(4096) as usize,
+        p50: l.p50,
+        p99: l.p99,
+        p999: l.p999.unwrap_or(f64::NAN),
+        max: l.max,
+        n: l.count.unwrap_or(0).min(4096) as usize,
     }
 }
 
@@ -440,40 +441,10 @@ fn parse_opts() -> anyhow::Result<Opts> {
     Ok(o)
 }
 
-/// `tilting-plant` and `tilting-controller` in the profile directory (the parent of
-/// `examples/`), built first unless `LOOP_BENCH_NO_BUILD` is set.
+/// `tilting-plant` and `tilting-controller`, built first by the test harness unless
+/// `TILTING_TESTS_NO_BUILD` is set.
 fn node_binaries() -> anyhow::Result<(PathBuf, PathBuf)> {
-    let exe = std::env::current_exe()?;
-    let mut dir = exe.parent().expect("exe dir").to_path_buf();
-    if dir
-        .file_name()
-        .is_some_and(|n| n == "examples" || n == "deps")
-    {
-        dir.pop();
-    }
-    if std::env::var_os("LOOP_BENCH_NO_BUILD").is_none() {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let st = Command::new(cargo)
-            .args([
-                "build",
-                "--release",
-                "-p",
-                "tilting-plant",
-                "-p",
-                "tilting-controller",
-            ])
-            .current_dir(tilting_tests::workspace_root())
-            .status()?;
-        anyhow::ensure!(st.success(), "cargo build of the node binaries failed");
-    }
-    let (p, c) = (dir.join("tilting-plant"), dir.join("tilting-controller"));
-    anyhow::ensure!(
-        p.is_file() && c.is_file(),
-        "{} or {} is missing: cargo build --release --workspace",
-        p.display(),
-        c.display()
-    );
-    Ok((p, c))
+    Ok((bin("tilting-plant"), bin("tilting-controller")))
 }
 
 struct Round {
@@ -607,8 +578,8 @@ fn main() -> anyhow::Result<()> {
             &format!(
                 "p99 {x:.2}x raw paced; p50 {:.2}x; misses {}, overruns {}",
                 q.p50 / paced.p50,
-                r.rt.summary["deadline_misses"],
-                r.rt.summary["overruns"],
+                r.rt.summary.deadline_misses,
+                r.rt.summary.overruns,
             ),
         );
         let q = lat(&r.ls.summary);
@@ -637,7 +608,7 @@ fn main() -> anyhow::Result<()> {
             "1000",
             &format!(
                 "misses {}, overruns {}",
-                l.summary["deadline_misses"], l.summary["overruns"]
+                l.summary.deadline_misses, l.summary.overruns
             ),
         );
     }

@@ -1,26 +1,30 @@
-//! Helpers of the process-level integration tests in `tests/tests/`.
+//! The harness of the process-level integration tests in `tests/tests/` and of the loop
+//! benchmark: real binaries as separate processes over loopback.
 //!
 //! - The binaries of other packages are not available as `CARGO_BIN_EXE_*` here: [`bin`] finds
-//!   `tilting-plant` and `tilting-controller` in the target directory next to the test
-//!   executable (`target/release/deps/..` → `target/release/`) and, once per test binary, runs
-//!   `cargo build --release -p tilting-plant -p tilting-controller` so they are never stale
-//!   (set `TILTING_TESTS_NO_BUILD=1` to skip that and use what is there).
-//! - [`Proc`]: a child process with stdout/stderr in files, killed (SIGKILL) on drop, so a
-//!   failing test never leaves a node behind.
+//!   them in the profile directory next to the test executable (`target/release/deps/..`) and,
+//!   once per test binary, runs `cargo build --release` of the node binaries and the front door
+//!   so they are never stale (set `TILTING_TESTS_NO_BUILD=1` to skip that and use what is
+//!   there).
+//! - [`Proc`]: a child process started by the product's own supervisor
+//!   ([`tilting::supervise::Child`]: stdout and stderr in files, own process group, killed on
+//!   drop), with the waits and panics a test wants.
 //! - [`free_port`]: a free loopback TCP port; each test uses its own ports and its own robot
 //!   name, with multicast scouting off, so tests never see each other's traffic.
 //! - [`Client`]: a zenoh session of the test itself (publishes garbage, plays the planner or
 //!   the plant, watches the status).
 
-use std::io::Read as _;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::Once;
+use std::process::{Command, ExitStatus};
+use std::sync::{Mutex, MutexGuard, Once};
 use std::time::{Duration, Instant};
 
 pub mod recording;
 
+pub use tilting::supervise::endpoint;
+pub use tilting_controller::node::ControllerSummary;
 pub use tilting_net;
+pub use tilting_plant::node::{PlantSummary, RunResult};
 pub use tilting_proto;
 pub use zenoh;
 
@@ -32,21 +36,15 @@ pub fn workspace_root() -> PathBuf {
         .to_path_buf()
 }
 
-/// The directory of the binaries: the parent of the test executable's `deps/` directory.
+/// The directory of the binaries: the cargo profile directory of the running test or example.
 pub fn bin_dir() -> PathBuf {
-    let exe = std::env::current_exe().expect("current_exe");
-    let deps = exe.parent().expect("exe dir");
-    if deps.file_name().is_some_and(|n| n == "deps") {
-        deps.parent().expect("profile dir").to_path_buf()
-    } else {
-        deps.to_path_buf()
-    }
+    tilting::supervise::profile_dir().expect("profile dir")
 }
 
 static BUILD: Once = Once::new();
 
-/// Path of the binary `name` (`tilting-plant`, `tilting-controller` or `tilting-planner`), built
-/// first if needed.
+/// Path of the binary `name` (`tilting`, `tilting-plant`, `tilting-controller` or
+/// `tilting-planner`), built first if needed.
 pub fn bin(name: &str) -> PathBuf {
     BUILD.call_once(|| {
         if std::env::var_os("TILTING_TESTS_NO_BUILD").is_some() {
@@ -63,33 +61,33 @@ pub fn bin(name: &str) -> PathBuf {
                 "tilting-controller",
                 "-p",
                 "tilting-planner",
+                "-p",
+                "tilting",
             ])
             .current_dir(workspace_root())
             .status()
             .expect("cannot run cargo build");
-        assert!(status.success(), "cargo build of the node binaries failed");
+        assert!(status.success(), "cargo build of the binaries failed");
     });
     let path = bin_dir().join(name);
     assert!(
         path.exists(),
-        "{} does not exist: build it with `cargo build --release -p {name}`",
+        "{} does not exist: build it with `cargo build --release --workspace`",
         path.display()
     );
     path
 }
 
-/// A free TCP port on 127.0.0.1 (the OS picks it; it is released before use).
-pub fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .expect("bind 127.0.0.1:0")
-        .local_addr()
-        .expect("local_addr")
-        .port()
+/// Real-time runs take turns within one test binary: two 1 kHz loops at once on a 2-core
+/// machine would measure each other. Hold the guard for the whole run.
+pub fn realtime_turn() -> MutexGuard<'static, ()> {
+    static REALTIME: Mutex<()> = Mutex::new(());
+    REALTIME.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// `tcp/127.0.0.1:{port}`.
-pub fn endpoint(port: u16) -> String {
-    format!("tcp/127.0.0.1:{port}")
+/// A free TCP port on 127.0.0.1 (the OS picks it; it is released before use).
+pub fn free_port() -> u16 {
+    tilting::supervise::free_port().expect("a free port")
 }
 
 /// A unique robot name for one test (`{tag}_{pid}`).
@@ -97,88 +95,65 @@ pub fn robot(tag: &str) -> String {
     format!("{tag}_{}", std::process::id())
 }
 
-/// A scratch directory for one test, removed on drop unless `TILTING_TESTS_KEEP` is set.
-pub struct Scratch(PathBuf);
+/// A scratch directory for one test, removed on drop unless the test failed or
+/// `TILTING_TESTS_KEEP` is set (then it is kept for a look and its path printed).
+pub struct Scratch(Option<tempfile::TempDir>);
 
 impl Scratch {
-    /// Creates `$TMPDIR/tilting-tests-{tag}-{pid}`.
+    /// A new empty directory named after `tag` under the system's temp directory.
     pub fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("tilting-tests-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("create scratch dir");
-        Self(dir)
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("tilting-tests-{tag}-"))
+            .tempdir()
+            .expect("create scratch dir");
+        Self(Some(dir))
     }
     /// The directory.
     pub fn path(&self) -> &Path {
-        &self.0
+        self.0.as_ref().expect("present until drop").path()
     }
 }
 
 impl Drop for Scratch {
     fn drop(&mut self) {
-        if std::env::var_os("TILTING_TESTS_KEEP").is_none() && !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
+        if let Some(dir) = self.0.take() {
+            if std::env::var_os("TILTING_TESTS_KEEP").is_some() || std::thread::panicking() {
+                eprintln!("kept {}", dir.keep().display());
+            }
         }
     }
 }
 
-/// A child process; killed with SIGKILL when dropped.
-pub struct Proc {
-    name: String,
-    child: Child,
-    stdout: PathBuf,
-    stderr: PathBuf,
-}
+/// A child process of a test, started by the product's supervisor; killed when dropped.
+pub struct Proc(tilting::supervise::Child);
 
 impl Proc {
-    /// Starts `bin args...` with stdout and stderr redirected to `{dir}/{name}.{stdout,stderr}`.
+    /// Starts `bin args...` with stdout and stderr in `{dir}/{name}.json` and `{dir}/{name}.log`.
     pub fn spawn(name: &str, bin: &Path, args: &[String], dir: &Path) -> Self {
-        let stdout = dir.join(format!("{name}.stdout"));
-        let stderr = dir.join(format!("{name}.stderr"));
-        let child = Command::new(bin)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(std::fs::File::create(&stdout).expect("stdout file"))
-            .stderr(std::fs::File::create(&stderr).expect("stderr file"))
-            .spawn()
-            .unwrap_or_else(|e| panic!("cannot start {}: {e}", bin.display()));
-        Self {
-            name: name.to_owned(),
-            child,
-            stdout,
-            stderr,
-        }
+        Self(
+            tilting::supervise::Child::spawn(name, bin, args, dir)
+                .unwrap_or_else(|e| panic!("{e:#}")),
+        )
     }
 
     /// The process id.
     pub fn pid(&self) -> i32 {
-        self.child.id() as i32
+        self.0.pid() as i32
     }
 
     /// Sends a signal (`libc::SIGINT`, `SIGKILL`, `SIGSTOP`, `SIGCONT`, ...).
     pub fn signal(&self, sig: i32) {
-        // SAFETY: kill(2) with a pid we own and a valid signal number.
-        let rc = unsafe { libc::kill(self.pid(), sig) };
-        assert_eq!(rc, 0, "kill({}, {sig}) failed", self.pid());
+        self.0.signal(sig);
     }
 
     /// Has it exited? (non-blocking)
     pub fn try_wait(&mut self) -> Option<ExitStatus> {
-        self.child.try_wait().expect("try_wait")
+        self.0.try_wait()
     }
 
     /// Waits at most `timeout` for the exit.
     pub fn wait_timeout(&mut self, timeout: Duration) -> Option<ExitStatus> {
-        let end = Instant::now() + timeout;
-        loop {
-            if let Some(s) = self.try_wait() {
-                return Some(s);
-            }
-            if Instant::now() >= end {
-                return None;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        self.0.wait_timeout(timeout, &|| false)
     }
 
     /// Waits for the exit or panics with the logs after `timeout`.
@@ -187,13 +162,13 @@ impl Proc {
             Some(s) => s,
             None => panic!(
                 "{} did not exit within {timeout:?}\n{}",
-                self.name,
+                self.0.name(),
                 self.logs()
             ),
         }
     }
 
-    /// SIGINT, then the exit status (SIGKILL after `timeout`).
+    /// SIGINT, then the exit status (panics after `timeout`).
     pub fn interrupt(&mut self, timeout: Duration) -> ExitStatus {
         self.signal(libc::SIGINT);
         self.expect_exit(timeout)
@@ -201,50 +176,40 @@ impl Proc {
 
     /// Everything written to stdout so far.
     pub fn stdout(&self) -> String {
-        read(&self.stdout)
+        self.0.stdout()
     }
 
     /// Everything written to stderr so far.
     pub fn stderr(&self) -> String {
-        read(&self.stderr)
+        self.0.stderr()
     }
 
     /// stdout and stderr, labelled, for failure messages.
     pub fn logs(&self) -> String {
-        format!(
-            "--- {} stdout ---\n{}\n--- {} stderr ---\n{}",
-            self.name,
-            self.stdout(),
-            self.name,
-            self.stderr()
-        )
+        self.0.logs()
     }
 
-    /// The last line of stdout that parses as a JSON object (the summary of a node).
-    pub fn summary(&self) -> serde_json::Value {
-        let out = self.stdout();
-        out.lines()
-            .rev()
-            .find_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+    /// The plant's summary (the last JSON line of stdout); panics with the logs if there is none.
+    pub fn plant_summary(&self) -> PlantSummary {
+        self.0
+            .summary()
+            .unwrap_or_else(|| panic!("no plant summary on stdout\n{}", self.logs()))
+    }
+
+    /// The controller's summary; panics with the logs if there is none.
+    pub fn controller_summary(&self) -> ControllerSummary {
+        self.0
+            .summary()
+            .unwrap_or_else(|| panic!("no controller summary on stdout\n{}", self.logs()))
+    }
+
+    /// The last JSON object on stdout (a node without a summary type of its own, like the
+    /// planner or a Python peer); panics with the logs if there is none.
+    pub fn summary_json(&self) -> serde_json::Value {
+        self.0
+            .summary()
             .unwrap_or_else(|| panic!("no JSON summary on stdout\n{}", self.logs()))
     }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        if self.child.try_wait().ok().flatten().is_none() {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
-}
-
-fn read(path: &Path) -> String {
-    let mut s = String::new();
-    if let Ok(mut f) = std::fs::File::open(path) {
-        let _ = f.read_to_string(&mut s);
-    }
-    s
 }
 
 /// Arguments of a plant listening on `port` for `robot`, followed by `extra`.

@@ -67,7 +67,7 @@ async fn a_fault_is_published_and_ends_the_run_with_exit_code_3() {
     assert_eq!(s.watchdog_trips, 1);
     let exit = plant.expect_exit(Duration::from_secs(10));
     assert_eq!(exit.code(), Some(3), "{}", plant.logs());
-    let summary = plant.summary();
-    assert_eq!(summary["result"], "faulted");
-    assert!(summary["fault"].as_str().unwrap().contains("contact loss"));
+    let summary = plant.plant_summary();
+    assert_eq!(summary.result, RunResult::Faulted);
+    assert!(summary.fault.as_deref().unwrap().contains("contact loss"));
 }

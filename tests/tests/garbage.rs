@@ -174,12 +174,12 @@ async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
         "{}",
         ctl.logs()
     );
-    let c = ctl.summary();
-    eprintln!("controller summary: {c}");
-    assert_eq!(c["states_dropped"], bad_state.len() as u64);
-    assert_eq!(c["references_dropped"], bad_reference.len() as u64);
-    assert_eq!(c["references_applied"], 0);
-    assert_eq!(c["torques_not_finite"], 0);
+    let c = ctl.controller_summary();
+    eprintln!("controller summary: {c:?}");
+    assert_eq!(c.states_dropped, bad_state.len() as u64);
+    assert_eq!(c.references_dropped, bad_reference.len() as u64);
+    assert_eq!(c.references_applied, 0);
+    assert_eq!(c.torques_not_finite, 0);
     // Logged at a bounded rate: a flood of hundreds gives a handful of lines.
     let lines = ctl
         .stderr()
@@ -194,9 +194,9 @@ async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
 
     let exit = plant.interrupt(Duration::from_secs(10));
     assert!(exit.success(), "{}", plant.logs());
-    let p = plant.summary();
-    eprintln!("plant summary: {p}");
-    assert_eq!(p["torques_dropped"], want);
+    let p = plant.plant_summary();
+    eprintln!("plant summary: {p:?}");
+    assert_eq!(p.torques_dropped, want);
     let lines = plant
         .stderr()
         .lines()

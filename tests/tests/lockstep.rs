@@ -41,11 +41,11 @@ fn lockstep_run_equals_offline_simulation() {
     );
     let status = plant.expect_exit(Duration::from_secs(60));
     assert!(status.success(), "plant: {status}\n{}", plant.logs());
-    let summary = plant.summary();
-    eprintln!("plant summary: {summary}");
-    assert_eq!(summary["result"], "completed");
-    assert_eq!(summary["deadline_misses"], 0, "{summary}");
-    assert_eq!(summary["torques_dropped"], 0);
+    let summary = plant.plant_summary();
+    eprintln!("plant summary: {summary:?}");
+    assert_eq!(summary.result, RunResult::Completed);
+    assert_eq!(summary.deadline_misses, 0, "{summary:?}");
+    assert_eq!(summary.torques_dropped, 0);
     let c_status = ctl.interrupt(Duration::from_secs(10));
     assert!(c_status.success(), "{}", ctl.logs());
 
@@ -73,18 +73,13 @@ fn lockstep_run_equals_offline_simulation() {
     // The state is transmitted as raw f64 bits and the code path is the same: bit-identical.
     assert_eq!(worst, 0.0, "expected a bit-identical reproduction");
     let last = want.last().unwrap();
-    let x: Vec<f64> = summary["x"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let x = summary.x.to_vec();
     assert_eq!(x, last.x.to_vec());
-    assert_eq!(summary["time"].as_f64().unwrap(), DURATION);
+    assert_eq!(summary.time, DURATION);
 
     // And the offline `simulate` command itself, with the same control period: the same final
     // state, bit for bit.
-    let out = std::process::Command::new(bin("tilting-planner"))
+    let out = std::process::Command::new(bin("tilting"))
         .args([
             "simulate",
             "--json",
@@ -94,7 +89,7 @@ fn lockstep_run_equals_offline_simulation() {
             &DURATION.to_string(),
         ])
         .output()
-        .expect("run tilting-planner simulate");
+        .expect("run tilting simulate");
     assert!(
         out.status.success(),
         "{}",

@@ -125,17 +125,17 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
         plant.logs(),
         ctl.logs()
     );
-    let summary = plant.summary();
-    eprintln!("plant summary: {summary}");
-    assert_eq!(summary["result"], "completed", "{summary}");
-    assert_eq!(summary["steps"], 1000, "{summary}");
-    assert_eq!(summary["deadline_misses"], 0, "{summary}");
-    assert_eq!(summary["torques_dropped"], 0, "{summary}");
-    assert_eq!(summary["torques_stale"], 0, "{summary}");
-    assert_eq!(summary["watchdog_trips"], 0, "{summary}");
+    let summary = plant.plant_summary();
+    eprintln!("plant summary: {summary:?}");
+    assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
+    assert_eq!(summary.steps, 1000, "{summary:?}");
+    assert_eq!(summary.deadline_misses, 0, "{summary:?}");
+    assert_eq!(summary.torques_dropped, 0, "{summary:?}");
+    assert_eq!(summary.torques_stale, 0, "{summary:?}");
+    assert_eq!(summary.watchdog_trips, 0, "{summary:?}");
     let c_status = ctl.interrupt(Duration::from_secs(10));
     assert!(c_status.success(), "{}", ctl.logs());
-    let c_summary = ctl.summary();
+    let c_summary = ctl.summary_json();
     eprintln!("controller.py summary: {c_summary}");
     assert_eq!(c_summary["states_dropped"], 0, "{c_summary}");
     assert_eq!(c_summary["torques_not_finite"], 0, "{c_summary}");

@@ -54,17 +54,17 @@ async fn realtime_run_stays_on_the_orbit_for_10_s() {
     .unwrap();
     let (exit, plant) = exit;
     assert!(exit.success(), "plant: {exit}\n{}", plant.logs());
-    let summary = plant.summary();
-    eprintln!("plant summary: {summary}");
-    assert_eq!(summary["result"], "completed", "{summary}");
+    let summary = plant.plant_summary();
+    eprintln!("plant summary: {summary:?}");
+    assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
     assert!(ctl.interrupt(Duration::from_secs(10)).success());
 
     // Timing, for the record (the machine is shared: only gross failures are errors).
-    let misses = summary["deadline_misses"].as_u64().unwrap();
-    let trips = summary["watchdog_trips"].as_u64().unwrap();
+    let misses = summary.deadline_misses;
+    let trips = summary.watchdog_trips;
     eprintln!(
-        "jitter us {} | loop latency us {} | overruns {} (max {} us) | deadline misses {misses} | watchdog trips {trips}",
-        summary["jitter_us"], summary["latency_us"], summary["overruns"], summary["max_overrun_us"]
+        "jitter us {:?} | loop latency us {:?} | overruns {} (max {} us) | deadline misses {misses} | watchdog trips {trips}",
+        summary.jitter_us, summary.latency_us, summary.overruns, summary.max_overrun_us
     );
     assert!(
         misses < 1000,
@@ -72,14 +72,9 @@ async fn realtime_run_stays_on_the_orbit_for_10_s() {
     );
 
     // Periodic tilting, alternating sides, every ~0.44 s, peaks on the orbit (~0.040 rad).
-    let tilts = summary["tilts"].as_u64().unwrap();
+    let tilts = summary.tilts;
     assert!((20..=24).contains(&tilts), "tilts in 10 s: {tilts}");
-    let peaks: Vec<(f64, f64)> = summary["tilt_peaks"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| (p[0].as_f64().unwrap(), p[1].as_f64().unwrap()))
-        .collect();
+    let peaks: Vec<(f64, f64)> = summary.tilt_peaks.iter().map(|p| (p[0], p[1])).collect();
     assert!(peaks.len() >= 20);
     for w in peaks.windows(2) {
         assert!(w[0].1.signum() != w[1].1.signum(), "tilts alternate: {w:?}");
@@ -101,7 +96,7 @@ async fn realtime_run_stays_on_the_orbit_for_10_s() {
     assert_eq!(starts, tilts, "tilt starts on the event topic");
     assert_eq!(
         events.len() as u64,
-        summary["transitions"].as_u64().unwrap(),
+        summary.transitions,
         "all transitions published"
     );
     // The last status says stopped, without a fault.

@@ -192,11 +192,11 @@ async fn controller_started_after_the_planner_receives_the_reference() {
         "{}",
         ctl.logs()
     );
-    let c = ctl.summary();
-    eprintln!("controller summary: {c}");
-    assert!(c["references_applied"].as_u64().unwrap() >= 2);
-    assert_eq!(c["references_dropped"], 0);
-    assert_eq!(c["law"]["kp"], 30.0);
-    assert_eq!(c["law"]["torque_limit"], 5.0);
-    assert_eq!(c["law"]["reference"]["kind"], "hold");
+    let c = ctl.controller_summary();
+    eprintln!("controller summary: {c:?}");
+    assert!(c.references_applied >= 2);
+    assert_eq!(c.references_dropped, 0);
+    assert_eq!(c.law.kp, 30.0);
+    assert_eq!(c.law.torque_limit, Some(5.0));
+    assert_eq!(c.law.reference, tilting_controller::Reference::Hold);
 }

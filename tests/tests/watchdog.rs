@@ -108,9 +108,9 @@ async fn controller_loss_trips_safe_mode_and_its_return_resumes_the_loop() {
 
     let exit = plant.interrupt(Duration::from_secs(10));
     assert!(exit.success(), "{}", plant.logs());
-    let summary = plant.summary();
-    eprintln!("plant summary: {summary}");
-    assert_eq!(summary["result"], "stopped");
-    assert!(summary["fault"].is_null());
+    let summary = plant.plant_summary();
+    eprintln!("plant summary: {summary:?}");
+    assert_eq!(summary.result, RunResult::Stopped);
+    assert!(summary.fault.is_none());
     assert!(ctl.interrupt(Duration::from_secs(10)).success());
 }

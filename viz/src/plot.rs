@@ -1,15 +1,15 @@
 //! PNG figures with plotters. The font is embedded (`assets/DejaVuSans.ttf`, registered as
 //! `sans-serif`), so drawing needs no system font.
 
-use tilting_sim::Scenario;
-use tilting_sim::closed_loop::{EventRecord, Sample};
-use tilting_sim::SimulationReport;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::path::Path;
 use std::sync::OnceLock;
 use tilting_plant::Mode;
+use tilting_sim::closed_loop::{EventRecord, Sample};
+use tilting_sim::Scenario;
+use tilting_sim::SimulationReport;
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
@@ -105,11 +105,7 @@ pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
     let root = root.titled(&title, ("sans-serif", 28))?;
     let panels = root.split_evenly((2, 1));
     let t_max = r.end.max(sc.duration * 1e-6).max(f64::MIN_POSITIVE);
-    let t_max = if r.stopped_early {
-        t_max
-    } else {
-        sc.duration
-    };
+    let t_max = if r.stopped_early { t_max } else { sc.duration };
     let specs: [(usize, &str, &str); 2] = [
         (0, "Plate tilt angle α(t)", "α [rad]"),
         (1, "Arm angle β(t) relative to the plate", "β [rad]"),

@@ -8,8 +8,8 @@ use serde_json::{json, Value};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_plant::Params;
 use tilting_planner::CommandError;
+use tilting_plant::Params;
 use tilting_viz::figures::{Figures, Settings, ALL};
 
 /// Flags of `tilting figures`.
@@ -168,4 +168,3 @@ fn human(report: &Value) -> String {
     }
     s
 }
-

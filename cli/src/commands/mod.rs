@@ -12,8 +12,8 @@ use clap::Args;
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use tilting_plant::{ImpactLaw, Params};
 use tilting_planner::CommandError;
+use tilting_plant::{ImpactLaw, Params};
 
 /// Model flags shared by the planning commands.
 #[derive(Debug, Clone, Args)]

@@ -6,11 +6,10 @@ use super::{bar, check, emit, usage, ModelArgs};
 use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
-use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
 use tilting_planner::{gains, sinusoid, CommandError};
-
+use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 
 /// `orbit`: the periodic orbits of approach 2 for one gain pair.
 #[derive(Debug, Clone, Args)]

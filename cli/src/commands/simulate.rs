@@ -75,4 +75,3 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
     }
     Ok(())
 }
-

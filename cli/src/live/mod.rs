@@ -37,9 +37,9 @@ use std::time::{Duration, Instant};
 use summary::{Endpoints, LawRecord, LiveResult, LiveSummary, PlannerCounts, RecordCounts};
 use tilting_controller::node::ControllerSummary;
 use tilting_net::{subscribe_decoded, DropCounter, Role, ZenohArgs};
-use tilting_plant::node::PlantSummary;
 use tilting_planner::node::{check_seconds, describe, LawArgs, ReferencePublisher};
 use tilting_planner::CommandError;
+use tilting_plant::node::PlantSummary;
 use tilting_proto::{Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
 use tilting_sim::Scenario;
 
@@ -65,7 +65,6 @@ pub struct LiveArgs {
     #[command(flatten)]
     pub law: LawArgs,
 }
-
 
 /// Ctrl-C/SIGTERM count, updated by a task that starts with the runtime.
 #[derive(Clone, Default)]
@@ -457,4 +456,3 @@ async fn live(
     }
     Ok(ok)
 }
-

@@ -144,7 +144,12 @@ pub struct LiveSummary {
 impl LiveSummary {
     /// The human-readable report printed at the end; `status` is the plant's last status,
     /// `fault` the fault that ended the run, if any.
-    pub fn report(&self, view: &RecordView, status: Option<&Status>, fault: Option<&str>) -> String {
+    pub fn report(
+        &self,
+        view: &RecordView,
+        status: Option<&Status>,
+        fault: Option<&str>,
+    ) -> String {
         use std::fmt::Write as _;
         let mut out = String::new();
         let _ = writeln!(

@@ -50,9 +50,12 @@ fn run_moved(old: &str, new: &[&str], rest: Vec<String>) -> ExitCode {
          release",
         new.join(" ")
     );
-    let exe = std::env::current_exe()
-        .ok()
-        .and_then(|p| Some(p.parent()?.join(format!("tilting{}", std::env::consts::EXE_SUFFIX))));
+    let exe = std::env::current_exe().ok().and_then(|p| {
+        Some(
+            p.parent()?
+                .join(format!("tilting{}", std::env::consts::EXE_SUFFIX)),
+        )
+    });
     let Some(front) = exe.filter(|p| p.is_file()) else {
         eprintln!(
             "error: cannot find the `tilting` binary next to tilting-planner: build the workspace \

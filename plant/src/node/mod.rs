@@ -67,7 +67,9 @@ pub const STATE_COLUMNS: &str = "seq,t,mode,alpha,beta,alpha_dot,beta_dot";
 pub const EXIT_FAULT: u8 = 3;
 
 /// How plant time advances.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum ClockMode {
     /// Paced by the wall clock, one period per `1/rate` s.

@@ -25,7 +25,6 @@ struct Curve {
     points: Vec<Option<(f64, f64)>>,
 }
 
-
 pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
     let p = ctx.params;
     // The no-tilt grid.

@@ -37,7 +37,8 @@ pub(super) fn simulate(
     let mut plant = Plant::new(ctx.sim_config(), 0.0, mode, x0)?;
     let mut tr = Trace::default();
     tr.sample(0.0, mode, &x0);
-    let fault = tilting_sim::run_continuous(&mut plant, law, duration, 1, &mut tr, &mut |_| {}).err();
+    let fault =
+        tilting_sim::run_continuous(&mut plant, law, duration, 1, &mut tr, &mut |_| {}).err();
     Ok((tr, fault))
 }
 

@@ -1,7 +1,7 @@
 //! Fig. 7: the unstable orbit left alone, and stabilised by the energy adaptation.
 
-use super::*;
 use super::fig5::{short_fault, simulate, Trace};
+use super::*;
 
 // ---------------------------------------------------------------------------------------------
 // Fig. 7.
@@ -15,7 +15,8 @@ struct Fig7Run {
 
 pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
     let pb = ctx.orbit_problem();
-    let o = orbit::smallest(&pb).ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
+    let o = orbit::smallest(&pb)
+        .ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
     bar.inc(1);
     let law = |k: f64| {
         ComputedTorque::new(ControlConfig {

@@ -1,7 +1,7 @@
 //! Fig. 8: the bifurcation diagram over the adaptation gain `k`, with `k*` and peak series.
 
-use super::*;
 use super::fig5::short_fault;
+use super::*;
 use tilting_planner::bifurcation::RowFault;
 
 // ---------------------------------------------------------------------------------------------
@@ -9,7 +9,8 @@ use tilting_planner::bifurcation::RowFault;
 
 pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
     let pb = ctx.orbit_problem();
-    let o = orbit::smallest(&pb).ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
+    let o = orbit::smallest(&pb)
+        .ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
     bar.inc(1);
     let set = ctx.set;
     let sw = Sweep {

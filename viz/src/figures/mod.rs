@@ -29,18 +29,16 @@ use serde_json::{json, Value};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 use style::{
-    clip, legend, star_points, style_mesh, symmetric, tick3, Area, BLUE, FONT, GREEN, GREY, PALETTE,
-    RED,
+    clip, legend, star_points, style_mesh, symmetric, tick3, Area, BLUE, FONT, GREEN, GREY,
+    PALETTE, RED,
 };
 use tilting_controller::{ComputedTorque, ControlConfig, Reference};
-use tilting_plant::paper::{ORBIT_KD as KD, ORBIT_KP as KP};
-use tilting_plant::{
-    Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak,
-};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::gains;
 use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
 use tilting_planner::sinusoid::{self, Search};
+use tilting_plant::paper::{ORBIT_KD as KD, ORBIT_KP as KP};
+use tilting_plant::{Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak};
 
 /// The figures there are: 4 to 8, as numbered in the paper.
 pub const ALL: std::ops::RangeInclusive<u8> = 4..=8;

@@ -1,0 +1,348 @@
+//! Runs the built `tilting live` (and the planner node) with the real node binaries:
+//!
+//! - `live --duration 5 --out DIR` exits 0 and writes the three CSV files with plausible content
+//!   (about 5000 states, alternating left/right tilts, finite numbers), the PNG and the summary;
+//! - a controller killed during a `live` run is reported (which one, how), the plant is stopped,
+//!   the recording is kept, and `live` exits with code 1;
+//! - a controller started after the planner node gets the published law from its queryable;
+//! - `live` without the node binaries next to it fails with a message that says how to build
+//!   them;
+//! - the old `tilting-planner live|simulate|...` names still work and say where the command
+//!   went.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+use tilting::live::summary::{LiveResult, LiveSummary};
+use tilting_tests::*;
+
+fn csv(path: &Path) -> (String, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header = lines.next().expect("a header").to_owned();
+    let n = header.split(',').count();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split(',')
+                .map(|x| {
+                    x.parse::<f64>()
+                        .unwrap_or_else(|e| panic!("{}: `{x}` in `{l}`: {e}", path.display()))
+                })
+                .collect();
+            assert_eq!(v.len(), n, "{}: `{l}`", path.display());
+            assert!(v.iter().all(|x| x.is_finite()), "{}: `{l}`", path.display());
+            v
+        })
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn live_runs_the_orbit_for_5_s_and_records_it() {
+    let tilting = bin("tilting");
+    let _turn = realtime_turn();
+    let dir = Scratch::new("run");
+    let out = dir.path().join("out");
+    let robot = robot("live");
+    let o = Command::new(tilting)
+        .args(["live", "--duration", "5", "--robot", &robot, "--out"])
+        .arg(&out)
+        .output()
+        .expect("cannot run tilting live");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let logs = || {
+        let mut s = format!("--- stdout ---\n{stdout}\n--- stderr ---\n{stderr}");
+        for f in ["plant.log", "controller.log"] {
+            let t = std::fs::read_to_string(out.join(f)).unwrap_or_default();
+            s.push_str(&format!("\n--- {f} ---\n{t}"));
+        }
+        s
+    };
+    assert!(o.status.success(), "live failed: {}\n{}", o.status, logs());
+    eprintln!("{stdout}");
+    assert!(stdout.contains("live run completed"), "{}", logs());
+    assert!(stdout.contains("loop latency"), "{}", logs());
+    assert!(stderr.contains("latency p50"), "no status line\n{}", logs());
+
+    // state.csv: seq 0..=5000, time k ms, on the orbit.
+    let (header, states) = csv(&out.join("state.csv"));
+    assert_eq!(header, "seq,t,mode,alpha,beta,alpha_dot,beta_dot");
+    assert!(
+        (4500..=5500).contains(&states.len()),
+        "{} state rows",
+        states.len()
+    );
+    for w in states.windows(2) {
+        assert!(w[1][0] > w[0][0] && w[1][1] > w[0][1], "{w:?}");
+    }
+    let last = states.last().unwrap();
+    assert!((last[1] - 5.0).abs() < 1e-9, "last t = {}", last[1]);
+    for r in &states {
+        assert!((0.0..=2.0).contains(&r[2]), "mode {r:?}");
+        assert!(r[3].abs() < 0.1, "|alpha| stays small on the orbit: {r:?}");
+        assert!(
+            (r[4] - std::f64::consts::FRAC_PI_2).abs() < 0.5,
+            "beta {r:?}"
+        );
+    }
+
+    // torque.csv: one answer per state.
+    let (header, torques) = csv(&out.join("torque.csv"));
+    assert_eq!(header, "seq,tau");
+    assert!(
+        torques.len() + 10 >= states.len() && torques.len() <= states.len(),
+        "{} torques for {} states",
+        torques.len(),
+        states.len()
+    );
+
+    // events.csv: landings and tilt starts; the tilts alternate left/right.
+    let (header, events) = csv(&out.join("events.csv"));
+    assert!(header.starts_with("t,from,to,alpha_before"), "{header}");
+    let tilts: Vec<u8> = events
+        .iter()
+        .filter(|e| e[1] == 0.0 && e[2] != 0.0)
+        .map(|e| e[2] as u8)
+        .collect();
+    assert!(
+        (9..=13).contains(&tilts.len()),
+        "about 11 tilts in 5 s (the first one starts before t = 0 and has no event): {tilts:?}"
+    );
+    for w in tilts.windows(2) {
+        assert_ne!(w[0], w[1], "tilts alternate: {tilts:?}");
+    }
+    let landings = events.iter().filter(|e| e[1] != 0.0 && e[2] == 0.0).count();
+    assert!(landings.abs_diff(tilts.len()) <= 1, "{events:?}");
+
+    // The figure and the summary.
+    let png = std::fs::read(out.join("run.png")).expect("run.png");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    assert!(png.len() > 20_000, "run.png is {} bytes", png.len());
+    let summary = live_summary(&out);
+    assert_eq!(summary.result, LiveResult::Completed, "{summary:#?}");
+    let plant = summary.plant.as_ref().expect("the plant's summary");
+    assert_eq!(plant.result, RunResult::Completed, "{summary:#?}");
+    assert_eq!(summary.record.states, states.len() as u64);
+    assert_eq!(summary.record.dropped, 0);
+    let controller = summary
+        .controller
+        .as_ref()
+        .expect("the controller's summary");
+    assert!(controller.references_applied >= 1);
+}
+
+#[test]
+fn a_late_controller_gets_the_published_reference() {
+    let dir = Scratch::new("publish");
+    let (pub_port, ctl_port) = (free_port(), free_port());
+    let robot = robot("publish");
+    // No repetition: only the queryable can hand the law to a controller that starts later.
+    let args: Vec<String> = [
+        "--robot",
+        &robot,
+        "--listen",
+        &endpoint(pub_port),
+        "--connect",
+        &endpoint(ctl_port),
+        "--reference",
+        "sinusoid:0.2,4",
+        "--kp",
+        "60",
+        "--kd",
+        "12",
+        "--k",
+        "0",
+        "--torque-limit",
+        "5",
+        "--repeat",
+        "0",
+        "--duration",
+        "60",
+    ]
+    .map(String::from)
+    .to_vec();
+    let mut publisher = Proc::spawn("planner", &bin("tilting-planner"), &args, dir.path());
+    // Start the controller only once the reference is out (its only put has no subscriber).
+    let end = Instant::now() + Duration::from_secs(20);
+    while !publisher.stderr().contains("publishing on") {
+        assert!(
+            Instant::now() < end,
+            "the planner did not start\n{}",
+            publisher.logs()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let args: Vec<String> = [
+        "--robot",
+        &robot,
+        "--listen",
+        &endpoint(ctl_port),
+        "--connect",
+        &endpoint(pub_port),
+    ]
+    .map(String::from)
+    .to_vec();
+    let mut ctl = Proc::spawn("controller", &bin("tilting-controller"), &args, dir.path());
+    // The controller logs each law it applies.
+    let end = Instant::now() + Duration::from_secs(20);
+    loop {
+        let text = ctl.stderr();
+        if text.contains("planner reference applied") {
+            assert!(
+                text.contains("source=\"query\""),
+                "the law must come from the queryable: {text}"
+            );
+            break;
+        }
+        assert!(Instant::now() < end, "no reference applied:\n{text}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(
+        ctl.interrupt(Duration::from_secs(10)).success(),
+        "{}",
+        ctl.logs()
+    );
+    let c = ctl.controller_summary();
+    assert_eq!(c.law.kp, 60.0, "{c:?}");
+    assert_eq!(c.law.kd, 12.0, "{c:?}");
+    assert_eq!(c.law.torque_limit, Some(5.0), "{c:?}");
+    assert_eq!(
+        c.law.reference,
+        tilting_controller::Reference::Sinusoid {
+            amplitude: 0.2,
+            omega: 4.0
+        },
+        "{c:?}"
+    );
+    assert!(
+        publisher.interrupt(Duration::from_secs(10)).success(),
+        "{}",
+        publisher.logs()
+    );
+    let p = publisher.summary_json();
+    assert!(p["queries_answered"].as_u64().unwrap() >= 1, "{p}");
+    assert_eq!(p["puts"], 1, "{p}");
+}
+
+/// `summary.json` of a live run in `out`.
+fn live_summary(out: &Path) -> LiveSummary {
+    let text = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
+}
+
+/// The children of `pid` whose command line contains `name`.
+fn child_named(pid: u32, name: &str) -> Option<i32> {
+    let list = std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children")).ok()?;
+    list.split_whitespace().find_map(|c| {
+        let cmd = std::fs::read(format!("/proc/{c}/cmdline")).ok()?;
+        String::from_utf8_lossy(&cmd)
+            .contains(name)
+            .then(|| c.parse().ok())
+            .flatten()
+    })
+}
+
+#[test]
+fn a_controller_dying_mid_run_is_reported_and_the_recording_kept() {
+    let tilting = bin("tilting");
+    let _turn = realtime_turn();
+    let dir = Scratch::new("death");
+    let out = dir.path().join("out");
+    let robot = robot("death");
+    let args: Vec<String> = ["live", "--duration", "30", "--robot", &robot, "--out"]
+        .map(String::from)
+        .into_iter()
+        .chain([out.display().to_string()])
+        .collect();
+    let mut live = Proc::spawn("live", &tilting, &args, dir.path());
+    // Wait until the loop runs (states are being recorded), then kill the controller.
+    let end = Instant::now() + Duration::from_secs(20);
+    let ctl = loop {
+        let rows = std::fs::read_to_string(out.join("torque.csv"))
+            .map(|t| t.lines().count())
+            .unwrap_or(0);
+        if rows > 1 {
+            if let Some(pid) = child_named(live.pid() as u32, "tilting-controller") {
+                break pid;
+            }
+        }
+        assert!(Instant::now() < end, "the live loop did not start");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let plant = child_named(live.pid() as u32, "tilting-plant").expect("the plant runs");
+    std::thread::sleep(Duration::from_millis(1500));
+    // SAFETY: kill(2) on a pid read from our child's children list.
+    unsafe { libc::kill(ctl, libc::SIGKILL) };
+    let status = live.expect_exit(Duration::from_secs(20));
+    let err = live.stderr();
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the controller exited during the run") && err.contains("SIGKILL"),
+        "{err}"
+    );
+    // The plant was stopped, not left running; what was recorded is there.
+    assert!(
+        !Path::new(&format!("/proc/{plant}")).exists(),
+        "the plant is still there"
+    );
+    let (_, states) = csv(&out.join("state.csv"));
+    assert!(states.len() > 1000, "{} states", states.len());
+    assert!(out.join("run.png").is_file());
+    let summary = live_summary(&out);
+    assert_eq!(summary.result, LiveResult::Failed);
+    let plant = summary.plant.as_ref().expect("the plant's summary");
+    assert_eq!(plant.result, RunResult::Stopped, "{summary:#?}");
+}
+
+#[test]
+fn live_without_the_node_binaries_says_how_to_build_them() {
+    let dir = Scratch::new("nobin");
+    let exe = dir.path().join("tilting");
+    std::fs::copy(bin("tilting"), &exe).unwrap();
+    let o = Command::new(&exe)
+        .args(["live", "--duration", "1", "--out"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("tilting-plant"), "{err}");
+    assert!(err.contains("cargo build --release --workspace"), "{err}");
+}
+
+#[test]
+fn the_old_planner_commands_still_work_and_say_where_they_went() {
+    let args = ["--duration", "0.5", "--json", "--control-period", "0.001"];
+    let old = Command::new(bin("tilting-planner"))
+        .arg("simulate")
+        .args(args)
+        .output()
+        .unwrap();
+    let new = Command::new(bin("tilting"))
+        .arg("simulate")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(old.status.success() && new.status.success());
+    let err = String::from_utf8_lossy(&old.stderr);
+    assert!(err.contains("is now `tilting simulate`"), "{err}");
+    // The same command: the same report, but for the wall-clock time it took.
+    let strip = |o: &[u8]| {
+        let mut v: serde_json::Value = serde_json::from_slice(o).unwrap();
+        v["stats"]["wall_time_s"] = serde_json::Value::Null;
+        v
+    };
+    assert_eq!(strip(&old.stdout), strip(&new.stdout));
+    // A planning command moved under `plan`; its usage errors keep exit code 2.
+    let o = Command::new(bin("tilting-planner"))
+        .args(["orbit", "--kp", "-3"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("is now `tilting plan orbit`"), "{err}");
+    assert!(err.contains("--kp"), "{err}");
+}
