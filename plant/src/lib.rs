@@ -22,6 +22,8 @@
 //! assert!(plant.state()[0] < 0.3); // gravity pulls the plate back down
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod dynamics;
 pub mod hybrid;
 pub mod impact;

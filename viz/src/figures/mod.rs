@@ -111,7 +111,6 @@ impl Settings {
 }
 
 /// Amplitude range of Fig. 4 (rad) and the frequency range of its no-tilt grid (rad/s).
-
 const FIG4_A: (f64, f64) = (0.02, 0.6);
 const FIG4_W: (f64, f64) = (0.5, 16.0);
 /// Fig. 5: amplitude and landing offsets (the paper's).

@@ -1,0 +1,220 @@
+//! The flags of `tilting-plant` and their validation.
+
+use super::*;
+
+/// How plant time advances.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum ClockMode {
+    /// Paced by the wall clock, one period per `1/rate` s.
+    Realtime,
+    /// One period per torque answer: deterministic.
+    Lockstep,
+}
+
+/// The torque applied in safe mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SafeMode {
+    /// No torque.
+    Zero,
+    /// A holding computed-torque PD towards `beta = pi/2`.
+    Hold,
+}
+
+/// Flags of `tilting-plant`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    name = "tilting-plant",
+    version,
+    about = "Simulated tilting plant: integrates the hybrid dynamics in real time (or in lockstep) \
+             and publishes its state over zenoh",
+    after_help = "Exit codes: 0 run completed or stopped, 1 error, 3 the model faulted (fall, contact loss). \
+                  A JSON summary is printed on stdout at the end."
+)]
+pub struct PlantArgs {
+    /// Zenoh and naming flags.
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Pace plant time by the wall clock (realtime) or by the controller's answers (lockstep)
+    #[arg(long, value_enum, default_value_t = ClockMode::Realtime)]
+    pub clock: ClockMode,
+    /// Control rate (Hz): one PlantState per period 1/rate
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    pub rate: f64,
+    /// Control period (s), instead of --rate (to match `simulate --control-period` exactly)
+    #[arg(long, value_name = "SECONDS", conflicts_with = "rate")]
+    pub period: Option<f64>,
+    /// Safe mode after this many periods without a valid torque (realtime clock)
+    #[arg(long, default_value_t = 50, value_name = "PERIODS")]
+    pub watchdog: u64,
+    /// Torque in safe mode
+    #[arg(long, value_enum, default_value_t = SafeMode::Hold)]
+    pub safe_mode: SafeMode,
+    /// Stiffness (1/s^2) of the holding PD of --safe-mode hold
+    #[arg(long, default_value_t = 25.0, value_name = "1/S2")]
+    pub safe_kp: f64,
+    /// Damping (1/s) of the holding PD of --safe-mode hold
+    #[arg(long, default_value_t = 10.0, value_name = "1/S")]
+    pub safe_kd: f64,
+    /// Lockstep clock: wait this long for a torque, then apply the safe mode for that period
+    #[arg(long, default_value_t = 1000, value_name = "MS")]
+    pub lockstep_timeout_ms: u64,
+    /// Stop after this much plant time (s); default: run until Ctrl-C
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+    /// Initial contact mode: flat, left or right
+    #[arg(long, default_value_t = paper::ORBIT_MODE)]
+    pub mode: Mode,
+    /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad/s) [default: the start of the
+    /// paper's tilting orbit, `tilting_plant::paper::orbit_x0`]
+    #[arg(long, value_name = "A,B,AD,BD", value_parser = parse_x0, allow_hyphen_values = true)]
+    pub x0: Option<[f64; 4]>,
+    /// Landing impact law: paper or striking-edge
+    #[arg(long, default_value = "paper")]
+    pub impact: ImpactLaw,
+    /// Physical parameters (TOML: m_f, m_l, l, f, g); default: the paper's
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// Relative tolerance of the integrator (the absolute one is rtol/100, as in `simulate`)
+    #[arg(long, default_value_t = Tolerance::default().rtol)]
+    pub rtol: f64,
+    /// Hard torque limit (N m) applied by the plant; 0 = none
+    #[arg(long, default_value_t = 0.0, value_name = "NM")]
+    pub torque_limit: f64,
+    /// Write every sample to this CSV file: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau (the
+    /// state columns in the order of `tilting live`'s state.csv, then the torque applied)
+    #[arg(long, value_name = "FILE.csv")]
+    pub record: Option<PathBuf>,
+    /// Start at once instead of waiting for a controller (its liveliness token or an answer)
+    #[arg(long)]
+    pub no_wait: bool,
+    /// Realtime clock: busy-wait this long before each deadline (µs)
+    #[arg(long, default_value_t = 50, value_name = "US")]
+    pub spin_us: u64,
+    /// Realtime clock: try SCHED_FIFO at this priority for the pacing thread (needs privileges)
+    #[arg(long, value_name = "1-99")]
+    pub rt_priority: Option<i32>,
+}
+
+pub(super) fn parse_x0(s: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("`{s}`: {e}; expected alpha,beta,alpha_dot,beta_dot"))?;
+    match v.as_slice() {
+        [a, b, c, d] if v.iter().all(|x| x.is_finite()) => Ok([*a, *b, *c, *d]),
+        _ => Err(format!(
+            "`{s}`: expected four finite numbers alpha,beta,alpha_dot,beta_dot"
+        )),
+    }
+}
+
+impl PlantArgs {
+    /// The control period (s).
+    pub fn period(&self) -> f64 {
+        self.period.unwrap_or(1.0 / self.rate)
+    }
+
+    pub(super) fn validate(&self) -> anyhow::Result<()> {
+        let h = self.period();
+        anyhow::ensure!(
+            h.is_finite() && h > 0.0 && h <= 10.0,
+            "--rate/--period: the period must be in (0, 10] s, got {h}"
+        );
+        if let Some(d) = self.duration {
+            anyhow::ensure!(
+                d.is_finite() && d > 0.0,
+                "--duration must be a positive number of seconds, got {d}"
+            );
+            anyhow::ensure!(d / h <= 1e9, "--duration/period exceeds 1e9 periods");
+        }
+        anyhow::ensure!(self.watchdog >= 1, "--watchdog must be at least 1 period");
+        anyhow::ensure!(
+            self.safe_kp.is_finite() && self.safe_kp >= 0.0,
+            "--safe-kp must be >= 0"
+        );
+        anyhow::ensure!(
+            self.safe_kd.is_finite() && self.safe_kd >= 0.0,
+            "--safe-kd must be >= 0"
+        );
+        anyhow::ensure!(
+            self.torque_limit.is_finite() && self.torque_limit >= 0.0,
+            "--torque-limit must be >= 0 (0 = none)"
+        );
+        anyhow::ensure!(
+            self.rtol.is_finite() && (1e-13..=1e-3).contains(&self.rtol),
+            "--rtol must be in [1e-13, 1e-3]"
+        );
+        anyhow::ensure!(self.lockstep_timeout_ms >= 1, "--lockstep-timeout-ms >= 1");
+        Ok(())
+    }
+
+    /// The simulator settings (the same convention as `simulate`: `atol = rtol / 100`).
+    pub fn sim_config(&self) -> anyhow::Result<SimConfig> {
+        let params = match &self.params {
+            Some(p) => Params::from_toml_file(p)?,
+            None => Params::default(),
+        };
+        Ok(SimConfig {
+            params,
+            impact: self.impact,
+            tol: Tolerance {
+                rtol: self.rtol,
+                atol: self.rtol * 1e-2,
+            },
+            ..SimConfig::default()
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[test]
+    fn flags_parse_with_defaults() {
+        let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
+        assert_eq!(a.clock, ClockMode::Realtime);
+        assert_eq!(a.period(), 0.001);
+        assert_eq!(a.watchdog, 50);
+        assert_eq!(a.safe_mode, SafeMode::Hold);
+        assert_eq!(a.mode, Mode::Left);
+        assert_eq!(a.zenoh.robot, "demo");
+        a.validate().unwrap();
+        let a = PlantArgs::try_parse_from([
+            "tilting-plant",
+            "--clock",
+            "lockstep",
+            "--period",
+            "0.002",
+            "--x0",
+            "-0.01,1.5,0,0",
+            "--mode",
+            "right",
+            "--listen",
+            "tcp/127.0.0.1:17999",
+        ])
+        .unwrap();
+        assert_eq!(a.clock, ClockMode::Lockstep);
+        assert_eq!(a.period(), 0.002);
+        assert_eq!(a.x0, Some([-0.01, 1.5, 0.0, 0.0]));
+        assert!(PlantArgs::try_parse_from(["tilting-plant", "--x0", "1,2,3"]).is_err());
+        assert!(PlantArgs::try_parse_from(["tilting-plant", "--x0", "1,2,3,nan"]).is_err());
+        assert!(
+            PlantArgs::try_parse_from(["tilting-plant", "--rate", "1", "--period", "1"]).is_err()
+        );
+        let a = PlantArgs::try_parse_from(["tilting-plant", "--rate", "0"]).unwrap();
+        assert!(a.validate().is_err());
+    }
+
+    #[test]
+    fn default_start_is_the_orbit() {
+        let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
+        assert_eq!(a.mode, paper::ORBIT_MODE);
+        assert_eq!(a.x0, None); // resolved to paper::orbit_x0() by `run`
+    }
+}

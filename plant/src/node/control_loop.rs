@@ -1,0 +1,570 @@
+//! The pacing loop of the plant node and everything it owns: per period it takes the torque
+//! (or the safe-mode torque), integrates the period with the hybrid simulator, publishes the
+//! events and the next state, and keeps the statistics of the status and the summary.
+
+use super::*;
+
+/// Collects what the simulator reports during one period.
+#[derive(Default)]
+pub(super) struct Obs {
+    pub(super) transitions: Vec<Transition>,
+    pub(super) tilts: u64,
+    pub(super) peaks: VecDeque<TiltPeak>,
+}
+
+pub(super) const MAX_PEAKS: usize = 256;
+
+impl Observer for Obs {
+    fn transition(&mut self, ev: &Transition) {
+        if ev.from == Mode::Flat && ev.to != Mode::Flat {
+            self.tilts += 1;
+        }
+        self.transitions.push(*ev);
+    }
+    fn tilt_peak(&mut self, peak: &TiltPeak) {
+        if self.peaks.len() == MAX_PEAKS {
+            self.peaks.pop_front();
+        }
+        self.peaks.push_back(*peak);
+    }
+}
+
+/// How the run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Outcome {
+    Completed,
+    Stopped,
+    Faulted(Fault),
+}
+
+pub(super) struct Publishers {
+    pub(super) state: TypedPublisher<PlantState>,
+    pub(super) event: TypedPublisher<ModeEvent>,
+    pub(super) status: TypedPublisher<Status>,
+}
+
+/// The pacing loop and everything it owns.
+pub(super) struct Loop {
+    pub(super) args: PlantArgs,
+    pub(super) h: f64,
+    pub(super) plant: Plant,
+    pub(super) safe_pd: (f64, f64),
+    pub(super) shared: Arc<Shared>,
+    pub(super) pubs: Arc<Publishers>,
+    pub(super) obs: Obs,
+    pub(super) record: Option<std::io::BufWriter<std::fs::File>>,
+    /// `seq` of the last published state (= periods done).
+    pub(super) seq: u64,
+    /// When it was published (ns).
+    pub(super) t_pub: u64,
+    pub(super) status_state: u8,
+    pub(super) fault: String,
+    pub(super) tau: f64,
+    pub(super) missed: u64,
+    pub(super) deadline_misses: u64,
+    pub(super) watchdog_trips: u64,
+    pub(super) safe_periods: u64,
+    pub(super) overruns: u64,
+    pub(super) step_overrun_max: f64,
+    pub(super) jitter: Ring,
+    pub(super) latency: Ring,
+    pub(super) step_cost: Ring,
+    pub(super) next_status: Instant,
+    pub(super) status_interval: Duration,
+    pub(super) next_timing_log: Instant,
+}
+
+/// Interval of the timing line in the log.
+pub(super) const TIMING_LOG_INTERVAL: Duration = Duration::from_secs(10);
+
+impl Loop {
+    pub(super) fn publish_state(&mut self) {
+        let x = self.plant.state();
+        let msg = PlantState {
+            seq: self.seq,
+            time: self.plant.time(),
+            alpha: x[0],
+            beta: x[1],
+            alpha_dot: x[2],
+            beta_dot: x[3],
+            mode: self.plant.mode().as_u8(),
+        };
+        self.shared.current_seq.store(self.seq, Ordering::Release);
+        self.t_pub = clock::now_ns();
+        if let Err(e) = self.pubs.state.put(&msg) {
+            tracing::warn!("cannot publish the state: {e}");
+        }
+    }
+
+    pub(super) fn status(&mut self) -> Status {
+        let p = self.jitter.percentiles();
+        let l = self.latency.percentiles();
+        let mut s = Status {
+            seq: self.seq,
+            time: self.plant.time(),
+            state: self.status_state,
+            mode: self.plant.mode().as_u8(),
+            tilts: self.obs.tilts,
+            steps: self.seq,
+            torques_received: self.shared.torques.received(),
+            torques_dropped: self.shared.torques.dropped(),
+            torques_stale: self.shared.stale.load(Ordering::Relaxed),
+            deadline_misses: self.deadline_misses,
+            watchdog_trips: self.watchdog_trips,
+            jitter_p50_us: p.p50,
+            jitter_p99_us: p.p99,
+            max_overrun_us: self.max_overrun_us(),
+            latency_p50_us: l.p50,
+            latency_p99_us: l.p99,
+            fault: String::new(),
+        };
+        s.set_fault(&self.fault);
+        s
+    }
+
+    pub(super) fn max_overrun_us(&self) -> f64 {
+        self.step_overrun_max
+    }
+
+    pub(super) fn publish_status(&mut self) {
+        let s = self.status();
+        if let Err(e) = self.pubs.status.put(&s) {
+            tracing::warn!("cannot publish the status: {e}");
+        }
+        self.next_status = Instant::now() + self.status_interval;
+    }
+
+    pub(super) fn maybe_status(&mut self) {
+        let now = Instant::now();
+        if now >= self.next_status {
+            self.publish_status();
+        }
+        if now >= self.next_timing_log {
+            self.next_timing_log = now + TIMING_LOG_INTERVAL;
+            let j = self.jitter.percentiles();
+            let l = self.latency.percentiles();
+            tracing::info!(
+                seq = self.seq,
+                tilts = self.obs.tilts,
+                deadline_misses = self.deadline_misses,
+                overruns = self.overruns,
+                "timing over the last {} periods: jitter p50 {:.1} us p99 {:.1} us; \
+                 loop latency p50 {:.1} us p99 {:.1} us p99.9 {:.1} us",
+                Ring::CAPACITY,
+                j.p50,
+                j.p99,
+                l.p50,
+                l.p99,
+                l.p999
+            );
+        }
+    }
+
+    pub(super) fn set_state(&mut self, state: u8) {
+        if state != self.status_state {
+            self.status_state = state;
+            self.publish_status();
+        }
+    }
+
+    pub(super) fn safe_torque(&self) -> f64 {
+        match self.args.safe_mode {
+            SafeMode::Zero => 0.0,
+            SafeMode::Hold => {
+                let x = self.plant.state();
+                let (kp, kd) = self.safe_pd;
+                let v = kd * (0.0 - x[3]) + kp * (FRAC_PI_2 - x[1]);
+                crate::dynamics::torque_for_beta_ddot(
+                    &self.plant.config().params,
+                    self.plant.mode(),
+                    &x,
+                    v,
+                )
+            }
+        }
+    }
+
+    pub(super) fn enter_safe(&mut self, why: &str) {
+        if self.status_state != Status::SAFE_MODE {
+            self.watchdog_trips += 1;
+            tracing::warn!(seq = self.seq, t = self.plant.time(), "safe mode: {why}");
+            self.set_state(Status::SAFE_MODE);
+        }
+    }
+
+    /// Applies the outcome of waiting for the answer to `seq`: picks the torque of the period.
+    pub(super) fn choose_torque(
+        &mut self,
+        fresh: Option<(TorqueCommand, u64)>,
+        lockstep: bool,
+    ) -> f64 {
+        let gone = self.shared.controller_gone.swap(false, Ordering::AcqRel);
+        match fresh {
+            Some((cmd, arrived)) => {
+                self.latency
+                    .push(arrived.saturating_sub(self.t_pub) as f64 * 1e-3);
+                self.missed = 0;
+                self.tau = cmd.tau;
+                if self.status_state != Status::RUNNING {
+                    if self.status_state == Status::SAFE_MODE {
+                        tracing::info!(seq = self.seq, "torque is back: leaving safe mode");
+                    }
+                    self.set_state(Status::RUNNING);
+                }
+            }
+            None => {
+                self.deadline_misses += 1;
+                self.missed += 1;
+                if lockstep {
+                    self.enter_safe("lockstep timeout: no torque answered the state");
+                } else if self.missed >= self.args.watchdog {
+                    let why = format!("no valid torque for {} periods", self.missed);
+                    self.enter_safe(&why);
+                } else if gone {
+                    self.enter_safe("the controller's liveliness token disappeared");
+                }
+            }
+        }
+        let tau = if self.status_state == Status::SAFE_MODE {
+            self.safe_periods += 1;
+            self.safe_torque()
+        } else {
+            self.tau
+        };
+        if self.args.torque_limit > 0.0 {
+            tau.clamp(-self.args.torque_limit, self.args.torque_limit)
+        } else {
+            tau
+        }
+    }
+
+    pub(super) fn take_fresh(&self) -> Option<(TorqueCommand, u64)> {
+        let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
+        match inbox.take() {
+            Some((cmd, t)) if cmd.seq == self.seq => Some((cmd, t)),
+            Some(_) => {
+                self.shared.stale.fetch_add(1, Ordering::Relaxed);
+                None
+            }
+            None => None,
+        }
+    }
+
+    /// Lockstep: waits for the answer to the current state, re-publishing it every 100 ms.
+    pub(super) fn wait_fresh(&mut self, timeout: Duration) -> Option<(TorqueCommand, u64)> {
+        let start = Instant::now();
+        let mut next_repub = start + Duration::from_millis(100);
+        loop {
+            {
+                let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
+                loop {
+                    match inbox.take() {
+                        Some((cmd, t)) if cmd.seq == self.seq => return Some((cmd, t)),
+                        Some(_) => {
+                            self.shared.stale.fetch_add(1, Ordering::Relaxed);
+                        }
+                        None => {}
+                    }
+                    if self.shared.stop.load(Ordering::Acquire) {
+                        return None;
+                    }
+                    let now = Instant::now();
+                    if now >= start + timeout {
+                        return None;
+                    }
+                    if now >= next_repub || now >= self.next_status {
+                        break;
+                    }
+                    let until = next_repub.min(start + timeout).min(self.next_status);
+                    inbox = self
+                        .shared
+                        .cv
+                        .wait_timeout(inbox, until - now)
+                        .unwrap_or_else(|e| e.into_inner())
+                        .0;
+                }
+            }
+            let now = Instant::now();
+            if now >= next_repub {
+                let t = self.t_pub;
+                self.publish_state();
+                self.t_pub = t; // latency counts from the first publication
+                next_repub = now + Duration::from_millis(100);
+            }
+            self.maybe_status();
+        }
+    }
+
+    /// Before the clock starts: publishes state 0 every 100 ms until a controller shows up
+    /// (liveliness token or an answer to state 0). Returns false if stopped meanwhile.
+    pub(super) fn wait_for_controller(&mut self) -> bool {
+        self.publish_state();
+        self.publish_status();
+        let mut announced = false;
+        loop {
+            if self.shared.stop.load(Ordering::Acquire) {
+                return false;
+            }
+            let answered = self
+                .shared
+                .inbox
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .is_some_and(|(c, _)| c.seq == 0);
+            if answered || self.shared.controller_alive.load(Ordering::Acquire) {
+                return true;
+            }
+            if !announced {
+                tracing::info!(
+                    "waiting for a controller (liveliness token or an answer to state 0)"
+                );
+                announced = true;
+            }
+            let guard = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
+            let _ = self
+                .shared
+                .cv
+                .wait_timeout(guard, Duration::from_millis(100))
+                .unwrap_or_else(|e| e.into_inner());
+            self.maybe_status();
+            if clock::now_ns().saturating_sub(self.t_pub) >= 100_000_000 {
+                self.publish_state();
+            }
+        }
+    }
+
+    pub(super) fn write_record(&mut self, tau: Option<f64>) {
+        if let Some(w) = &mut self.record {
+            let x = self.plant.state();
+            let tau = tau.map(|t| t.to_string()).unwrap_or_default();
+            let r = writeln!(
+                w,
+                "{},{},{},{},{},{},{},{}",
+                self.seq,
+                self.plant.time(),
+                self.plant.mode().as_u8(),
+                x[0],
+                x[1],
+                x[2],
+                x[3],
+                tau,
+            );
+            if let Err(e) = r {
+                tracing::warn!("--record: write failed, recording stops: {e}");
+                self.record = None;
+            }
+        }
+    }
+
+    /// Integrates one period with `tau` and publishes the events and the next state.
+    pub(super) fn step(&mut self, tau: f64) -> Result<bool, Fault> {
+        self.write_record(Some(tau));
+        let h = self.h;
+        let next = (self.seq + 1) as f64 * h;
+        let (t_next, last) = match self.args.duration {
+            Some(d) if next >= d - 1e-9 * h => (d, true),
+            _ => (next, false),
+        };
+        self.obs.transitions.clear();
+        let t0 = clock::now_ns();
+        let res = self.plant.advance_held(tau, t_next, &mut self.obs);
+        self.step_cost
+            .push(clock::now_ns().saturating_sub(t0) as f64 * 1e-3);
+        for ev in &self.obs.transitions {
+            let msg = ModeEvent {
+                seq: self.seq,
+                time: ev.t,
+                from: ev.from.as_u8(),
+                to: ev.to.as_u8(),
+                x_before: [
+                    ev.x_before[0],
+                    ev.x_before[1],
+                    ev.x_before[2],
+                    ev.x_before[3],
+                ],
+                x_after: [ev.x_after[0], ev.x_after[1], ev.x_after[2], ev.x_after[3]],
+            };
+            if let Err(e) = self.pubs.event.put(&msg) {
+                tracing::warn!("cannot publish an event: {e}");
+            }
+            tracing::debug!(t = ev.t, from = %ev.from, to = %ev.to, "transition");
+        }
+        res?;
+        self.seq += 1;
+        self.publish_state();
+        Ok(last)
+    }
+
+    pub(super) fn run_realtime(&mut self) -> Outcome {
+        clock::set_min_timer_slack();
+        if let Some(p) = self.args.rt_priority {
+            match clock::set_fifo_priority(p) {
+                Ok(()) => tracing::info!("pacing thread runs SCHED_FIFO {p}"),
+                Err(e) => tracing::warn!("--rt-priority {p}: {e}; staying SCHED_OTHER"),
+            }
+        }
+        let h_ns = self.h * 1e9;
+        let spin = self.args.spin_us * 1000;
+        let start = clock::now_ns();
+        let mut k: u64 = 0;
+        loop {
+            if self.shared.stop.load(Ordering::Acquire) {
+                return Outcome::Stopped;
+            }
+            let deadline = start + ((k + 1) as f64 * h_ns).round() as u64;
+            let woke = clock::sleep_until(deadline, spin);
+            self.jitter.push((woke - deadline) as f64 * 1e-3);
+            let fresh = self.take_fresh();
+            let tau = self.choose_torque(fresh, false);
+            match self.step(tau) {
+                Ok(true) => return Outcome::Completed,
+                Ok(false) => {}
+                Err(f) => return Outcome::Faulted(f),
+            }
+            let done = clock::now_ns();
+            let next_deadline = start + ((k + 2) as f64 * h_ns).round() as u64;
+            if done > next_deadline {
+                self.overruns += 1;
+                let o = (done - next_deadline) as f64 * 1e-3;
+                if o > self.step_overrun_max {
+                    self.step_overrun_max = o;
+                }
+            }
+            self.maybe_status();
+            k += 1;
+        }
+    }
+
+    pub(super) fn run_lockstep(&mut self) -> Outcome {
+        let timeout = Duration::from_millis(self.args.lockstep_timeout_ms);
+        loop {
+            if self.shared.stop.load(Ordering::Acquire) {
+                return Outcome::Stopped;
+            }
+            let fresh = self.wait_fresh(timeout);
+            if self.shared.stop.load(Ordering::Acquire) {
+                return Outcome::Stopped;
+            }
+            let tau = self.choose_torque(fresh, true);
+            match self.step(tau) {
+                Ok(true) => return Outcome::Completed,
+                Ok(false) => {}
+                Err(f) => return Outcome::Faulted(f),
+            }
+            self.maybe_status();
+        }
+    }
+
+    pub(super) fn run(&mut self) -> Outcome {
+        if let Some(w) = &mut self.record {
+            if let Err(e) = writeln!(w, "{STATE_COLUMNS},tau") {
+                tracing::warn!("--record: {e}");
+                self.record = None;
+            }
+        }
+        if self.args.no_wait {
+            self.publish_state();
+        } else {
+            if !self.wait_for_controller() {
+                return Outcome::Stopped;
+            }
+            // The controller may have subscribed after the last publication of state 0.
+            let answered = self
+                .shared
+                .inbox
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .is_some();
+            if !answered {
+                self.publish_state();
+            }
+        }
+        tracing::info!(
+            clock = ?self.args.clock,
+            period = self.h,
+            "plant running"
+        );
+        // Running until the first answer says otherwise; a missing one counts from now.
+        self.set_state(Status::RUNNING);
+        let outcome = match self.args.clock {
+            ClockMode::Realtime => self.run_realtime(),
+            ClockMode::Lockstep => self.run_lockstep(),
+        };
+        match &outcome {
+            Outcome::Faulted(f) => {
+                let msg = f.to_string();
+                self.fault = msg.clone();
+                tracing::error!("fault: {msg}");
+                self.set_state(Status::FAULTED);
+            }
+            _ => {
+                self.write_record(None);
+                self.set_state(Status::STOPPED);
+            }
+        }
+        if let Some(w) = &mut self.record {
+            if let Err(e) = w.flush() {
+                tracing::warn!("--record: flush failed: {e}");
+            }
+        }
+        outcome
+    }
+
+    pub(super) fn summary(&mut self, outcome: &Outcome) -> PlantSummary {
+        let j = self.jitter.percentiles();
+        let l = self.latency.percentiles();
+        let c = self.step_cost.percentiles();
+        let (result, fault) = match outcome {
+            Outcome::Completed => (RunResult::Completed, None),
+            Outcome::Stopped => (RunResult::Stopped, None),
+            Outcome::Faulted(f) => (RunResult::Faulted, Some(f.to_string())),
+        };
+        let window = Some(Ring::CAPACITY as u64);
+        PlantSummary {
+            result,
+            fault,
+            clock: self.args.clock,
+            period: self.h,
+            seq: self.seq,
+            time: self.plant.time(),
+            mode: self.plant.mode(),
+            x: self.plant.state().into(),
+            steps: self.seq,
+            tilts: self.obs.tilts,
+            transitions: self.plant.transitions(),
+            torques_received: self.shared.torques.received(),
+            torques_dropped: self.shared.torques.dropped(),
+            torques_stale: self.shared.stale.load(Ordering::Relaxed),
+            deadline_misses: self.deadline_misses,
+            watchdog_trips: self.watchdog_trips,
+            safe_periods: self.safe_periods,
+            overruns: self.overruns,
+            max_overrun_us: self.step_overrun_max,
+            jitter_us: Window {
+                p50: j.p50,
+                p99: j.p99,
+                p999: Some(j.p999),
+                max: self.jitter.max(),
+                count: None,
+                window,
+            },
+            latency_us: Window {
+                p50: l.p50,
+                p99: l.p99,
+                p999: Some(l.p999),
+                max: self.latency.max(),
+                count: Some(self.latency.count()),
+                window,
+            },
+            step_us: Window {
+                p50: c.p50,
+                p99: c.p99,
+                p999: None,
+                max: self.step_cost.max(),
+                count: None,
+                window: None,
+            },
+            tilt_peaks: self.obs.peaks.iter().map(|p| [p.t, p.alpha]).collect(),
+        }
+    }
+}

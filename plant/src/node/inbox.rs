@@ -1,0 +1,46 @@
+//! The torque inbox: shared by the zenoh callbacks, which put the answers in, and the pacing
+//! thread, which takes them out at each deadline.
+
+use super::*;
+
+/// State shared by the zenoh callbacks and the pacing thread.
+pub(super) struct Shared {
+    /// The latest valid torque answering the current state, with its arrival time (ns).
+    pub(super) inbox: Mutex<Option<(TorqueCommand, u64)>>,
+    pub(super) cv: Condvar,
+    /// `seq` of the last published state.
+    pub(super) current_seq: AtomicU64,
+    pub(super) torques: DropCounter,
+    pub(super) stale: AtomicU64,
+    pub(super) controller_alive: AtomicBool,
+    /// Set when the controller's token disappears; consumed by the pacing thread.
+    pub(super) controller_gone: AtomicBool,
+    pub(super) stop: AtomicBool,
+}
+
+impl Shared {
+    pub(super) fn on_torque(&self, bytes: &[u8]) {
+        let Some(cmd) = self.torques.decode::<TorqueCommand>(bytes) else {
+            return;
+        };
+        let now = clock::now_ns();
+        if cmd.seq != self.current_seq.load(Ordering::Acquire) {
+            self.stale.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        let mut inbox = self.inbox.lock().unwrap_or_else(|e| e.into_inner());
+        if inbox.is_some_and(|(c, _)| c.seq == cmd.seq) {
+            // A second answer to the same state: keep the first.
+            self.stale.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        *inbox = Some((cmd, now));
+        drop(inbox);
+        self.cv.notify_all();
+    }
+
+    pub(super) fn wake(&self) {
+        let _guard = self.inbox.lock().unwrap_or_else(|e| e.into_inner());
+        self.cv.notify_all();
+    }
+}

@@ -1,0 +1,426 @@
+//! A simulation scenario: the model, the initial hybrid state, the controller, the coupling and
+//! the run length, with the paper's stabilised tilting orbit as the default.
+//!
+//! Values come in layers, later ones winning: the built-in defaults, a TOML scenario file
+//! (`--scenario`), a TOML parameter file (`--params`, only the `[params]` table), then the
+//! command-line flags. [`Scenario::validate`] checks the result and names the offending field
+//! and its allowed range.
+//!
+//! A scenario file holds any subset of the keys, for example
+//!
+//! ```toml
+//! mode = "left"
+//! x0 = [0.0, 1.5705814493798966, 0.0, 0.498257789692]
+//! kp = 100
+//! kd = 14.14
+//! k = 500
+//! energy_avg = 19.963439703027
+//! reference = "hold"            # or "sinusoid:A,w"
+//! impact = "paper"              # or "striking-edge"
+//! duration = 10                 # s
+//! control_period = 0            # s, 0 = continuous coupling
+//! torque_limit = 200            # N m, omit for none
+//! rtol = 3e-11                  # the absolute tolerance is rtol / 100
+//!
+//! [params]                      # missing entries keep the paper's values
+//! m_f = 1.0
+//! l = 2.0
+//! ```
+
+mod args;
+mod file;
+mod validate;
+
+pub use args::{parse_x0, ScenarioArgs};
+pub use file::ScenarioFile;
+use validate::from_config;
+pub use validate::ScenarioError;
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use std::path::{Path, PathBuf};
+use tilting_controller::{ComputedTorque, ControlConfig, Reference};
+use tilting_plant::dynamics::accelerations;
+use tilting_plant::paper::{orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE};
+use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, SimConfig, State, Tolerance};
+
+/// Default run length (s).
+pub const DEFAULT_DURATION: f64 = 10.0;
+/// Allowed relative tolerances of the integrator.
+pub const RTOL_RANGE: (f64, f64) = (1e-13, 1e-3);
+/// Most zero-order-hold periods in one run (a guard against a period typed in the wrong unit).
+pub const MAX_PERIODS: f64 = 1e8;
+
+/// A complete simulation scenario. [`Default`] is the paper's stabilised orbit: start of a left
+/// tilt on the orbit, `K_P0 = 100`, `K_D = 14.14`, `k = 500`, 10 s, continuous coupling.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Scenario {
+    /// Physical parameters.
+    pub params: Params,
+    /// Initial state `[alpha, beta, alpha_dot, beta_dot]` (rad, rad, rad/s, rad/s).
+    pub x0: [f64; 4],
+    /// Initial mode.
+    pub mode: Mode,
+    /// Base stiffness gain `K_P0` (1/s^2).
+    pub kp: f64,
+    /// Damping gain `K_D` (1/s).
+    pub kd: f64,
+    /// Energy adaptation gain `k` (1/(J s^2)); 0 disables the adaptation.
+    pub k: f64,
+    /// Average orbit energy `E_av` (J); required when `k != 0`.
+    pub energy_avg: Option<f64>,
+    /// Desired arm trajectory.
+    #[serde(serialize_with = "serialize_reference")]
+    pub reference: Reference,
+    /// Landing impact law.
+    pub impact: ImpactLaw,
+    /// Simulated time (s), from `t = 0`.
+    pub duration: f64,
+    /// Zero-order-hold period of the controller (s); 0 for continuous coupling (the torque law
+    /// evaluated inside the integrator).
+    pub control_period: f64,
+    /// Torque limit (N m); `None` for none.
+    pub torque_limit: Option<f64>,
+    /// Relative tolerance of the integrator (the absolute one is `rtol / 100`).
+    pub rtol: f64,
+}
+
+fn serialize_reference<S: Serializer>(r: &Reference, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(r)
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            params: Params::default(),
+            x0: orbit_x0(),
+            mode: ORBIT_MODE,
+            kp: ORBIT_KP,
+            kd: ORBIT_KD,
+            k: ORBIT_K,
+            energy_avg: Some(ORBIT_ENERGY_AVG),
+            reference: Reference::Hold,
+            impact: ImpactLaw::Paper,
+            duration: DEFAULT_DURATION,
+            control_period: 0.0,
+            torque_limit: None,
+            rtol: Tolerance::default().rtol,
+        }
+    }
+}
+
+impl Scenario {
+    /// Stacks `layers` (later ones win) on the defaults, without validating.
+    ///
+    /// The built-in `E_av` belongs to the built-in `k` and to the model and gains the orbit was
+    /// computed with: it is dropped (so that [`Scenario::validate`] asks for it when `k != 0`)
+    /// unless some layer gives `energy_avg` explicitly, or no layer sets `k` and the params,
+    /// `kp`, `kd`, impact law and reference are the paper's.
+    pub fn resolve(layers: &[&ScenarioFile]) -> Self {
+        let mut s = Self::default();
+        let mut k_given = false;
+        let mut e_given = false;
+        for l in layers {
+            if let Some(v) = l.params {
+                s.params = v;
+            }
+            if let Some(v) = l.x0 {
+                s.x0 = v;
+            }
+            if let Some(v) = l.mode {
+                s.mode = v;
+            }
+            if let Some(v) = l.kp {
+                s.kp = v;
+            }
+            if let Some(v) = l.kd {
+                s.kd = v;
+            }
+            if let Some(v) = l.k {
+                s.k = v;
+                k_given = true;
+            }
+            if let Some(v) = l.energy_avg {
+                s.energy_avg = Some(v);
+                e_given = true;
+            }
+            if let Some(v) = l.reference {
+                s.reference = v;
+            }
+            if let Some(v) = l.impact {
+                s.impact = v;
+            }
+            if let Some(v) = l.duration {
+                s.duration = v;
+            }
+            if let Some(v) = l.control_period {
+                s.control_period = v;
+            }
+            if let Some(v) = l.torque_limit {
+                s.torque_limit = Some(v);
+            }
+            if let Some(v) = l.rtol {
+                s.rtol = v;
+            }
+        }
+        if !e_given && (k_given || !s.is_paper_model()) {
+            s.energy_avg = None;
+        }
+        s
+    }
+
+    /// Are the params, gains, impact law and reference those the built-in orbit (and its
+    /// `E_av`) was computed with?
+    pub fn is_paper_model(&self) -> bool {
+        self.params == Params::default()
+            && self.kp == ORBIT_KP
+            && self.kd == ORBIT_KD
+            && self.impact == ImpactLaw::Paper
+            && self.reference == Reference::Hold
+    }
+
+    /// Parses and validates scenario TOML text (missing keys keep the defaults).
+    pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
+        let file = ScenarioFile::from_toml_str(text).map_err(|message| ScenarioError::File {
+            path: PathBuf::from("<scenario>"),
+            message,
+        })?;
+        let s = Self::resolve(&[&file]);
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Reads and validates a scenario file.
+    pub fn from_toml_file(path: &Path) -> Result<Self, ScenarioError> {
+        let file = ScenarioFile::from_toml_file(path)?;
+        let s = Self::resolve(&[&file]);
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Is the controller sampled (zero-order hold) rather than continuous?
+    pub fn is_sampled(&self) -> bool {
+        self.control_period > 0.0
+    }
+
+    /// The initial state as a plant state.
+    pub fn initial_state(&self) -> State {
+        State::from(self.x0)
+    }
+
+    /// The simulator settings: the defaults with this scenario's params, impact law and
+    /// tolerances.
+    pub fn sim_config(&self) -> SimConfig {
+        SimConfig {
+            params: self.params,
+            impact: self.impact,
+            tol: Tolerance {
+                rtol: self.rtol,
+                atol: self.rtol * 1e-2,
+            },
+            ..SimConfig::default()
+        }
+    }
+
+    /// The controller settings (the controller's model is the plant's: no model mismatch).
+    pub fn control_config(&self) -> ControlConfig {
+        ControlConfig {
+            params: self.params,
+            kp: self.kp,
+            kd: self.kd,
+            k: self.k,
+            energy_avg: self.energy_avg.unwrap_or(0.0),
+            reference: self.reference,
+            torque_limit: self.torque_limit,
+        }
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> Result<ComputedTorque, ScenarioError> {
+        ComputedTorque::new(self.control_config()).map_err(|e| from_config(e, "", "controller"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::FRAC_PI_2;
+
+    #[test]
+    fn default_is_valid_and_the_orbit() {
+        let s = Scenario::default();
+        s.validate().unwrap();
+        assert_eq!(s.mode, Mode::Left);
+        assert_eq!(s.energy_avg, Some(ORBIT_ENERGY_AVG));
+        assert_eq!(Scenario::resolve(&[]), s);
+    }
+
+    #[test]
+    fn explicit_k_needs_explicit_energy() {
+        let l = ScenarioFile {
+            k: Some(300.0),
+            ..Default::default()
+        };
+        let s = Scenario::resolve(&[&l]);
+        assert_eq!(s.energy_avg, None);
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("energy_avg"), "{e}");
+        let l2 = ScenarioFile {
+            energy_avg: Some(20.0),
+            ..Default::default()
+        };
+        // The energy from a lower layer survives a k from a higher one.
+        let s = Scenario::resolve(&[&l2, &l]);
+        assert_eq!(s.energy_avg, Some(20.0));
+        s.validate().unwrap();
+        // k = 0 needs no energy.
+        let l0 = ScenarioFile {
+            k: Some(0.0),
+            ..Default::default()
+        };
+        Scenario::resolve(&[&l0]).validate().unwrap();
+    }
+
+    #[test]
+    fn other_gains_drop_the_builtin_energy() {
+        let l = ScenarioFile {
+            kp: Some(120.0),
+            ..Default::default()
+        };
+        assert_eq!(Scenario::resolve(&[&l]).energy_avg, None);
+    }
+
+    #[test]
+    fn toml_round_trip_and_unknown_field() {
+        let s = Scenario::from_toml_str(
+            "mode = \"flat\"\nx0 = [0, 1.5, 0, 0]\nk = 0\nreference = \"sinusoid:0.3,5\"\n\
+             impact = \"striking-edge\"\nduration = 2\n[params]\nl = 1.5\n",
+        )
+        .unwrap();
+        assert_eq!(s.mode, Mode::Flat);
+        assert_eq!(s.params.l, 1.5);
+        assert_eq!(s.params.m_f, 1.0);
+        assert_eq!(
+            s.reference,
+            Reference::Sinusoid {
+                amplitude: 0.3,
+                omega: 5.0
+            }
+        );
+        assert_eq!(s.impact, ImpactLaw::StrikingEdge);
+        let e = Scenario::from_toml_str("durration = 2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("durration"), "{e}");
+        let e = Scenario::from_toml_str("[params]\nm_f = -1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("m_f"), "{e}");
+    }
+
+    #[test]
+    fn ranges_name_the_field() {
+        for (l, field) in [
+            (
+                ScenarioFile {
+                    duration: Some(f64::NAN),
+                    ..Default::default()
+                },
+                "duration",
+            ),
+            (
+                ScenarioFile {
+                    control_period: Some(10.0),
+                    ..Default::default()
+                },
+                "control_period",
+            ),
+            (
+                ScenarioFile {
+                    control_period: Some(1e-12),
+                    ..Default::default()
+                },
+                "control_period",
+            ),
+            (
+                ScenarioFile {
+                    kd: Some(-1.0),
+                    ..Default::default()
+                },
+                "kd",
+            ),
+            (
+                ScenarioFile {
+                    rtol: Some(0.5),
+                    ..Default::default()
+                },
+                "rtol",
+            ),
+            (
+                ScenarioFile {
+                    torque_limit: Some(0.0),
+                    ..Default::default()
+                },
+                "torque_limit",
+            ),
+            (
+                ScenarioFile {
+                    x0: Some([0.0, f64::INFINITY, 0.0, 0.0]),
+                    ..Default::default()
+                },
+                "x0[1]",
+            ),
+            (
+                ScenarioFile {
+                    mode: Some(Mode::Right),
+                    x0: Some([0.1, 1.5, 0.0, 0.0]),
+                    ..Default::default()
+                },
+                "x0[0]",
+            ),
+            (
+                ScenarioFile {
+                    mode: Some(Mode::Flat),
+                    x0: Some([0.0, 1.5, 0.3, 0.0]),
+                    ..Default::default()
+                },
+                "x0[2]",
+            ),
+        ] {
+            let e = Scenario::resolve(&[&l]).validate().unwrap_err().to_string();
+            assert!(e.contains(&format!("`{field}`")), "{field}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_tilt_start_into_the_ground_is_rejected() {
+        // Upright arm at rest at the start of a left tilt: gravity on the plate centre, which
+        // lies right of the left pivot, pushes the plate into the ground.
+        let l = ScenarioFile {
+            x0: Some([0.0, FRAC_PI_2, 0.0, 0.0]),
+            ..Default::default()
+        };
+        let e = Scenario::resolve(&[&l]).validate().unwrap_err().to_string();
+        assert!(e.contains("`x0`"), "{e}");
+    }
+
+    #[test]
+    fn the_documented_example_file_is_valid() {
+        let src = include_str!("mod.rs");
+        let start = src.find("//! ```toml\n").unwrap() + "//! ```toml\n".len();
+        let end = start + src[start..].find("//! ```").unwrap();
+        let text: String = src[start..end]
+            .lines()
+            .map(|l| l.strip_prefix("//!").unwrap().trim_start().to_string() + "\n")
+            .collect();
+        let s = Scenario::from_toml_str(&text).unwrap();
+        assert_eq!(s.torque_limit, Some(200.0));
+        assert_eq!(s.energy_avg, Some(ORBIT_ENERGY_AVG));
+    }
+
+    #[test]
+    fn x0_parser() {
+        assert_eq!(parse_x0("0, 1.5,-2,3e-1").unwrap(), [0.0, 1.5, -2.0, 0.3]);
+        assert!(parse_x0("0,1,2").is_err());
+        assert!(parse_x0("0,1,2,x").is_err());
+    }
+}
