@@ -1,0 +1,1 @@
+//! Examples of the tilting crates; see the files next to this one. This library is empty.
