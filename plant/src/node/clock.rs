@@ -9,6 +9,18 @@ pub use linux::*;
 #[cfg(not(target_os = "linux"))]
 pub use portable::*;
 
+/// Busy-waits until `now()` reaches `deadline_ns` (the last microseconds before a deadline,
+/// which a kernel sleep overshoots); returns the time it saw last.
+fn spin_until(deadline_ns: u64, now: fn() -> u64) -> u64 {
+    loop {
+        let t = now();
+        if t >= deadline_ns {
+            return t;
+        }
+        std::hint::spin_loop();
+    }
+}
+
 #[cfg(target_os = "linux")]
 mod linux {
     /// Nanoseconds of `CLOCK_MONOTONIC` (the clock `std::time::Instant` uses on Linux).
@@ -46,13 +58,7 @@ mod linux {
                 }
             }
         }
-        loop {
-            let now = now_ns();
-            if now >= deadline_ns {
-                return now;
-            }
-            std::hint::spin_loop();
-        }
+        super::spin_until(deadline_ns, now_ns)
     }
 
     /// Sets this thread's timer slack to 1 ns (the default 50 µs delays every timed wake-up).
@@ -100,13 +106,7 @@ mod portable {
         if now < wake_at {
             std::thread::sleep(Duration::from_nanos(wake_at - now));
         }
-        loop {
-            let now = now_ns();
-            if now >= deadline_ns {
-                return now;
-            }
-            std::hint::spin_loop();
-        }
+        super::spin_until(deadline_ns, now_ns)
     }
 
     /// Timer slack is a Linux setting: nothing to do here.
