@@ -10,6 +10,10 @@
 //! - `events.csv`: `t,from,to,alpha_before,beta_before,alpha_dot_before,beta_dot_before,
 //!   alpha_after,beta_after,alpha_dot_after,beta_dot_after`, one row per `ModeEvent`.
 //!
+//! The files grow by whole rows only, at least every 100 ms
+//! ([`tilting_plant::node::csv::RowWriter`]): a run killed with SIGKILL leaves every row up to
+//! the last flush, and no torn row.
+//!
 //! Subscriber callbacks hand messages to a [`RecordSender`], which never blocks: a bounded
 //! channel feeds one writer thread, and a message that finds the channel full is counted as
 //! dropped (a slow disk must not slow the zenoh threads, and through them the plant). Repeated
@@ -19,12 +23,13 @@
 use anyhow::{anyhow, Context as _, Result};
 use std::collections::VecDeque;
 use std::fs::File;
-use std::io::{BufRead as _, BufReader, BufWriter, Write as _};
+use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use tilting_plant::node::csv::RowWriter;
 use tilting_plant::Mode;
 use tilting_proto::{ModeEvent, PlantState, TorqueCommand};
 use tilting_sim::closed_loop::{EventRecord, Sample};
@@ -127,14 +132,10 @@ impl RecordSender {
 impl Recorder {
     /// Creates the three CSV files (with their headers) in `dir` and starts the writer thread.
     pub fn create(dir: &Path) -> Result<Self> {
-        let open = |name: &str, header: &str| -> Result<BufWriter<File>> {
+        let open = |name: &str, header: &str| -> Result<RowWriter> {
             let path = dir.join(name);
-            let mut w = BufWriter::with_capacity(
-                1 << 16,
-                File::create(&path).with_context(|| format!("cannot create {}", path.display()))?,
-            );
-            writeln!(w, "{header}")?;
-            Ok(w)
+            RowWriter::create(&path, header, RowWriter::INTERVAL)
+                .with_context(|| format!("cannot create {}", path.display()))
         };
         let files = Files {
             state: open(STATE_CSV, STATE_HEADER)?,
@@ -204,9 +205,17 @@ impl Drop for Recorder {
 }
 
 struct Files {
-    state: BufWriter<File>,
-    torque: BufWriter<File>,
-    events: BufWriter<File>,
+    state: RowWriter,
+    torque: RowWriter,
+    events: RowWriter,
+}
+
+impl Files {
+    fn flush_if_due(&mut self) -> std::io::Result<()> {
+        self.state.flush_if_due()?;
+        self.torque.flush_if_due()?;
+        self.events.flush_if_due()
+    }
 }
 
 /// The current tilt, for peak tracking: its mode and extreme alpha so far.
@@ -230,6 +239,9 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
             Ok(Msg::Rec(r)) => r,
             Ok(Msg::Stop) | Err(RecvTimeoutError::Disconnected) => break,
             Err(RecvTimeoutError::Timeout) => {
+                if result.is_ok() {
+                    result = f.flush_if_due();
+                }
                 if pending > 0 {
                     pending = 0;
                     *view.lock().unwrap_or_else(|e| e.into_inner()) = local.clone();
@@ -253,11 +265,10 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
                     local.states += 1;
                     local.last_state = Some(s);
                     track_peak(&mut tilt, &s, &mut local.peaks);
-                    writeln!(
-                        f.state,
+                    f.state.row(format_args!(
                         "{},{},{},{},{},{},{}",
                         s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
-                    )
+                    ))
                 }
             }
             Record::Torque(c) => {
@@ -267,7 +278,7 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
                 } else {
                     last_torque = Some(c.seq);
                     local.torques += 1;
-                    writeln!(f.torque, "{},{}", c.seq, c.tau)
+                    f.torque.row(format_args!("{},{}", c.seq, c.tau))
                 }
             }
             Record::Event(e) => {
@@ -276,11 +287,10 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
                     local.tilts += 1;
                 }
                 let (b, a) = (e.x_before, e.x_after);
-                writeln!(
-                    f.events,
+                f.events.row(format_args!(
                     "{},{},{},{},{},{},{},{},{},{},{}",
                     e.time, e.from, e.to, b[0], b[1], b[2], b[3], a[0], a[1], a[2], a[3]
-                )
+                ))
             }
         };
         if let Err(e) = r {

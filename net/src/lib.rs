@@ -102,8 +102,9 @@ impl ZenohArgs {
     pub fn config(&self, role: Role) -> anyhow::Result<Config> {
         let json = |v: &[String]| serde_json::to_string(v).expect("strings serialize");
         let mut cfg = match &self.zenoh_config {
-            Some(path) => Config::from_file(path)
-                .map_err(|e| anyhow::anyhow!("--zenoh-config {}: {e}", path.display()))?,
+            Some(path) => Config::from_file(path).map_err(|e| {
+                anyhow::anyhow!("--zenoh-config {}: {}", path.display(), zenoh_error(&e))
+            })?,
             None => {
                 let (listen, connect): (Vec<String>, Vec<String>) = match role {
                     Role::Plant => (vec![DEFAULT_PLANT_ENDPOINT.into()], vec![]),
@@ -128,22 +129,57 @@ impl ZenohArgs {
                     ("connect/endpoints", json(&connect)),
                 ];
                 for (key, value) in settings {
-                    cfg.insert_json5(key, &value)
-                        .map_err(|e| anyhow::anyhow!("zenoh config {key} = {value}: {e}"))?;
+                    cfg.insert_json5(key, &value).map_err(|e| {
+                        anyhow::anyhow!("zenoh config {key} = {value}: {}", zenoh_error(&e))
+                    })?;
                 }
                 cfg
             }
         };
         if !self.listen.is_empty() {
             cfg.insert_json5("listen/endpoints", &json(&self.listen))
-                .map_err(|e| anyhow::anyhow!("--listen {:?}: {e}", self.listen))?;
+                .map_err(|e| anyhow::anyhow!("--listen {:?}: {}", self.listen, zenoh_error(&e)))?;
         }
         if !self.connect.is_empty() {
             cfg.insert_json5("connect/endpoints", &json(&self.connect))
-                .map_err(|e| anyhow::anyhow!("--connect {:?}: {e}", self.connect))?;
+                .map_err(|e| {
+                    anyhow::anyhow!("--connect {:?}: {}", self.connect, zenoh_error(&e))
+                })?;
         }
         Ok(cfg)
     }
+}
+
+/// The message of a zenoh error without the source locations zenoh appends to it (`... at
+/// /root/.cargo/registry/src/.../unicast.rs:338.`): they say where in zenoh's code the error
+/// was made, which means nothing to a user and leaks the build machine's paths.
+pub fn zenoh_error(e: &dyn std::fmt::Display) -> String {
+    let text = e.to_string();
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find(" at /") {
+        out.push_str(&rest[..i]);
+        let tail = &rest[i + 4..];
+        // The location runs to the first ".rs:<digits>", optionally followed by a '.'.
+        match tail.find(".rs:") {
+            Some(j) => {
+                let after = &tail[j + 4..];
+                let digits =
+                    after.len() - after.trim_start_matches(|c: char| c.is_ascii_digit()).len();
+                let mut end = j + 4 + digits;
+                if tail[end..].starts_with('.') {
+                    end += 1;
+                }
+                rest = &tail[end..];
+            }
+            None => {
+                out.push_str(&rest[i..]);
+                rest = "";
+            }
+        }
+    }
+    out.push_str(rest);
+    out
 }
 
 /// Opens a zenoh session configured by `args` for `role`.
@@ -152,7 +188,7 @@ pub async fn open_session(args: &ZenohArgs, role: Role) -> anyhow::Result<Sessio
     let t0 = Instant::now();
     let session = zenoh::open(cfg)
         .await
-        .map_err(|e| anyhow::anyhow!("cannot open the zenoh session: {e}"))?;
+        .map_err(|e| anyhow::anyhow!("cannot open the zenoh session: {}", zenoh_error(&e)))?;
     tracing::debug!(
         zid = %session.zid(),
         elapsed_ms = t0.elapsed().as_millis() as u64,
@@ -202,7 +238,9 @@ impl<T: Message> TypedPublisher<T> {
             .priority(priority)
             .express(express)
             .await
-            .map_err(|e| anyhow::anyhow!("cannot declare a publisher on {key}: {e}"))?;
+            .map_err(|e| {
+                anyhow::anyhow!("cannot declare a publisher on {key}: {}", zenoh_error(&e))
+            })?;
         Ok(Self {
             publisher,
             _t: std::marker::PhantomData,
@@ -219,10 +257,9 @@ impl<T: Message> TypedPublisher<T> {
 
     /// Publishes raw bytes on this publisher's key (tests use it to send garbage).
     pub fn put_raw(&self, bytes: &[u8]) -> anyhow::Result<()> {
-        self.publisher
-            .put(bytes)
-            .wait()
-            .map_err(|e| anyhow::anyhow!("put on {}: {e}", self.publisher.key_expr()))
+        self.publisher.put(bytes).wait().map_err(|e| {
+            anyhow::anyhow!("put on {}: {}", self.publisher.key_expr(), zenoh_error(&e))
+        })
     }
 
     /// The key expression.
@@ -344,7 +381,7 @@ where
             }
         })
         .await
-        .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {e}"))
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {}", zenoh_error(&e)))
 }
 
 /// How many liveliness tokens matching one key are alive, kept up to date by a liveliness
@@ -405,7 +442,7 @@ where
             }
         })
         .await
-        .map_err(|e| anyhow::anyhow!("cannot watch liveliness on {key}: {e}"))?;
+        .map_err(|e| anyhow::anyhow!("cannot watch liveliness on {key}: {}", zenoh_error(&e)))?;
     Ok((presence, sub))
 }
 
@@ -418,7 +455,12 @@ pub async fn declare_token(
         .liveliness()
         .declare_token(key.to_owned())
         .await
-        .map_err(|e| anyhow::anyhow!("cannot declare the liveliness token {key}: {e}"))
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "cannot declare the liveliness token {key}: {}",
+                zenoh_error(&e)
+            )
+        })
 }
 
 /// A multi-threaded tokio runtime with 2 workers, the one every node uses (zenoh does not
@@ -457,6 +499,23 @@ pub async fn shutdown_signal() {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn zenoh_errors_lose_their_source_locations() {
+        let raw = "Can not create a new TCP listener bound to tcp/127.0.0.1:17999: [127.0.0.1:17999: \
+                   Address already in use (os error 98) at /root/.cargo/registry/src/index.crates.io-1/\
+                   zenoh-link-commons-1.10.2/src/tcp.rs:61.] at /root/.cargo/registry/src/x/unicast.rs:338.";
+        assert_eq!(
+            zenoh_error(&raw),
+            "Can not create a new TCP listener bound to tcp/127.0.0.1:17999: [127.0.0.1:17999: \
+             Address already in use (os error 98)]"
+        );
+        assert_eq!(zenoh_error(&"no location here"), "no location here");
+        assert_eq!(
+            zenoh_error(&"a path at /tmp/x without a line"),
+            "a path at /tmp/x without a line"
+        );
+    }
     use tilting_proto::TorqueCommand;
 
     #[test]

@@ -21,6 +21,12 @@ pub struct Cell {
     pub stable: Vec<bool>,
 }
 
+/// How many values [`range`] gives, computed without allocating them (a float, so that an
+/// absurd step reads as a huge count instead of overflowing): check it against a limit first.
+pub fn range_len(from: f64, to: f64, step: f64) -> f64 {
+    ((to - from) / step + 0.5).floor().max(0.0) + 1.0
+}
+
 /// Evenly spaced values from `from` to `to` (inclusive, within half a step).
 pub fn range(from: f64, to: f64, step: f64) -> Vec<f64> {
     let n = ((to - from) / step + 0.5).floor().max(0.0) as usize;

@@ -34,20 +34,25 @@ pub struct LawArgs {
     #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
     pub reference: Trajectory,
     /// Base stiffness K_P0 (1/s^2)
-    #[arg(long, default_value_t = ORBIT_KP, value_name = "1/S2")]
+    #[arg(long, default_value_t = ORBIT_KP, value_name = "1/S2", allow_negative_numbers = true)]
     pub kp: f64,
     /// Damping K_D (1/s)
-    #[arg(long, default_value_t = ORBIT_KD, value_name = "1/S")]
+    #[arg(long, default_value_t = ORBIT_KD, value_name = "1/S", allow_negative_numbers = true)]
     pub kd: f64,
     /// Energy adaptation gain k (1/(J s^2)); 0 = off
-    #[arg(long, default_value_t = ORBIT_K, value_name = "1/(J S2)")]
+    #[arg(long, default_value_t = ORBIT_K, value_name = "1/(J S2)", allow_negative_numbers = true)]
     pub k: f64,
     /// Target average energy E_av (J) of the adaptation (the default is the paper's stabilised
     /// orbit)
-    #[arg(long, default_value_t = ORBIT_ENERGY_AVG, value_name = "J")]
+    #[arg(long, default_value_t = ORBIT_ENERGY_AVG, value_name = "J", allow_negative_numbers = true)]
     pub energy_avg: f64,
     /// Symmetric torque saturation (N m) applied by the controller; 0 = none
-    #[arg(long, default_value_t = 0.0, value_name = "NM")]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "NM",
+        allow_negative_numbers = true
+    )]
     pub torque_limit: f64,
     /// Take E_av from the smallest periodic tilting orbit of the loop without adaptation with
     /// --kp and --kd (paper model and impact law), computed by shooting (as `orbit`)
@@ -258,6 +263,7 @@ impl ReferencePublisher {
 #[derive(Debug, Clone, clap::Parser)]
 #[command(
     name = "tilting-planner",
+    allow_negative_numbers = true,
     version,
     about = "The planner node: publishes the controller's law (gains, E_av, reference trajectory) \
              over zenoh, answers late joiners and holds the planner's liveliness token",

@@ -346,3 +346,68 @@ fn the_old_planner_commands_still_work_and_say_where_they_went() {
     assert!(err.contains("is now `tilting plan orbit`"), "{err}");
     assert!(err.contains("--kp"), "{err}");
 }
+
+#[test]
+fn a_recording_survives_sigkill_of_live_with_whole_rows() {
+    let tilting = bin("tilting");
+    let _turn = realtime_turn();
+    let dir = Scratch::new("sigkill");
+    let out = dir.path().join("out");
+    let robot = robot("sigkill");
+    let args: Vec<String> = ["live", "--duration", "30", "--robot", &robot, "--out"]
+        .map(String::from)
+        .into_iter()
+        .chain([out.display().to_string()])
+        .collect();
+    let mut live = Proc::spawn("live", &tilting, &args, dir.path());
+    // Let the loop run for about 3 s of recorded states, then kill `live` without warning.
+    let end = Instant::now() + Duration::from_secs(30);
+    loop {
+        let rows = std::fs::read_to_string(out.join("state.csv"))
+            .map(|t| t.lines().count())
+            .unwrap_or(0);
+        if rows > 3000 {
+            break;
+        }
+        assert!(
+            Instant::now() < end,
+            "the live loop did not start\n{}",
+            live.logs()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let nodes: Vec<i32> = ["tilting-plant", "tilting-controller"]
+        .iter()
+        .filter_map(|n| child_named(live.pid() as u32, n))
+        .collect();
+    assert_eq!(nodes.len(), 2, "both nodes run under live");
+    live.signal(libc::SIGKILL);
+    live.expect_exit(Duration::from_secs(5));
+    // Its children are told to stop when it dies (Linux: PR_SET_PDEATHSIG).
+    let end = Instant::now() + Duration::from_secs(10);
+    while nodes
+        .iter()
+        .any(|p| Path::new(&format!("/proc/{p}/cmdline")).exists())
+    {
+        assert!(Instant::now() < end, "a node outlived live: {nodes:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // Every file holds whole rows only (`csv` checks the column count and parses every field),
+    // and nothing older than the last flush interval (100 ms, so about 100 periods) is lost.
+    let (_, states) = csv(&out.join("state.csv"));
+    let (_, torques) = csv(&out.join("torque.csv"));
+    let (_, events) = csv(&out.join("events.csv"));
+    assert!(states.len() > 3000, "{} states", states.len());
+    for w in states.windows(2) {
+        assert_eq!(w[1][0], w[0][0] + 1.0, "consecutive seq: {w:?}");
+    }
+    // The torque file is flushed by the same writer: at most a few intervals behind.
+    assert!(
+        torques.len() + 300 >= states.len(),
+        "{} torques for {} states",
+        torques.len(),
+        states.len()
+    );
+    // A tilt starts every 0.435 s on the orbit: the events of the first 3 s are there.
+    assert!(events.len() >= 10, "{} events", events.len());
+}

@@ -114,3 +114,70 @@ async fn controller_loss_trips_safe_mode_and_its_return_resumes_the_loop() {
     assert!(summary.fault.is_none());
     assert!(ctl.interrupt(Duration::from_secs(10)).success());
 }
+
+/// Lockstep with a controller that dies (SIGKILL, token gone) or freezes (SIGSTOP, token kept):
+/// the plant enters the safe mode at once (token gone) or after one `--lockstep-timeout-ms`
+/// (frozen), then keeps running deterministically under the safe-mode torque, waiting at most
+/// 1 ms per period for an answer. A 10 s run therefore ends in about 10 s of wall time or less,
+/// not 10,000 timeouts (2.8 h at the default 1 s). Bound asserted: 60 s of wall time after the
+/// controller stopped (6x the plant time, for a loaded 2-core machine).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
+    let plant_bin = bin("tilting-plant");
+    let ctl_bin = bin("tilting-controller");
+    for (case, sig) in [("killed", libc::SIGKILL), ("frozen", libc::SIGSTOP)] {
+        let dir = Scratch::new(&format!("lockstep-{case}"));
+        let port = free_port();
+        let robot = robot(&format!("lockstep_{case}"));
+        let mut plant = Proc::spawn(
+            "plant",
+            &plant_bin,
+            &plant_args(
+                &robot,
+                port,
+                &[
+                    "--clock",
+                    "lockstep",
+                    "--duration",
+                    "10",
+                    "--lockstep-timeout-ms",
+                    "1000",
+                ],
+            ),
+            dir.path(),
+        );
+        let client = Client::open(&robot, None, Some(port)).await;
+        let status = StatusWatch::new(&client).await;
+        let ctl = Proc::spawn(
+            "controller",
+            &ctl_bin,
+            &peer_args(&robot, port, &[]),
+            dir.path(),
+        );
+        status
+            .wait_for(Duration::from_secs(15), |s| {
+                s.state == Status::RUNNING && s.steps > 500
+            })
+            .await
+            .unwrap_or_else(|| panic!("{case}: never running\n{}", plant.logs()));
+        let t0 = Instant::now();
+        ctl.signal(sig);
+        let (t1, s) = status
+            .wait_for(Duration::from_secs(5), |s| s.state == Status::SAFE_MODE)
+            .await
+            .unwrap_or_else(|| panic!("{case}: no safe mode\n{}", plant.logs()));
+        eprintln!("{case}: safe mode after {:?} at t = {} s", t1 - t0, s.time);
+        let exit = plant.expect_exit(Duration::from_secs(60));
+        let wall = t0.elapsed();
+        eprintln!("{case}: the 10 s run ended {wall:?} after the controller stopped");
+        assert!(exit.success(), "{case}: {}", plant.logs());
+        let summary = plant.plant_summary();
+        assert_eq!(summary.result, RunResult::Completed, "{case}: {summary:?}");
+        assert_eq!(summary.time, 10.0);
+        assert_eq!(summary.watchdog_trips, 1, "{case}: {summary:?}");
+        assert!(summary.safe_periods > 1000, "{case}: {summary:?}");
+        if sig == libc::SIGSTOP {
+            ctl.signal(libc::SIGCONT);
+        }
+    }
+}

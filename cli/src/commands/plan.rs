@@ -243,6 +243,14 @@ pub struct BifurcationReport {
     pub rows: Vec<bifurcation::Row>,
 }
 
+/// Most cells of a `gains` grid (each one is an orbit search of about 0.1 s: 100,000 cells are
+/// hours on 2 cores).
+pub const MAX_GAIN_CELLS: f64 = 100_000.0;
+/// Most values of `k` in one `bifurcation` sweep (each keeps `--keep` peaks in memory).
+pub const MAX_SWEEP_VALUES: f64 = 100_000.0;
+/// Most tilts simulated per `k`.
+pub const MAX_TILTS: usize = 1_000_000;
+
 /// The `k = 0` orbit the sweep starts from (the one with the smallest tilt).
 fn base_orbit(pb: &OrbitProblem) -> Result<OrbitSolution, CommandError> {
     orbit::smallest(pb).ok_or_else(|| {
@@ -275,6 +283,20 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
         return Err(usage(format!(
             "invalid `--keep` = {}: must be in 1..=--tilts ({})",
             args.keep, args.tilts
+        )));
+    }
+    let n = gains::range_len(args.k_from, args.k_to, args.k_step);
+    if n > MAX_SWEEP_VALUES {
+        return Err(usage(format!(
+            "invalid `--k-step` = {}: the sweep from --k-from {} to --k-to {} has {n:.0} values of \
+             k; allowed: at most {MAX_SWEEP_VALUES}",
+            args.k_step, args.k_from, args.k_to
+        )));
+    }
+    if args.tilts > MAX_TILTS {
+        return Err(usage(format!(
+            "invalid `--tilts` = {}: allowed 1..={MAX_TILTS}",
+            args.tilts
         )));
     }
     let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
@@ -403,14 +425,17 @@ pub fn grid_axes(args: &GainsArgs) -> Result<(Vec<f64>, Vec<f64>), CommandError>
         args.kd_step > 0.0,
         "finite and > 0",
     )?;
-    let kps = gains::range(args.kp_from, args.kp_to, args.kp_step);
-    let kds = gains::range(args.kd_from, args.kd_to, args.kd_step);
-    if kps.len() * kds.len() > 100_000 {
+    // The grid is counted before it is allocated: a tiny step must be an error, not an abort.
+    let cells = gains::range_len(args.kp_from, args.kp_to, args.kp_step)
+        * gains::range_len(args.kd_from, args.kd_to, args.kd_step);
+    if cells > MAX_GAIN_CELLS {
         return Err(usage(format!(
-            "the grid has {} cells: at most 100000",
-            kps.len() * kds.len()
+            "the (--kp-from..--kp-to step --kp-step) x (--kd-from..--kd-to step --kd-step) grid \
+             has {cells:.0} cells; allowed: at most {MAX_GAIN_CELLS} (make a step larger)"
         )));
     }
+    let kps = gains::range(args.kp_from, args.kp_to, args.kp_step);
+    let kds = gains::range(args.kd_from, args.kd_to, args.kd_step);
     Ok((kps, kds))
 }
 

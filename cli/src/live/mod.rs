@@ -47,13 +47,23 @@ use tilting_sim::Scenario;
 #[derive(Debug, Clone, clap::Args)]
 pub struct LiveArgs {
     /// Run length (s of plant time, which is wall-clock time at real time)
-    #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
+    #[arg(
+        long,
+        default_value_t = 20.0,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
     pub duration: f64,
     /// Output directory [default: runs/<UTC timestamp>/]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Control rate of the plant (Hz)
-    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    #[arg(
+        long,
+        default_value_t = 1000.0,
+        value_name = "HZ",
+        allow_negative_numbers = true
+    )]
     pub rate: f64,
     /// Robot name: keys are tilting/{robot}/...
     #[arg(long, default_value = tilting_proto::keys::DEFAULT_ROBOT, value_name = "NAME")]
@@ -106,10 +116,18 @@ enum End {
 pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn");
     check_seconds("--duration", args.duration, false)?;
-    if !(args.rate.is_finite() && args.rate > 0.0 && args.rate <= 100_000.0) {
+    let (lo, hi) = tilting_plant::node::PERIOD_RANGE;
+    if !(args.rate.is_finite() && (1.0 / hi..=1.0 / lo).contains(&args.rate)) {
         return Err(CommandError::Usage(anyhow!(
-            "invalid `--rate` = {}: must be in (0, 100000] Hz",
-            args.rate
+            "invalid `--rate` = {}: allowed {} to {} Hz",
+            args.rate,
+            1.0 / hi,
+            1.0 / lo
+        )));
+    }
+    if args.port == Some(0) {
+        return Err(CommandError::Usage(anyhow!(
+            "invalid `--port` = 0: allowed 1 to 65535 (omit it for a free port)"
         )));
     }
     let keys = Keys::new(&args.robot).map_err(|e| CommandError::Usage(anyhow!("--robot: {e}")))?;

@@ -32,6 +32,7 @@ use crate::{ComputedTorque, ControlConfig, Reference};
 #[derive(Debug, Clone, clap::Parser)]
 #[command(
     name = "tilting-controller",
+    allow_negative_numbers = true,
     version,
     about = "Computed-torque PD controller with energy adaptation: answers every plant state with a torque over zenoh",
     after_help = "At Ctrl-C/SIGTERM a JSON summary of the counters is printed on stdout."

@@ -26,6 +26,7 @@ pub enum SafeMode {
 /// Flags of `tilting-plant`.
 #[derive(Debug, Clone, clap::Parser)]
 #[command(
+    allow_negative_numbers = true,
     name = "tilting-plant",
     version,
     about = "Simulated tilting plant: integrates the hybrid dynamics in real time (or in lockstep) \
@@ -112,6 +113,14 @@ pub(super) fn parse_x0(s: &str) -> Result<[f64; 4], String> {
     }
 }
 
+/// Allowed control periods (s): 100 us (10 kHz; a faster loop spends its period in the
+/// integrator and zenoh) to 10 s.
+pub const PERIOD_RANGE: (f64, f64) = (1e-4, 10.0);
+/// Most periods in one run (`--duration` / period).
+pub const MAX_PERIODS: f64 = 1e9;
+/// Longest busy-wait before a deadline (µs).
+pub const MAX_SPIN_US: u64 = 1000;
+
 impl PlantArgs {
     /// The control period (s).
     pub fn period(&self) -> f64 {
@@ -119,36 +128,72 @@ impl PlantArgs {
     }
 
     pub(super) fn validate(&self) -> anyhow::Result<()> {
+        let (lo, hi) = PERIOD_RANGE;
+        match self.period {
+            Some(h) => anyhow::ensure!(
+                h.is_finite() && (lo..=hi).contains(&h),
+                "invalid --period = {h}: allowed {lo} to {hi} s"
+            ),
+            None => anyhow::ensure!(
+                self.rate.is_finite() && (1.0 / hi..=1.0 / lo).contains(&self.rate),
+                "invalid --rate = {}: allowed {} to {} Hz",
+                self.rate,
+                1.0 / hi,
+                1.0 / lo
+            ),
+        }
         let h = self.period();
-        anyhow::ensure!(
-            h.is_finite() && h > 0.0 && h <= 10.0,
-            "--rate/--period: the period must be in (0, 10] s, got {h}"
-        );
         if let Some(d) = self.duration {
             anyhow::ensure!(
-                d.is_finite() && d > 0.0,
-                "--duration must be a positive number of seconds, got {d}"
+                d.is_finite() && d > 0.0 && d / h <= MAX_PERIODS,
+                "invalid --duration = {d}: allowed a positive number of seconds, at most \
+                 {MAX_PERIODS:e} periods ({} s at this rate)",
+                MAX_PERIODS * h
             );
-            anyhow::ensure!(d / h <= 1e9, "--duration/period exceeds 1e9 periods");
         }
-        anyhow::ensure!(self.watchdog >= 1, "--watchdog must be at least 1 period");
         anyhow::ensure!(
-            self.safe_kp.is_finite() && self.safe_kp >= 0.0,
-            "--safe-kp must be >= 0"
+            (1..=1_000_000).contains(&self.watchdog),
+            "invalid --watchdog = {}: allowed 1 to 1000000 periods",
+            self.watchdog
         );
         anyhow::ensure!(
-            self.safe_kd.is_finite() && self.safe_kd >= 0.0,
-            "--safe-kd must be >= 0"
+            self.safe_kp.is_finite() && (0.0..=1e6).contains(&self.safe_kp),
+            "invalid --safe-kp = {}: allowed 0 to 1e6 1/s^2",
+            self.safe_kp
+        );
+        anyhow::ensure!(
+            self.safe_kd.is_finite() && (0.0..=1e4).contains(&self.safe_kd),
+            "invalid --safe-kd = {}: allowed 0 to 1e4 1/s",
+            self.safe_kd
         );
         anyhow::ensure!(
             self.torque_limit.is_finite() && self.torque_limit >= 0.0,
-            "--torque-limit must be >= 0 (0 = none)"
+            "invalid --torque-limit = {}: allowed >= 0 N m (0 = none)",
+            self.torque_limit
         );
         anyhow::ensure!(
             self.rtol.is_finite() && (1e-13..=1e-3).contains(&self.rtol),
-            "--rtol must be in [1e-13, 1e-3]"
+            "invalid --rtol = {}: allowed 1e-13 to 1e-3",
+            self.rtol
         );
-        anyhow::ensure!(self.lockstep_timeout_ms >= 1, "--lockstep-timeout-ms >= 1");
+        anyhow::ensure!(
+            (1..=60_000).contains(&self.lockstep_timeout_ms),
+            "invalid --lockstep-timeout-ms = {}: allowed 1 to 60000 ms",
+            self.lockstep_timeout_ms
+        );
+        let max_spin = (h * 1e6 / 2.0).min(MAX_SPIN_US as f64) as u64;
+        anyhow::ensure!(
+            self.spin_us <= max_spin,
+            "invalid --spin-us = {}: allowed 0 to {max_spin} us (at most {MAX_SPIN_US} us and \
+             half a period)",
+            self.spin_us
+        );
+        if let Some(p) = self.rt_priority {
+            anyhow::ensure!(
+                (1..=99).contains(&p),
+                "invalid --rt-priority = {p}: allowed 1 to 99"
+            );
+        }
         Ok(())
     }
 
@@ -209,6 +254,39 @@ mod tests {
         );
         let a = PlantArgs::try_parse_from(["tilting-plant", "--rate", "0"]).unwrap();
         assert!(a.validate().is_err());
+    }
+
+    #[test]
+    fn out_of_range_flags_name_themselves_and_their_range() {
+        // Each bad value is refused with the flag, the value as typed and the allowed range.
+        for (flag, value, needle) in [
+            ("--rate", "0", "invalid --rate = 0: allowed 0.1 to 10000 Hz"),
+            ("--rate", "inf", "invalid --rate = inf"),
+            ("--rate", "1e9", "invalid --rate = 1000000000"),
+            (
+                "--period",
+                "0",
+                "invalid --period = 0: allowed 0.0001 to 10 s",
+            ),
+            ("--duration", "-1", "invalid --duration = -1"),
+            (
+                "--spin-us",
+                "1000000000",
+                "invalid --spin-us = 1000000000: allowed 0 to 500 us",
+            ),
+            ("--watchdog", "0", "invalid --watchdog = 0"),
+            ("--rtol", "1", "invalid --rtol = 1"),
+            (
+                "--rt-priority",
+                "100",
+                "invalid --rt-priority = 100: allowed 1 to 99",
+            ),
+        ] {
+            let a = PlantArgs::try_parse_from(["tilting-plant", flag, value])
+                .unwrap_or_else(|e| panic!("{flag} {value}: {e}"));
+            let err = a.validate().unwrap_err().to_string();
+            assert!(err.contains(needle), "{flag} {value}: {err}");
+        }
     }
 
     #[test]

@@ -52,7 +52,7 @@ pub(super) struct Loop {
     pub(super) shared: Arc<Shared>,
     pub(super) pubs: Arc<Publishers>,
     pub(super) obs: Obs,
-    pub(super) record: Option<std::io::BufWriter<std::fs::File>>,
+    pub(super) record: Option<csv::RowWriter>,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
     /// When it was published (ns).
@@ -75,6 +75,9 @@ pub(super) struct Loop {
 }
 
 /// Interval of the timing line in the log.
+/// Lockstep in safe mode: the longest wait per period for a controller's answer.
+pub(super) const SAFE_MODE_POLL: Duration = Duration::from_millis(1);
+
 pub(super) const TIMING_LOG_INTERVAL: Duration = Duration::from_secs(10);
 
 impl Loop {
@@ -215,13 +218,13 @@ impl Loop {
             None => {
                 self.deadline_misses += 1;
                 self.missed += 1;
-                if lockstep {
+                if gone {
+                    self.enter_safe("the controller's liveliness token disappeared");
+                } else if lockstep {
                     self.enter_safe("lockstep timeout: no torque answered the state");
                 } else if self.missed >= self.args.watchdog {
                     let why = format!("no valid torque for {} periods", self.missed);
                     self.enter_safe(&why);
-                } else if gone {
-                    self.enter_safe("the controller's liveliness token disappeared");
                 }
             }
         }
@@ -265,7 +268,10 @@ impl Loop {
                         }
                         None => {}
                     }
-                    if self.shared.stop.load(Ordering::Acquire) {
+                    if self.shared.stop.load(Ordering::Acquire)
+                        || self.shared.controller_gone.load(Ordering::Acquire)
+                    {
+                        // Stopping, or the controller's token is gone: no answer will come.
                         return None;
                     }
                     let now = Instant::now();
@@ -337,8 +343,7 @@ impl Loop {
         if let Some(w) = &mut self.record {
             let x = self.plant.state();
             let tau = tau.map(|t| t.to_string()).unwrap_or_default();
-            let r = writeln!(
-                w,
+            let r = w.row(format_args!(
                 "{},{},{},{},{},{},{},{}",
                 self.seq,
                 self.plant.time(),
@@ -348,7 +353,7 @@ impl Loop {
                 x[2],
                 x[3],
                 tau,
-            );
+            ));
             if let Err(e) = r {
                 tracing::warn!("--record: write failed, recording stops: {e}");
                 self.record = None;
@@ -435,13 +440,23 @@ impl Loop {
         }
     }
 
+    /// Lockstep: one period per answer. Without a controller (its token gone, or no answer
+    /// within `--lockstep-timeout-ms`) the plant is in safe mode and waits at most
+    /// [`SAFE_MODE_POLL`] per period for an answer: the run goes on deterministically under the
+    /// safe-mode torque at about real-time speed or faster (never one period per timeout), and
+    /// a controller that comes back takes over at the period it answers.
     pub(super) fn run_lockstep(&mut self) -> Outcome {
         let timeout = Duration::from_millis(self.args.lockstep_timeout_ms);
         loop {
             if self.shared.stop.load(Ordering::Acquire) {
                 return Outcome::Stopped;
             }
-            let fresh = self.wait_fresh(timeout);
+            let wait = if self.status_state == Status::SAFE_MODE {
+                SAFE_MODE_POLL.min(timeout)
+            } else {
+                timeout
+            };
+            let fresh = self.wait_fresh(wait);
             if self.shared.stop.load(Ordering::Acquire) {
                 return Outcome::Stopped;
             }
@@ -456,12 +471,6 @@ impl Loop {
     }
 
     pub(super) fn run(&mut self) -> Outcome {
-        if let Some(w) = &mut self.record {
-            if let Err(e) = writeln!(w, "{STATE_COLUMNS},tau") {
-                tracing::warn!("--record: {e}");
-                self.record = None;
-            }
-        }
         if self.args.no_wait {
             self.publish_state();
         } else {

@@ -37,13 +37,13 @@
 mod args;
 pub mod clock;
 mod control_loop;
+pub mod csv;
 mod inbox;
 pub mod stats;
 pub mod summary;
 
 use std::collections::VecDeque;
 use std::f64::consts::FRAC_PI_2;
-use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -58,7 +58,7 @@ use crate::{
     paper, Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, Tolerance,
     Transition,
 };
-pub use args::{ClockMode, PlantArgs, SafeMode};
+pub use args::{ClockMode, PlantArgs, SafeMode, MAX_PERIODS, MAX_SPIN_US, PERIOD_RANGE};
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
 use stats::Ring;
@@ -80,10 +80,14 @@ pub fn run(args: PlantArgs) -> anyhow::Result<ExitCode> {
     let x0 = State::from(args.x0.unwrap_or_else(paper::orbit_x0));
     let plant = Plant::new(cfg, 0.0, args.mode, x0).context("initial state")?;
     let record = match &args.record {
-        Some(path) => Some(std::io::BufWriter::with_capacity(
-            1 << 16,
-            std::fs::File::create(path).with_context(|| format!("--record {}", path.display()))?,
-        )),
+        Some(path) => Some(
+            csv::RowWriter::create(
+                path,
+                &format!("{STATE_COLUMNS},tau"),
+                csv::RowWriter::INTERVAL,
+            )
+            .with_context(|| format!("--record {}", path.display()))?,
+        ),
         None => None,
     };
     let rt = tilting_net::runtime()?;
@@ -94,7 +98,7 @@ async fn run_async(
     args: PlantArgs,
     keys: Keys,
     plant: Plant,
-    record: Option<std::io::BufWriter<std::fs::File>>,
+    record: Option<csv::RowWriter>,
 ) -> anyhow::Result<ExitCode> {
     let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
     let shared = Arc::new(Shared {
