@@ -34,6 +34,11 @@ pub const ORBIT_K: f64 = 500.0;
 /// The time average `E_av` (J) of the energy over one period of the orbit.
 pub const ORBIT_ENERGY_AVG: f64 = 19.963439703027;
 
+/// The largest joint torque `|tau|` (N m) along the stabilised orbit (`k = ORBIT_K`, continuous
+/// coupling), rounded up: 11.64 N m measured over 20 s. The plant's default bound on commanded
+/// torques is a multiple of it (`tilting-plant --max-torque`).
+pub const ORBIT_MAX_TORQUE: f64 = 11.65;
+
 /// The initial state of the orbit `(alpha, beta, alpha_dot, beta_dot)` (rad, rad/s).
 pub fn orbit_x0() -> [f64; 4] {
     [0.0, FRAC_PI_2 + ORBIT_BETA0, 0.0, ORBIT_BETA_DOT0]

@@ -103,6 +103,11 @@ async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
     let mut m3 = state.clone();
     m3[48] = 3;
     bad_state.push(m3);
+    // Valid encodings of physically absurd torques: beyond the plant's --max-torque bound
+    // (default 10 x the largest torque of the paper's orbit, 116.5 N m).
+    for tau in [1e9, -1e9, 117.0] {
+        bad_torque.push(codec::encode(&TorqueCommand { seq: 1, tau }));
+    }
     let mut bad_reference = garbage(&mut rng, Reference::SIZE, &reference, 17);
     let mut k2 = reference.clone();
     k2[0] = 2;
@@ -114,12 +119,13 @@ async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
             v.extend(copy.iter().cloned());
         }
     }
-    // Valid torques answering no current state (a far future seq, a huge torque): stale.
+    // Valid, plausible torques answering no current state (a far future seq): stale. (A huge
+    // torque is refused before its seq is looked at: see the absurd ones above.)
     let stale: Vec<Vec<u8>> = (0..100)
         .map(|i| {
             codec::encode(&TorqueCommand {
                 seq: 1 << 40 | i,
-                tau: 1e6,
+                tau: 1.0,
             })
         })
         .collect();

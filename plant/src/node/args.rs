@@ -81,6 +81,10 @@ pub struct PlantArgs {
     /// Relative tolerance of the integrator (the absolute one is rtol/100, as in `simulate`)
     #[arg(long, default_value_t = Tolerance::default().rtol)]
     pub rtol: f64,
+    /// Refuse commanded torques larger than this (N m): they are counted as dropped and logged
+    /// [default: 10 times the largest torque of the paper's orbit, 116.5]
+    #[arg(long, value_name = "NM", allow_negative_numbers = true)]
+    pub max_torque: Option<f64>,
     /// Hard torque limit (N m) applied by the plant; 0 = none
     #[arg(long, default_value_t = 0.0, value_name = "NM")]
     pub torque_limit: f64,
@@ -118,10 +122,20 @@ pub(super) fn parse_x0(s: &str) -> Result<[f64; 4], String> {
 pub const PERIOD_RANGE: (f64, f64) = (1e-4, 10.0);
 /// Most periods in one run (`--duration` / period).
 pub const MAX_PERIODS: f64 = 1e9;
+/// The default bound on commanded torques (N m): ten times the largest torque along the
+/// paper's stabilised orbit ([`paper::ORBIT_MAX_TORQUE`], 11.65 N m). A physically plausible
+/// command of this machine is well inside it; a 1e9 N m "command" is not.
+pub const DEFAULT_MAX_TORQUE: f64 = 10.0 * paper::ORBIT_MAX_TORQUE;
+
 /// Longest busy-wait before a deadline (µs).
 pub const MAX_SPIN_US: u64 = 1000;
 
 impl PlantArgs {
+    /// The bound on commanded torques (N m): `--max-torque`, or [`DEFAULT_MAX_TORQUE`].
+    pub fn max_torque(&self) -> f64 {
+        self.max_torque.unwrap_or(DEFAULT_MAX_TORQUE)
+    }
+
     /// The control period (s).
     pub fn period(&self) -> f64 {
         self.period.unwrap_or(1.0 / self.rate)
@@ -171,6 +185,12 @@ impl PlantArgs {
             "invalid --torque-limit = {}: allowed >= 0 N m (0 = none)",
             self.torque_limit
         );
+        if let Some(m) = self.max_torque {
+            anyhow::ensure!(
+                m.is_finite() && m > 0.0,
+                "invalid --max-torque = {m}: allowed a positive number of N m"
+            );
+        }
         anyhow::ensure!(
             self.rtol.is_finite() && (1e-13..=1e-3).contains(&self.rtol),
             "invalid --rtol = {}: allowed 1e-13 to 1e-3",

@@ -16,6 +16,8 @@ pub(super) struct Shared {
     /// Set when the controller's token disappears; consumed by the pacing thread.
     pub(super) controller_gone: AtomicBool,
     pub(super) stop: AtomicBool,
+    /// Torques beyond this magnitude (N m) are refused (`--max-torque`).
+    pub(super) max_torque: f64,
 }
 
 impl Shared {
@@ -23,6 +25,15 @@ impl Shared {
         let Some(cmd) = self.torques.decode::<TorqueCommand>(bytes) else {
             return;
         };
+        // A torque that decodes can still be a lie: beyond the bound it is refused, counted
+        // with the malformed ones and logged at a bounded rate.
+        if cmd.tau.abs() > self.max_torque {
+            self.torques.record_drop(&format!(
+                "TorqueCommand.tau = {} N m (seq {}) is beyond --max-torque {} N m",
+                cmd.tau, cmd.seq, self.max_torque
+            ));
+            return;
+        }
         let now = clock::now_ns();
         if cmd.seq != self.current_seq.load(Ordering::Acquire) {
             self.stale.fetch_add(1, Ordering::Relaxed);

@@ -58,7 +58,9 @@ use crate::{
     paper, Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, Tolerance,
     Transition,
 };
-pub use args::{ClockMode, PlantArgs, SafeMode, MAX_PERIODS, MAX_SPIN_US, PERIOD_RANGE};
+pub use args::{
+    ClockMode, PlantArgs, SafeMode, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US, PERIOD_RANGE,
+};
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
 use stats::Ring;
@@ -110,6 +112,7 @@ async fn run_async(
         controller_alive: AtomicBool::new(false),
         controller_gone: AtomicBool::new(false),
         stop: AtomicBool::new(false),
+        max_torque: args.max_torque(),
     });
     let pubs = Arc::new(Publishers {
         state: TypedPublisher::declare(&session, keys.plant_state(), Qos::Control).await?,

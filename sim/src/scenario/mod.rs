@@ -385,6 +385,14 @@ mod tests {
                 },
                 "x0[2]",
             ),
+            (
+                ScenarioFile {
+                    mode: Some(Mode::Flat),
+                    x0: Some([0.0, 1.5, 0.0, 1e300]),
+                    ..Default::default()
+                },
+                "x0[3]",
+            ),
         ] {
             let e = Scenario::resolve(&[&l]).validate().unwrap_err().to_string();
             assert!(e.contains(&format!("`{field}`")), "{field}: {e}");

@@ -3,6 +3,11 @@
 
 use super::*;
 
+/// Largest `|beta|` of an initial state (rad): ten turns.
+pub const MAX_ANGLE: f64 = 20.0 * std::f64::consts::PI;
+/// Largest initial rate `|alpha_dot|`, `|beta_dot|` (rad/s): about 16 turns per second.
+pub const MAX_RATE: f64 = 100.0;
+
 /// A scenario file error or an invalid value. The message names the field (as spelled in the
 /// scenario file, with the command-line flag) and its allowed range.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -188,6 +193,24 @@ impl Scenario {
         }
         let [alpha, _, alpha_dot, _] = self.x0;
         let flag = |i: usize| format!("{} in --x0", NAMES[i]);
+        // Physical bounds: an arm angle beyond a few turns or a rate beyond MAX_RATE is a typo
+        // (or a unit mix-up), not a state of this machine; the integrator would only report a
+        // non-finite derivative.
+        let limits = [
+            (1, MAX_ANGLE, "rad"),
+            (2, MAX_RATE, "rad/s"),
+            (3, MAX_RATE, "rad/s"),
+        ];
+        for (i, limit, unit) in limits {
+            if self.x0[i].abs() > limit {
+                return Err(out_of_range(
+                    &format!("x0[{i}]"),
+                    &flag(i),
+                    format!("{:e}", self.x0[i]),
+                    &format!("in [-{limit:.0}, {limit:.0}] {unit}"),
+                ));
+            }
+        }
         let fall = SimConfig::default().fall_angle;
         match self.mode {
             Mode::Flat => {
