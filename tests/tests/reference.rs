@@ -200,3 +200,84 @@ async fn controller_started_after_the_planner_receives_the_reference() {
     assert_eq!(c.law.torque_limit, Some(5.0));
     assert_eq!(c.law.reference, tilting_controller::Reference::Hold);
 }
+
+/// A reference from a peer while no planner holds the planner's liveliness token is not
+/// applied, even when it is a valid message with a plausible law; a law that decodes but lies
+/// (`k = 1e12`) is refused by the bounds even with a planner present.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn references_need_a_planner_and_plausible_gains() {
+    let ctl_bin = bin("tilting-controller");
+    let dir = Scratch::new("rogue-reference");
+    let port = free_port();
+    let robot = robot("rogue_reference");
+    let rogue = Client::open(&robot, Some(port), None).await;
+    let mut ctl = Proc::spawn(
+        "controller",
+        &ctl_bin,
+        &peer_args(&robot, port, &[]),
+        dir.path(),
+    );
+    let key = rogue.keys.planner_reference().to_owned();
+    let plausible = Reference {
+        kind: Reference::HOLD,
+        amplitude: 0.0,
+        omega: 0.0,
+        kp: 30.0,
+        kd: 8.0,
+        k: 0.0,
+        energy_avg: 0.0,
+        torque_limit: 0.0,
+    };
+    // No planner token: 20 puts over 2 s (the controller connects within the first second).
+    for _ in 0..20 {
+        rogue
+            .session
+            .put(key.clone(), codec::encode(&plausible))
+            .await
+            .unwrap();
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    // With a token, a lying law is refused by the bounds; a plausible one is applied.
+    let _token = rogue
+        .session
+        .liveliness()
+        .declare_token(rogue.keys.alive_planner().to_owned())
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let lie = Reference {
+        k: 1e12,
+        energy_avg: 20.0,
+        ..plausible
+    };
+    for r in [
+        lie,
+        Reference {
+            kp: 40.0,
+            ..plausible
+        },
+    ] {
+        rogue
+            .session
+            .put(key.clone(), codec::encode(&r))
+            .await
+            .unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
+    assert!(
+        ctl.interrupt(Duration::from_secs(10)).success(),
+        "{}",
+        ctl.logs()
+    );
+    let c = ctl.controller_summary();
+    eprintln!("controller summary: {c:?}");
+    assert!(c.references_received >= 11, "{c:?}");
+    // Ignored while no token (at least the 10 puts of the second second) plus the lie.
+    assert!(c.references_rejected >= 11, "{c:?}");
+    assert_eq!(
+        c.references_applied, 1,
+        "only the plausible law under a planner: {c:?}"
+    );
+    assert_eq!(c.law.kp, 40.0, "{c:?}");
+    assert_eq!(c.law.k, 0.0, "the reference carries k too: {c:?}");
+}

@@ -89,6 +89,7 @@ impl ControllerArgs {
             torque_limit: (self.torque_limit > 0.0).then_some(self.torque_limit),
         };
         cfg.validate()?;
+        crate::wire::check_bounds(&cfg)?;
         Ok(cfg)
     }
 }
@@ -103,6 +104,8 @@ struct Node {
     publish_errors: AtomicU64,
     references_applied: AtomicU64,
     references_rejected: AtomicU64,
+    /// The planner's liveliness token, as watched: references count only while one is alive.
+    planner: Arc<tilting_net::Presence>,
     /// A reference arrived on the topic itself (newer than any query answer).
     live_reference: AtomicBool,
     ignore_planner: bool,
@@ -156,6 +159,19 @@ impl Node {
         }
         if !live && self.live_reference.load(Ordering::Acquire) {
             return; // a query answer older than what the topic already gave
+        }
+        if !self.planner.alive() {
+            // A reference needs a planner: some peer must hold the planner's liveliness token.
+            // (Which peer sent it is not known here; binding identities to keys is the job of
+            // access control at the transport.)
+            let n = self.references_rejected.fetch_add(1, Ordering::Relaxed) + 1;
+            if n.is_power_of_two() {
+                tracing::warn!(
+                    rejected = n,
+                    "reference ignored: no peer holds the planner's liveliness token"
+                );
+            }
+            return;
         }
         match ControlConfig::from_wire(self.params, &r).and_then(ComputedTorque::new) {
             Ok(c) => {
@@ -279,6 +295,16 @@ async fn run_async(
     law: ComputedTorque,
 ) -> anyhow::Result<ExitCode> {
     let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+    // Ask the planner's queryable for the current reference now and whenever a planner appears.
+    let (query_tx, mut query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
+    let _ = query_tx.send(());
+    let (_planner, _planner_sub) =
+        tilting_net::watch_presence(&session, keys.alive_planner(), move |alive| {
+            if alive {
+                let _ = query_tx.send(());
+            }
+        })
+        .await?;
     let torque = TypedPublisher::declare(&session, keys.controller_torque(), Qos::Control).await?;
     let node = Arc::new(Node {
         params: law.config().params,
@@ -292,6 +318,7 @@ async fn run_async(
         references_rejected: AtomicU64::new(0),
         live_reference: AtomicBool::new(false),
         ignore_planner: args.ignore_planner,
+        planner: _planner.clone(),
         torque,
     });
 
@@ -308,16 +335,6 @@ async fn run_async(
         .await
         .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", keys.planner_reference()))?;
 
-    // Ask the planner's queryable for the current reference now and whenever a planner appears.
-    let (query_tx, mut query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
-    let _ = query_tx.send(());
-    let (_planner, _planner_sub) =
-        tilting_net::watch_presence(&session, keys.alive_planner(), move |alive| {
-            if alive {
-                let _ = query_tx.send(());
-            }
-        })
-        .await?;
     let (_plant, _plant_sub) =
         tilting_net::watch_presence(&session, keys.alive_plant(), |_| {}).await?;
     let querier = {
