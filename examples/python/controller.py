@@ -4,7 +4,7 @@ docs/protocol.md over zenoh: a drop-in replacement for `tilting-controller`.
 
 It shares no code with the Rust workspace: the byte layouts are Python `struct` formats and the
 control law (computed torque per contact mode, PD on the arm angle, energy adaptation of the
-stiffness) is written here from the model notes (MODEL.md), so a plant run against this script
+stiffness) is written here from the model notes (docs/model.md), so a plant run against this script
 checks that the protocol is language-neutral.
 
 For every valid `PlantState` on `tilting/{robot}/plant/state` it publishes a `TorqueCommand` with
@@ -68,7 +68,7 @@ def pack_torque(seq, tau):
 
 
 # ---------------------------------------------------------------------------------------------
-# Model (MODEL.md): plate of length 2f with a point mass m_f at its centre, arm of length l with
+# Model (docs/model.md): plate of length 2f with a point mass m_f at its centre, arm of length l with
 # a point mass m_l at its tip, mounted on the plate centre. World origin at the left plate edge,
 # y up. Tilted left: pivot (0, 0); tilted right: pivot (2f, 0), the same equations with f -> -f.
 

@@ -1,7 +1,7 @@
 //! Hybrid dynamics of the tilting system and its event-exact simulator.
 //!
 //! A foot plate that lies flat or tilts passively over its left or right edge, with an actuated
-//! arm on top (see `shared/MODEL.md` for the model and its conventions). The crate holds:
+//! arm on top (the model and its conventions: `docs/model.md` in the repository). The crate holds:
 //! - [`Params`]: masses and lengths, with the paper's defaults;
 //! - [`Mode`] and [`State`]: the hybrid state `(q, x)` with `x = (alpha, beta, alpha_dot,
 //!   beta_dot)` in rad and rad/s;
@@ -9,9 +9,11 @@
 //! - [`kinematics`]: positions, energy, angular momentum, the mirror map;
 //! - [`impact`]: the landing map with the paper's and the striking-edge law;
 //! - [`ode`]: the DOP853 integrator with dense output;
-//! - [`hybrid`]: the simulator ([`Plant`]) with event location, impacts and faults.
+//! - [`hybrid`]: the simulator ([`Plant`]) with event location, impacts and faults;
+//! - [`paper`]: the paper's numbers (the stabilised orbit and its gains), used as defaults everywhere.
 //!
-//! It knows nothing of networks: the `tilting-plant` binary wraps it in a zenoh node.
+//! The model knows nothing of networks; the `node` feature adds the plant node (paced in real
+//! time or lockstep over zenoh) behind the `tilting-plant` binary.
 //!
 //! ```
 //! use tilting_plant::{Plant, SimConfig, Mode, State};
