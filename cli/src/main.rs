@@ -3,7 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting::commands::{figures, plan, simulate};
+use tilting::commands::{figures, plan, simulate, topics};
 use tilting::live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -23,6 +23,8 @@ Plan:
 
 Look:
   figures     The paper's Figs. 4 to 8 as PNG files
+  echo        Print a robot's topic live, decoded (one line or one JSON object per message)
+  hz          Rate, largest gap and message size of a robot's topics
 
 The nodes of the design are separate binaries: tilting-plant, tilting-controller and
 tilting-planner (publishes the reference). `tilting <command> --help` tells more.
@@ -55,6 +57,10 @@ enum Command {
     Plan(Plan),
     /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png) in a directory
     Figures(figures::FiguresArgs),
+    /// Print a robot's topic live, decoded: one line (or one JSON object) per message
+    Echo(topics::EchoArgs),
+    /// The rate, the largest gap and the message size of a robot's topics, every second
+    Hz(topics::HzArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -81,6 +87,8 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Bifurcation(args)) => plan::bifurcation(args),
         Command::Plan(Plan::Gains(args)) => plan::gains(args),
         Command::Figures(args) => figures::figures(args),
+        Command::Echo(args) => topics::echo(args),
+        Command::Hz(args) => topics::hz(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

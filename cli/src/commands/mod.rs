@@ -1,11 +1,12 @@
 //! The subcommands of `tilting`, grouped by what a person wants to do: [`simulate`] (run),
-//! [`plan`] (plan), [`figures`] (look); `live` is [`crate::live`]. Each is a thin shell: flags,
+//! [`plan`] (plan), [`figures`] and [`topics`] (look: `echo`, `hz`); `live` is [`crate::live`]. Each is a thin shell: flags,
 //! validation that names the field and its range, a progress bar, and output (a human summary,
 //! or one JSON object with `--json`); the computations live in the library crates.
 
 pub mod figures;
 pub mod plan;
 pub mod simulate;
+pub mod topics;
 
 use anyhow::anyhow;
 use clap::Args;

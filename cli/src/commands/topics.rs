@@ -1,0 +1,414 @@
+//! `tilting echo` and `tilting hz`: a live look at a robot's topics, the way `ros2 topic echo`
+//! and `ros2 topic hz` look at ROS topics. Both join the robot's zenoh session as a peer (by
+//! default connecting to a plant on `tcp/127.0.0.1:7447`), decode every payload with the wire
+//! codec, and never publish anything.
+
+use super::print_stdout;
+use anyhow::anyhow;
+use clap::{Args, ValueEnum};
+use std::sync::mpsc::{sync_channel, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tilting_net::{Role, ZenohArgs};
+use tilting_planner::CommandError;
+use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
+
+/// A topic of a robot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Topic {
+    /// `plant/state`: `PlantState`, once per control period.
+    State,
+    /// `controller/torque`: `TorqueCommand`, one per state.
+    Torque,
+    /// `plant/event`: `ModeEvent`, at every mode transition.
+    Event,
+    /// `plant/status`: `Status`, at 10 Hz.
+    Status,
+    /// `planner/reference`: `Reference`, on change and repeated.
+    Reference,
+}
+
+impl Topic {
+    /// Every topic, in the order of the tables.
+    pub const ALL: [Topic; 5] = [
+        Topic::State,
+        Topic::Torque,
+        Topic::Event,
+        Topic::Status,
+        Topic::Reference,
+    ];
+
+    /// The lowercase name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Topic::State => "state",
+            Topic::Torque => "torque",
+            Topic::Event => "event",
+            Topic::Status => "status",
+            Topic::Reference => "reference",
+        }
+    }
+
+    /// The key expression of this topic for `keys`' robot.
+    pub fn key(self, keys: &Keys) -> String {
+        match self {
+            Topic::State => keys.plant_state(),
+            Topic::Torque => keys.controller_torque(),
+            Topic::Event => keys.plant_event(),
+            Topic::Status => keys.plant_status(),
+            Topic::Reference => keys.planner_reference(),
+        }
+        .to_owned()
+    }
+
+    /// One payload decoded: a human line, or a JSON object (`--json`); `Err` with the codec's
+    /// message (naming the message type and the field) for a payload that does not decode.
+    pub fn describe(self, bytes: &[u8], json: bool) -> Result<String, String> {
+        fn out<T: serde::Serialize>(m: &T, json: bool, human: String) -> String {
+            if json {
+                serde_json::to_string(m).unwrap_or_default()
+            } else {
+                human
+            }
+        }
+        let mode = |q: u8| tilting_proto::Mode::try_from(q).map_or("?", |m| m.as_str());
+        Ok(match self {
+            Topic::State => {
+                let s: PlantState = codec::decode(bytes).map_err(|e| e.to_string())?;
+                let h = format!(
+                    "seq {:>8}  t {:10.4} s  {:<5}  alpha {:+.6} rad  beta {:.6} rad  alpha_dot {:+.5} rad/s  beta_dot {:+.5} rad/s",
+                    s.seq, s.time, mode(s.mode), s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                );
+                out(&s, json, h)
+            }
+            Topic::Torque => {
+                let c: TorqueCommand = codec::decode(bytes).map_err(|e| e.to_string())?;
+                out(&c, json, format!("seq {:>8}  tau {:+.6} N m", c.seq, c.tau))
+            }
+            Topic::Event => {
+                let e: ModeEvent = codec::decode(bytes).map_err(|e| e.to_string())?;
+                let h = format!(
+                    "t {:.6} s  {} -> {}  alpha_dot {:+.5} -> {:+.5} rad/s  beta_dot {:+.5} -> {:+.5} rad/s",
+                    e.time,
+                    mode(e.from),
+                    mode(e.to),
+                    e.x_before[2],
+                    e.x_after[2],
+                    e.x_before[3],
+                    e.x_after[3]
+                );
+                out(&e, json, h)
+            }
+            Topic::Status => {
+                let s: Status = codec::decode(bytes).map_err(|e| e.to_string())?;
+                let h = format!(
+                    "t {:.3} s  {}  {}  tilts {}  misses {}  dropped {}  stale {}  latency p50 {:.0} us p99 {:.0} us{}",
+                    s.time,
+                    s.state_name(),
+                    mode(s.mode),
+                    s.tilts,
+                    s.deadline_misses,
+                    s.torques_dropped,
+                    s.torques_stale,
+                    s.latency_p50_us,
+                    s.latency_p99_us,
+                    if s.fault.is_empty() {
+                        String::new()
+                    } else {
+                        format!("  fault: {}", s.fault)
+                    }
+                );
+                out(&s, json, h)
+            }
+            Topic::Reference => {
+                let r: Reference = codec::decode(bytes).map_err(|e| e.to_string())?;
+                out(&r, json, tilting_planner::node::describe(&r))
+            }
+        })
+    }
+}
+
+/// The session flags of `echo` and `hz`.
+fn session_args(z: &ZenohArgs) -> Result<Keys, CommandError> {
+    let keys = z.keys().map_err(CommandError::Usage)?;
+    z.config(Role::Peer).map_err(CommandError::Usage)?;
+    Ok(keys)
+}
+
+fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
+    match v {
+        Some(s) if !(s.is_finite() && s > 0.0 && s <= 1e7) => Err(CommandError::Usage(anyhow!(
+            "invalid `{flag}` = {s}: allowed a positive number of seconds up to 1e7"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// Flags of `tilting echo`.
+#[derive(Debug, Clone, Args)]
+pub struct EchoArgs {
+    /// The topic to print
+    #[arg(value_enum)]
+    pub topic: Topic,
+    /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// One JSON object per message (the message's fields) instead of a line of text
+    #[arg(long)]
+    pub json: bool,
+    /// Stop after this many messages
+    #[arg(long, value_name = "N")]
+    pub count: Option<u64>,
+    /// Stop after this many seconds [default: until Ctrl-C]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+}
+
+/// `tilting echo`.
+pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    check_seconds("--seconds", args.seconds)?;
+    let keys = session_args(&args.zenoh)?;
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(async {
+        let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+        // The callback only queues: printing (maybe into a slow pipe) must not hold a zenoh
+        // thread. A full queue skips messages and says how many.
+        let (tx, rx) = sync_channel::<Vec<u8>>(4096);
+        let skipped = Arc::new(Mutex::new(0u64));
+        let sk = skipped.clone();
+        let key = args.topic.key(&keys);
+        let _sub = session
+            .declare_subscriber(key.clone())
+            .callback(move |s| {
+                if let Err(TrySendError::Full(_)) = tx.try_send(s.payload().to_bytes().to_vec()) {
+                    *sk.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+                }
+            })
+            .await
+            .map_err(|e| {
+                anyhow!(
+                    "cannot subscribe to {key}: {}",
+                    tilting_net::zenoh_error(&e)
+                )
+            })?;
+        eprintln!("echo: {key} (Ctrl-C stops)");
+        let end = args
+            .seconds
+            .map(|s| Instant::now() + Duration::from_secs_f64(s));
+        let mut n = 0u64;
+        let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
+        loop {
+            if args.count.is_some_and(|c| n >= c) || end.is_some_and(|e| Instant::now() >= e) {
+                break;
+            }
+            let bytes = match rx.try_recv() {
+                Ok(b) => b,
+                Err(_) => {
+                    tokio::select! {
+                        _ = &mut stop => break,
+                        _ = tokio::time::sleep(Duration::from_millis(2)) => continue,
+                    }
+                }
+            };
+            n += 1;
+            let line = match args.topic.describe(&bytes, args.json) {
+                Ok(l) => l,
+                Err(e) if args.json => serde_json::json!({ "invalid": e }).to_string(),
+                Err(e) => format!("invalid payload ({} bytes): {e}", bytes.len()),
+            };
+            print_stdout(&format!("{line}\n")).map_err(|e| anyhow!("{e}"))?;
+        }
+        let skipped = *skipped.lock().unwrap_or_else(|e| e.into_inner());
+        if skipped > 0 {
+            eprintln!("echo: skipped {skipped} messages (the output was too slow)");
+        }
+        let _ = session.close().await;
+        anyhow::Ok(())
+    })
+    .map_err(CommandError::Failed)
+}
+
+/// Flags of `tilting hz`.
+#[derive(Debug, Clone, Args)]
+pub struct HzArgs {
+    /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Only these topics [default: all]
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub topics: Vec<Topic>,
+    /// Seconds between two reports
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
+    pub every: f64,
+    /// Stop after this many seconds [default: until Ctrl-C]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+    /// One JSON object per report instead of a table
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What `hz` counts on one topic.
+#[derive(Debug, Default, Clone, serde::Serialize)]
+pub struct TopicStats {
+    /// Messages over the whole run.
+    pub count: u64,
+    /// Payloads that did not decode or validate.
+    pub invalid: u64,
+    /// Bytes over the whole run.
+    pub bytes: u64,
+    /// Messages in the current report interval.
+    #[serde(skip)]
+    window: u64,
+    /// Largest gap between two messages in the current interval (s).
+    #[serde(skip)]
+    window_max_gap: f64,
+    #[serde(skip)]
+    last: Option<Instant>,
+}
+
+/// `tilting hz`.
+pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    check_seconds("--seconds", args.seconds)?;
+    check_seconds("--every", Some(args.every))?;
+    let keys = session_args(&args.zenoh)?;
+    let topics: Vec<Topic> = if args.topics.is_empty() {
+        Topic::ALL.to_vec()
+    } else {
+        args.topics.clone()
+    };
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(async {
+        let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+        let stats: Arc<Mutex<Vec<TopicStats>>> =
+            Arc::new(Mutex::new(vec![TopicStats::default(); topics.len()]));
+        let mut subs = Vec::new();
+        for (i, &topic) in topics.iter().enumerate() {
+            let st = stats.clone();
+            let key = topic.key(&keys);
+            let sub = session
+                .declare_subscriber(key.clone())
+                .callback(move |s| {
+                    let bytes = s.payload().to_bytes();
+                    let ok = topic.describe(&bytes, false).is_ok();
+                    let now = Instant::now();
+                    let mut v = st.lock().unwrap_or_else(|e| e.into_inner());
+                    let t = &mut v[i];
+                    t.count += 1;
+                    t.window += 1;
+                    t.bytes += bytes.len() as u64;
+                    t.invalid += u64::from(!ok);
+                    if let Some(l) = t.last {
+                        t.window_max_gap = t.window_max_gap.max((now - l).as_secs_f64());
+                    }
+                    t.last = Some(now);
+                })
+                .await
+                .map_err(|e| {
+                    anyhow!(
+                        "cannot subscribe to {key}: {}",
+                        tilting_net::zenoh_error(&e)
+                    )
+                })?;
+            subs.push(sub);
+        }
+        eprintln!(
+            "hz: {} topics of robot {} (Ctrl-C stops)",
+            topics.len(),
+            keys.robot()
+        );
+        let start = Instant::now();
+        let end = args.seconds.map(|s| start + Duration::from_secs_f64(s));
+        let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
+        let mut last = start;
+        loop {
+            let tick = tokio::time::sleep(Duration::from_secs_f64(args.every));
+            tokio::select! {
+                _ = &mut stop => break,
+                _ = tick => {}
+            }
+            let now = Instant::now();
+            let dt = (now - last).as_secs_f64();
+            last = now;
+            let snapshot: Vec<TopicStats> = {
+                let mut v = stats.lock().unwrap_or_else(|e| e.into_inner());
+                let s = v.clone();
+                for t in v.iter_mut() {
+                    t.window = 0;
+                    t.window_max_gap = 0.0;
+                }
+                s
+            };
+            let text = report(
+                &topics,
+                &snapshot,
+                dt,
+                (now - start).as_secs_f64(),
+                args.json,
+            );
+            print_stdout(&text).map_err(|e| anyhow!("{e}"))?;
+            if end.is_some_and(|e| now >= e) {
+                break;
+            }
+        }
+        drop(subs);
+        let _ = session.close().await;
+        anyhow::Ok(())
+    })
+    .map_err(CommandError::Failed)
+}
+
+/// One report: a table (or a JSON object) with the rate over the last interval, its largest
+/// gap, the message size and the totals.
+fn report(topics: &[Topic], stats: &[TopicStats], dt: f64, t: f64, json: bool) -> String {
+    if json {
+        let v: Vec<serde_json::Value> = topics
+            .iter()
+            .zip(stats)
+            .map(|(tp, s)| {
+                serde_json::json!({
+                    "topic": tp.name(),
+                    "rate_hz": s.window as f64 / dt,
+                    "max_gap_s": if s.window > 1 { Some(s.window_max_gap) } else { None },
+                    "bytes_per_msg": if s.count > 0 { Some(s.bytes as f64 / s.count as f64) } else { None },
+                    "count": s.count,
+                    "invalid": s.invalid,
+                })
+            })
+            .collect();
+        return format!("{}\n", serde_json::json!({ "t": t, "topics": v }));
+    }
+    let mut out = format!(
+        "t {t:8.1} s | {:<9} | {:>9} | {:>10} | {:>9} | {:>9} | {:>7}\n",
+        "topic", "rate (Hz)", "max gap ms", "bytes/msg", "total", "invalid"
+    );
+    for (tp, s) in topics.iter().zip(stats) {
+        let gap = if s.window > 1 {
+            format!("{:.2}", s.window_max_gap * 1e3)
+        } else {
+            "-".to_owned()
+        };
+        let size = if s.count > 0 {
+            format!("{:.0}", s.bytes as f64 / s.count as f64)
+        } else {
+            "-".to_owned()
+        };
+        out += &format!(
+            "             | {:<9} | {:>9.1} | {:>10} | {:>9} | {:>9} | {:>7}\n",
+            tp.name(),
+            s.window as f64 / dt,
+            gap,
+            size,
+            s.count,
+            s.invalid
+        );
+    }
+    out
+}
