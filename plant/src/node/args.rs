@@ -47,6 +47,10 @@ pub struct PlantArgs {
     /// Control period (s), instead of --rate (to match `simulate --control-period` exactly)
     #[arg(long, value_name = "SECONDS", conflicts_with = "rate")]
     pub period: Option<f64>,
+    /// Realtime clock: apply the newest torque received as long as it answers a state at most
+    /// this many periods old (0 = only the answer to the current state, the strict rule)
+    #[arg(long, default_value_t = DEFAULT_MAX_AGE, value_name = "PERIODS")]
+    pub max_age: u64,
     /// Safe mode after this many periods without a valid torque (realtime clock)
     #[arg(long, default_value_t = 50, value_name = "PERIODS")]
     pub watchdog: u64,
@@ -127,6 +131,12 @@ pub const MAX_PERIODS: f64 = 1e9;
 /// command of this machine is well inside it; a 1e9 N m "command" is not.
 pub const DEFAULT_MAX_TORQUE: f64 = 10.0 * paper::ORBIT_MAX_TORQUE;
 
+/// The default `--max-age` (periods): 10, i.e. 10 ms at 1 kHz. A torque answers the state it
+/// was computed from; a round trip of a few periods (a busy LAN, Wi-Fi) keeps the loop running,
+/// and one older than this is not used (the watchdog then counts, and the safe mode follows
+/// after `--watchdog` periods).
+pub const DEFAULT_MAX_AGE: u64 = 10;
+
 /// Longest busy-wait before a deadline (µs).
 pub const MAX_SPIN_US: u64 = 1000;
 
@@ -165,6 +175,11 @@ impl PlantArgs {
                 MAX_PERIODS * h
             );
         }
+        anyhow::ensure!(
+            self.max_age <= 1000,
+            "invalid --max-age = {}: allowed 0 to 1000 periods",
+            self.max_age
+        );
         anyhow::ensure!(
             (1..=1_000_000).contains(&self.watchdog),
             "invalid --watchdog = {}: allowed 1 to 1000000 periods",

@@ -61,6 +61,14 @@ pub(super) struct Loop {
     pub(super) fault: String,
     pub(super) tau: f64,
     pub(super) missed: u64,
+    /// `seq` of the state the torque in force answered.
+    pub(super) applied_seq: Option<u64>,
+    /// Torques applied after their own period (age > 0).
+    pub(super) torques_late: u64,
+    /// States whose answer was never applied (skipped between two applied torques).
+    pub(super) torques_lost: u64,
+    /// Age of each applied torque (periods).
+    pub(super) age: Ring,
     pub(super) deadline_misses: u64,
     pub(super) watchdog_trips: u64,
     pub(super) safe_periods: u64,
@@ -195,22 +203,36 @@ impl Loop {
         }
     }
 
-    /// Applies the outcome of waiting for the answer to `seq`: picks the torque of the period.
+    /// Applies the torque chosen for the period (if any) and picks the torque to integrate
+    /// with. `chosen` is the answer to the current state (lockstep, or real time on time), or in
+    /// real time a newer torque than the one in force that is at most `--max-age` periods old.
     pub(super) fn choose_torque(
         &mut self,
-        fresh: Option<(TorqueCommand, u64)>,
+        chosen: Option<(TorqueCommand, u64)>,
         lockstep: bool,
     ) -> f64 {
         let gone = self.shared.controller_gone.swap(false, Ordering::AcqRel);
-        match fresh {
+        match chosen {
             Some((cmd, arrived)) => {
-                self.latency
-                    .push(arrived.saturating_sub(self.t_pub) as f64 * 1e-3);
+                let age = self.seq - cmd.seq;
+                if age == 0 {
+                    self.latency
+                        .push(arrived.saturating_sub(self.t_pub) as f64 * 1e-3);
+                } else {
+                    // The answer to this state is not in: a late one stands in for it.
+                    self.deadline_misses += 1;
+                    self.torques_late += 1;
+                }
+                if let Some(a) = self.applied_seq {
+                    self.torques_lost += cmd.seq.saturating_sub(a + 1);
+                }
+                self.applied_seq = Some(cmd.seq);
+                self.age.push(age as f64);
                 self.missed = 0;
                 self.tau = cmd.tau;
                 if self.status_state != Status::RUNNING {
                     if self.status_state == Status::SAFE_MODE {
-                        tracing::info!(seq = self.seq, "torque is back: leaving safe mode");
+                        tracing::info!(seq = self.seq, age, "torque is back: leaving safe mode");
                     }
                     self.set_state(Status::RUNNING);
                 }
@@ -223,7 +245,10 @@ impl Loop {
                 } else if lockstep {
                     self.enter_safe("lockstep timeout: no torque answered the state");
                 } else if self.missed >= self.args.watchdog {
-                    let why = format!("no valid torque for {} periods", self.missed);
+                    let why = format!(
+                        "no valid torque at most --max-age {} periods old for {} periods",
+                        self.args.max_age, self.missed
+                    );
                     self.enter_safe(&why);
                 }
             }
@@ -241,16 +266,15 @@ impl Loop {
         }
     }
 
-    pub(super) fn take_fresh(&self) -> Option<(TorqueCommand, u64)> {
-        let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
-        match inbox.take() {
-            Some((cmd, t)) if cmd.seq == self.seq => Some((cmd, t)),
-            Some(_) => {
-                self.shared.stale.fetch_add(1, Ordering::Relaxed);
-                None
-            }
-            None => None,
+    /// Real time: the newest torque received, if it is newer than the one in force and its age
+    /// (periods between the state it answers and the current one) is at most `--max-age`. The
+    /// inbox keeps it (a later, older arrival is then recognised as reordered).
+    pub(super) fn take_newest(&self) -> Option<(TorqueCommand, u64)> {
+        let (cmd, t) = (*self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner()))?;
+        if self.applied_seq.is_some_and(|a| cmd.seq <= a) {
+            return None; // already in force
         }
+        (self.seq - cmd.seq <= self.args.max_age).then_some((cmd, t))
     }
 
     /// Lockstep: waits for the answer to the current state, re-publishing it every 100 ms.
@@ -419,8 +443,8 @@ impl Loop {
             let deadline = start + ((k + 1) as f64 * h_ns).round() as u64;
             let woke = clock::sleep_until(deadline, spin);
             self.jitter.push((woke - deadline) as f64 * 1e-3);
-            let fresh = self.take_fresh();
-            let tau = self.choose_torque(fresh, false);
+            let newest = self.take_newest();
+            let tau = self.choose_torque(newest, false);
             match self.step(tau) {
                 Ok(true) => return Outcome::Completed,
                 Ok(false) => {}
@@ -523,6 +547,7 @@ impl Loop {
         let j = self.jitter.percentiles();
         let l = self.latency.percentiles();
         let c = self.step_cost.percentiles();
+        let a = self.age.percentiles();
         let (result, fault) = match outcome {
             Outcome::Completed => (RunResult::Completed, None),
             Outcome::Stopped => (RunResult::Stopped, None),
@@ -544,6 +569,17 @@ impl Loop {
             torques_received: self.shared.torques.received(),
             torques_dropped: self.shared.torques.dropped(),
             torques_stale: self.shared.stale.load(Ordering::Relaxed),
+            torques_reordered: self.shared.reordered.load(Ordering::Relaxed),
+            torques_late: self.torques_late,
+            torques_lost: self.torques_lost,
+            age_periods: Some(Window {
+                p50: a.p50,
+                p99: a.p99,
+                p999: None,
+                max: self.age.max(),
+                count: Some(self.age.count()),
+                window,
+            }),
             deadline_misses: self.deadline_misses,
             watchdog_trips: self.watchdog_trips,
             safe_periods: self.safe_periods,

@@ -5,8 +5,11 @@ use super::*;
 
 /// State shared by the zenoh callbacks and the pacing thread.
 pub(super) struct Shared {
-    /// The latest valid torque answering the current state, with its arrival time (ns).
+    /// The newest valid torque received (the highest `seq`, never above the current state's),
+    /// with its arrival time (ns). Real time peeks at it at each deadline; lockstep takes it.
     pub(super) inbox: Mutex<Option<(TorqueCommand, u64)>>,
+    /// Valid torques that arrived after a newer one (dropped).
+    pub(super) reordered: AtomicU64,
     pub(super) cv: Condvar,
     /// `seq` of the last published state.
     pub(super) current_seq: AtomicU64,
@@ -35,15 +38,23 @@ impl Shared {
             return;
         }
         let now = clock::now_ns();
-        if cmd.seq != self.current_seq.load(Ordering::Acquire) {
+        if cmd.seq > self.current_seq.load(Ordering::Acquire) {
+            // It answers a state that was never published: a lie or a confused peer.
             self.stale.fetch_add(1, Ordering::Relaxed);
             return;
         }
         let mut inbox = self.inbox.lock().unwrap_or_else(|e| e.into_inner());
-        if inbox.is_some_and(|(c, _)| c.seq == cmd.seq) {
-            // A second answer to the same state: keep the first.
-            self.stale.fetch_add(1, Ordering::Relaxed);
-            return;
+        if let Some((c, _)) = *inbox {
+            if cmd.seq == c.seq {
+                // A second answer to the same state: keep the first.
+                self.stale.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
+            if cmd.seq < c.seq {
+                // Overtaken by a newer answer on the way: too old to use.
+                self.reordered.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
         }
         *inbox = Some((cmd, now));
         drop(inbox);

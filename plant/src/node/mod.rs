@@ -113,6 +113,7 @@ async fn run_async(
         controller_gone: AtomicBool::new(false),
         stop: AtomicBool::new(false),
         max_torque: args.max_torque(),
+        reordered: AtomicU64::new(0),
     });
     let pubs = Arc::new(Publishers {
         state: TypedPublisher::declare(&session, keys.plant_state(), Qos::Control).await?,
@@ -154,6 +155,10 @@ async fn run_async(
         fault: String::new(),
         tau: 0.0,
         missed: 0,
+        applied_seq: None,
+        torques_late: 0,
+        torques_lost: 0,
+        age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,
         safe_periods: 0,

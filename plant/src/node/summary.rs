@@ -71,6 +71,19 @@ pub struct PlantSummary {
     pub torques_dropped: u64,
     /// Valid torques that did not answer the latest state.
     pub torques_stale: u64,
+    /// Valid torques that arrived after a newer one and were dropped.
+    #[serde(default)]
+    pub torques_reordered: u64,
+    /// Torques applied after their own period (their age was 1 to `--max-age` periods).
+    #[serde(default)]
+    pub torques_late: u64,
+    /// States whose answer was never applied (between two applied torques).
+    #[serde(default)]
+    pub torques_lost: u64,
+    /// Age of the applied torques (periods between the state a torque answers and the state
+    /// it was applied at): percentiles over the last 4096 applied torques.
+    #[serde(default)]
+    pub age_periods: Option<Window>,
     /// Periods whose torque did not arrive in time.
     pub deadline_misses: u64,
     /// Times the watchdog put the plant in safe mode.

@@ -1,0 +1,98 @@
+//! Torques that arrive late: a controller that answers every state 2 ms late (a LAN with a
+//! busy switch, or Wi-Fi, at 1 kHz) keeps the real-time plant running. The plant applies the
+//! newest torque as long as it answers a state at most `--max-age` periods old (default 10):
+//! no safe mode, the applied torques are 2 to 4 periods old. With `--max-age 0` (the strict
+//! rule of answering the current state) the same controller trips the watchdog.
+//!
+//! The test plays the controller: it computes the paper's law (the same `ComputedTorque` the
+//! controller node uses) and publishes each answer 2 ms after the state arrived.
+
+use std::sync::Arc;
+use std::time::Duration;
+use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_plant::{paper, State};
+use tilting_proto::{codec, PlantState, TorqueCommand};
+use tilting_tests::*;
+
+/// Runs a 3 s real-time plant against a controller answering `delay` late; its summary.
+async fn run(max_age: u64, delay: Duration) -> PlantSummary {
+    let dir = Scratch::new(&format!("late-{max_age}"));
+    let port = free_port();
+    let robot = robot(&format!("late_{max_age}"));
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(
+            &robot,
+            port,
+            &["--duration", "3", "--max-age", &max_age.to_string()],
+        ),
+        dir.path(),
+    );
+    let client = Client::open(&robot, None, Some(port)).await;
+    let law = Arc::new(
+        ComputedTorque::new(ControlConfig {
+            k: paper::ORBIT_K,
+            energy_avg: paper::ORBIT_ENERGY_AVG,
+            ..ControlConfig::default()
+        })
+        .unwrap(),
+    );
+    let publisher = Arc::new(
+        client
+            .session
+            .declare_publisher(client.keys.controller_torque().to_owned())
+            .await
+            .unwrap(),
+    );
+    let rt = tokio::runtime::Handle::current();
+    let _sub = client
+        .session
+        .declare_subscriber(client.keys.plant_state().to_owned())
+        .callback(move |s| {
+            let Ok(st) = codec::decode::<PlantState>(&s.payload().to_bytes()) else {
+                return;
+            };
+            let tau = law.torque(st.time, st.mode().unwrap(), &State::from(st.x()));
+            let p = publisher.clone();
+            rt.spawn(async move {
+                tokio::time::sleep(delay).await;
+                let _ = p
+                    .put(codec::encode(&TorqueCommand { seq: st.seq, tau }))
+                    .await;
+            });
+        })
+        .await
+        .unwrap();
+    // The plant starts its clock when state 0 is answered (this controller has no token).
+    let exit = plant.expect_exit(Duration::from_secs(30));
+    assert!(exit.success(), "{}", plant.logs());
+    let _ = client.session.close().await;
+    plant.plant_summary()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_controller_2_ms_late_keeps_the_plant_running() {
+    let delay = Duration::from_millis(2);
+    let s = run(10, delay).await;
+    eprintln!("max-age 10: {s:?}");
+    assert_eq!(s.result, RunResult::Completed);
+    assert_eq!(s.watchdog_trips, 0, "no safe mode with late torques: {s:?}");
+    assert_eq!(s.safe_periods, 0);
+    // Almost every torque is applied late, 2 to 4 periods after its state (2 ms of delay plus
+    // the round trip on loopback, on a 1 kHz clock); hardly any is lost.
+    assert!(s.torques_late > 2500, "{s:?}");
+    let age = s.age_periods.expect("ages");
+    assert!(
+        (2.0..=4.0).contains(&age.p50),
+        "age p50 {} periods",
+        age.p50
+    );
+    assert!(s.torques_lost < 300, "{s:?}");
+
+    // The strict rule (answer the current state or nothing) cannot use any of them.
+    let s = run(0, delay).await;
+    eprintln!("max-age 0: {s:?}");
+    assert!(s.watchdog_trips >= 1, "{s:?}");
+    assert!(s.safe_periods > 2000, "{s:?}");
+}
