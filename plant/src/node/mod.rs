@@ -12,20 +12,24 @@
 //! - `--clock realtime` (default): a dedicated thread sleeps to absolute deadlines
 //!   `start + (k + 1) h` (`clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)` with 1 ns timer
 //!   slack, then a short spin), and at each deadline integrates the period that just ended
-//!   with the torque that answered `seq = k`. If that torque has not arrived the previous one
-//!   is held (a deadline miss). A real-time run whose answers all arrive in time is therefore
-//!   the same computation as a lockstep run.
+//!   with the torque that answered `seq = k`. If that answer has not arrived (a deadline
+//!   miss), the newest torque received stands in for it as long as its age (periods since the
+//!   state it answers) is at most `--max-age`; otherwise the torque in force is held. A
+//!   real-time run whose answers all arrive in time is therefore the same computation as a
+//!   lockstep run.
 //! - `--clock lockstep`: after publishing `seq = k` the plant waits for the torque answering
 //!   `seq = k` (re-publishing the state every 100 ms), then integrates: the run is
-//!   deterministic and reproduces `tilting-planner simulate --control-period h` bit for bit.
+//!   deterministic and reproduces `tilting simulate --control-period h` bit for bit.
 //!
 //! # Safe mode
 //!
-//! Without a valid torque for `--watchdog` periods (real-time), or for `--lockstep-timeout-ms`
-//! (lockstep), or at once when the controller's liveliness token disappears, the plant enters
-//! the safe mode (`Status.state = 2`): `--safe-mode zero` applies no torque, `--safe-mode hold`
-//! (default) a holding computed-torque PD towards `beta = pi/2` with `--safe-kp`/`--safe-kd`. A
-//! valid torque answering the current state ends it.
+//! Without a valid torque at most `--max-age` periods old for `--watchdog` periods (real-time),
+//! or for `--lockstep-timeout-ms` (lockstep), or at once when the controller's liveliness token
+//! disappears, the plant enters the safe mode (`Status.state = 2`): `--safe-mode zero` applies no
+//! torque, `--safe-mode hold` (default) a holding computed-torque PD towards `beta = pi/2` with
+//! `--safe-kp`/`--safe-kd`. A valid torque within `--max-age` ends it. In lockstep the plant then
+//! waits at most 1 ms per period for an answer, so a run without its controller goes on at
+//! about real-time speed instead of one period per timeout.
 //!
 //! # End of a run
 //!
