@@ -28,7 +28,6 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
-use std::borrow::Cow;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -328,12 +327,6 @@ impl DropCounter {
         }
     }
 
-    /// Decodes the payload of a zenoh sample (see [`DropCounter::decode`]).
-    pub fn decode_sample<T: Message>(&self, sample: &Sample) -> Option<T> {
-        let bytes: Cow<'_, [u8]> = sample.payload().to_bytes();
-        self.decode(&bytes)
-    }
-
     /// Counts a drop for a reason found by the caller (e.g. a reply error) and logs it at the
     /// bounded rate.
     pub fn record_drop(&self, err: &dyn std::fmt::Display) {
@@ -360,6 +353,24 @@ impl DropCounter {
     }
 }
 
+/// Subscribes to `key` and hands every payload, as bytes, to `on_bytes` (on a zenoh thread:
+/// keep it short and non-blocking). For tools that look at raw payloads; nodes use
+/// [`subscribe_decoded`]. Keep the returned subscriber alive.
+pub async fn subscribe_bytes<F>(
+    session: &Session,
+    key: &str,
+    on_bytes: F,
+) -> anyhow::Result<zenoh::pubsub::Subscriber<()>>
+where
+    F: Fn(&[u8]) + Send + Sync + 'static,
+{
+    session
+        .declare_subscriber(key.to_owned())
+        .callback(move |s| on_bytes(&s.payload().to_bytes()))
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {}", zenoh_error(&e)))
+}
+
 /// Subscribes to the key of `counter` and hands every payload that decodes and validates as a
 /// `T` to `on_msg` (on a zenoh thread: keep it short and non-blocking); malformed payloads are
 /// counted and logged by `counter`. Keep the returned subscriber alive.
@@ -373,15 +384,12 @@ where
     F: Fn(T) + Send + Sync + 'static,
 {
     let key = counter.key().to_owned();
-    session
-        .declare_subscriber(key.clone())
-        .callback(move |s| {
-            if let Some(m) = counter.decode_sample::<T>(&s) {
-                on_msg(m);
-            }
-        })
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {}", zenoh_error(&e)))
+    subscribe_bytes(session, &key, move |bytes| {
+        if let Some(m) = counter.decode::<T>(bytes) {
+            on_msg(m);
+        }
+    })
+    .await
 }
 
 /// How many liveliness tokens matching one key are alive, kept up to date by a liveliness

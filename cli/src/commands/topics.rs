@@ -61,6 +61,18 @@ impl Topic {
         .to_owned()
     }
 
+    /// Decodes and validates one payload without formatting it (the check `hz` runs on every
+    /// message).
+    pub fn check(self, bytes: &[u8]) -> Result<(), tilting_proto::DecodeError> {
+        match self {
+            Topic::State => codec::decode::<PlantState>(bytes).map(drop),
+            Topic::Torque => codec::decode::<TorqueCommand>(bytes).map(drop),
+            Topic::Event => codec::decode::<ModeEvent>(bytes).map(drop),
+            Topic::Status => codec::decode::<Status>(bytes).map(drop),
+            Topic::Reference => codec::decode::<Reference>(bytes).map(drop),
+        }
+    }
+
     /// One payload decoded: a human line, or a JSON object (`--json`); `Err` with the codec's
     /// message (naming the message type and the field) for a payload that does not decode.
     pub fn describe(self, bytes: &[u8], json: bool) -> Result<String, String> {
@@ -178,20 +190,12 @@ pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
         let skipped = Arc::new(Mutex::new(0u64));
         let sk = skipped.clone();
         let key = args.topic.key(&keys);
-        let _sub = session
-            .declare_subscriber(key.clone())
-            .callback(move |s| {
-                if let Err(TrySendError::Full(_)) = tx.try_send(s.payload().to_bytes().to_vec()) {
-                    *sk.lock().unwrap_or_else(|e| e.into_inner()) += 1;
-                }
-            })
-            .await
-            .map_err(|e| {
-                anyhow!(
-                    "cannot subscribe to {key}: {}",
-                    tilting_net::zenoh_error(&e)
-                )
-            })?;
+        let _sub = tilting_net::subscribe_bytes(&session, &key, move |bytes| {
+            if let Err(TrySendError::Full(_)) = tx.try_send(bytes.to_vec()) {
+                *sk.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+            }
+        })
+        .await?;
         eprintln!("echo: {key} (Ctrl-C stops)");
         let end = args
             .seconds
@@ -293,30 +297,21 @@ pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
         for (i, &topic) in topics.iter().enumerate() {
             let st = stats.clone();
             let key = topic.key(&keys);
-            let sub = session
-                .declare_subscriber(key.clone())
-                .callback(move |s| {
-                    let bytes = s.payload().to_bytes();
-                    let ok = topic.describe(&bytes, false).is_ok();
-                    let now = Instant::now();
-                    let mut v = st.lock().unwrap_or_else(|e| e.into_inner());
-                    let t = &mut v[i];
-                    t.count += 1;
-                    t.window += 1;
-                    t.bytes += bytes.len() as u64;
-                    t.invalid += u64::from(!ok);
-                    if let Some(l) = t.last {
-                        t.window_max_gap = t.window_max_gap.max((now - l).as_secs_f64());
-                    }
-                    t.last = Some(now);
-                })
-                .await
-                .map_err(|e| {
-                    anyhow!(
-                        "cannot subscribe to {key}: {}",
-                        tilting_net::zenoh_error(&e)
-                    )
-                })?;
+            let sub = tilting_net::subscribe_bytes(&session, &key, move |bytes| {
+                let ok = topic.check(bytes).is_ok();
+                let now = Instant::now();
+                let mut v = st.lock().unwrap_or_else(|e| e.into_inner());
+                let t = &mut v[i];
+                t.count += 1;
+                t.window += 1;
+                t.bytes += bytes.len() as u64;
+                t.invalid += u64::from(!ok);
+                if let Some(l) = t.last {
+                    t.window_max_gap = t.window_max_gap.max((now - l).as_secs_f64());
+                }
+                t.last = Some(now);
+            })
+            .await?;
             subs.push(sub);
         }
         eprintln!(

@@ -323,17 +323,14 @@ async fn run_async(
     });
 
     let n = node.clone();
-    let _state_sub = session
-        .declare_subscriber(keys.plant_state().to_owned())
-        .callback(move |sample| n.on_state(&sample.payload().to_bytes()))
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", keys.plant_state()))?;
+    let _state_sub =
+        tilting_net::subscribe_bytes(&session, keys.plant_state(), move |b| n.on_state(b)).await?;
     let n = node.clone();
-    let _reference_sub = session
-        .declare_subscriber(keys.planner_reference().to_owned())
-        .callback(move |sample| n.on_reference(&sample.payload().to_bytes(), true))
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", keys.planner_reference()))?;
+    let _reference_sub =
+        tilting_net::subscribe_bytes(&session, keys.planner_reference(), move |b| {
+            n.on_reference(b, true)
+        })
+        .await?;
 
     let (_plant, _plant_sub) =
         tilting_net::watch_presence(&session, keys.alive_plant(), |_| {}).await?;

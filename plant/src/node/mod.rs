@@ -125,11 +125,9 @@ async fn run_async(
         status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Data).await?,
     });
     let sh = shared.clone();
-    let _torque_sub = session
-        .declare_subscriber(keys.controller_torque().to_owned())
-        .callback(move |sample| sh.on_torque(&sample.payload().to_bytes()))
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", keys.controller_torque()))?;
+    let _torque_sub =
+        tilting_net::subscribe_bytes(&session, keys.controller_torque(), move |b| sh.on_torque(b))
+            .await?;
     let sh = shared.clone();
     let (_presence, _presence_sub) =
         tilting_net::watch_presence(&session, keys.alive_controller(), move |alive| {
