@@ -1,0 +1,233 @@
+//! [`Recorder`]: writes a robot's messages into an MCAP file as they arrive.
+
+use crate::{json_topic, schema, wire_topic, JSON_ENCODING, WIRE_ENCODING};
+use mcap::records::{MessageHeader, Metadata};
+use mcap::{Compression, WriteOptions, Writer};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use tilting_proto::{codec, Keys, PlantState, Status, Topic, TorqueCommand};
+
+/// Longest time between two chunk closes while messages arrive: what a SIGKILL can lose.
+pub const FLUSH_INTERVAL: Duration = Duration::from_millis(100);
+
+/// Uncompressed size at which a chunk is closed even before [`FLUSH_INTERVAL`] (bytes).
+const CHUNK_SIZE: u64 = 1 << 20;
+
+/// Recent `seq -> plant time` pairs kept to time-stamp torques (a torque answers a state at
+/// most a few periods old; 1,024 periods is a second at 1 kHz).
+const SEQ_TIMES: usize = 1024;
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The file could not be created or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The MCAP writer refused (an I/O error underneath, usually).
+    #[error("{path}: {source}")]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: mcap::McapError,
+    },
+}
+
+/// Writes the five topics of one robot into an MCAP file (see the crate documentation for the
+/// channels). Not thread-safe: one writer thread owns it.
+pub struct Recorder {
+    writer: Writer<BufWriter<File>>,
+    path: PathBuf,
+    json: [u16; 5],
+    wire: [u16; 5],
+    sequence: [u32; 5],
+    counts: [u64; 5],
+    invalid: u64,
+    /// `(seq, time)` of recent states, indexed by `seq % SEQ_TIMES`.
+    seq_times: Vec<(u64, u64)>,
+    /// Latest plant time seen, ns.
+    now: u64,
+    last_flush: Instant,
+    dirty: bool,
+}
+
+impl Recorder {
+    /// Creates `path` and writes the header, the schemas, the ten channels and a `tilting`
+    /// metadata record naming the robot.
+    pub fn create(path: &Path, keys: &Keys) -> Result<Self, WriteError> {
+        let io = |source| WriteError::Io {
+            path: path.to_owned(),
+            source,
+        };
+        let file = File::create(path).map_err(io)?;
+        let mc = |source| WriteError::Mcap {
+            path: path.to_owned(),
+            source,
+        };
+        let mut writer = WriteOptions::new()
+            .compression(Some(Compression::Zstd))
+            .chunk_size(Some(CHUNK_SIZE))
+            .library(concat!("tilting ", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::new(file))
+            .map_err(mc)?;
+        let mut json = [0; 5];
+        let mut wire = [0; 5];
+        for t in Topic::ALL {
+            let key = t.key(keys);
+            let schema = serde_json::to_vec(&schema::json_schema(t)).unwrap_or_default();
+            let sid = writer
+                .add_schema(&schema::schema_name(t), "jsonschema", &schema)
+                .map_err(mc)?;
+            json[t.index()] = writer
+                .add_channel(sid, &json_topic(key), JSON_ENCODING, &BTreeMap::new())
+                .map_err(mc)?;
+            let meta = BTreeMap::from([
+                ("message_type".to_owned(), t.message_type().to_owned()),
+                ("zenoh_key".to_owned(), key.to_owned()),
+                ("format".to_owned(), "docs/protocol.md".to_owned()),
+            ]);
+            wire[t.index()] = writer
+                .add_channel(0, &wire_topic(key), WIRE_ENCODING, &meta)
+                .map_err(mc)?;
+        }
+        writer
+            .write_metadata(&Metadata {
+                name: "tilting".into(),
+                metadata: BTreeMap::from([
+                    ("robot".to_owned(), keys.robot().to_owned()),
+                    ("log_time".to_owned(), "plant time, ns".to_owned()),
+                ]),
+            })
+            .map_err(mc)?;
+        Ok(Self {
+            writer,
+            path: path.to_owned(),
+            json,
+            wire,
+            sequence: [0; 5],
+            counts: [0; 5],
+            invalid: 0,
+            seq_times: vec![(u64::MAX, 0); SEQ_TIMES],
+            now: 0,
+            last_flush: Instant::now(),
+            dirty: false,
+        })
+    }
+
+    /// Records one wire payload of `topic`: its JSON form and the bytes themselves, at the
+    /// plant time it carries (see the crate documentation). A payload that does not decode
+    /// and validate is counted ([`Recorder::invalid`]) and not written. Closes the current
+    /// chunk when [`FLUSH_INTERVAL`] has passed.
+    pub fn record(&mut self, topic: Topic, wire: &[u8]) -> Result<(), WriteError> {
+        let Ok(json) = schema::to_json(topic, wire) else {
+            self.invalid += 1;
+            return Ok(());
+        };
+        let time = self.log_time(topic, wire);
+        let i = topic.index();
+        for (channel, data) in [(self.json[i], &json[..]), (self.wire[i], wire)] {
+            self.writer
+                .write_to_known_channel(
+                    &MessageHeader {
+                        channel_id: channel,
+                        sequence: self.sequence[i],
+                        log_time: time,
+                        publish_time: time,
+                    },
+                    data,
+                )
+                .map_err(|source| WriteError::Mcap {
+                    path: self.path.clone(),
+                    source,
+                })?;
+        }
+        self.sequence[i] = self.sequence[i].wrapping_add(1);
+        self.counts[i] += 1;
+        self.dirty = true;
+        self.flush_if_due()
+    }
+
+    /// Closes the current chunk if [`FLUSH_INTERVAL`] has passed since the last close (call it
+    /// also when no message has come for a while).
+    pub fn flush_if_due(&mut self) -> Result<(), WriteError> {
+        if self.dirty && self.last_flush.elapsed() >= FLUSH_INTERVAL {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Closes the current chunk and hands it to the operating system: a process killed after
+    /// this leaves a file readable up to here.
+    pub fn flush(&mut self) -> Result<(), WriteError> {
+        self.writer.flush().map_err(|source| WriteError::Mcap {
+            path: self.path.clone(),
+            source,
+        })?;
+        self.last_flush = Instant::now();
+        self.dirty = false;
+        Ok(())
+    }
+
+    /// Messages recorded on `topic`.
+    pub fn count(&self, topic: Topic) -> u64 {
+        self.counts[topic.index()]
+    }
+
+    /// Payloads refused because they did not decode or validate.
+    pub fn invalid(&self) -> u64 {
+        self.invalid
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Writes the last chunk and the summary section, and closes the file.
+    pub fn finish(mut self) -> Result<(), WriteError> {
+        self.writer.finish().map_err(|source| WriteError::Mcap {
+            path: self.path.clone(),
+            source,
+        })?;
+        Ok(())
+    }
+
+    /// The log time of a valid payload, ns of plant time.
+    fn log_time(&mut self, topic: Topic, wire: &[u8]) -> u64 {
+        let t = match topic {
+            Topic::State => codec::decode::<PlantState>(wire).ok().map(|s| {
+                let t = ns(s.time);
+                self.seq_times[(s.seq % SEQ_TIMES as u64) as usize] = (s.seq, t);
+                t
+            }),
+            Topic::Event => codec::decode::<tilting_proto::ModeEvent>(wire)
+                .ok()
+                .map(|e| ns(e.time)),
+            Topic::Status => codec::decode::<Status>(wire).ok().map(|s| ns(s.time)),
+            Topic::Torque => codec::decode::<TorqueCommand>(wire).ok().and_then(|c| {
+                let (seq, t) = self.seq_times[(c.seq % SEQ_TIMES as u64) as usize];
+                (seq == c.seq).then_some(t)
+            }),
+            Topic::Reference => None,
+        };
+        if let Some(t) = t {
+            self.now = self.now.max(t);
+            t
+        } else {
+            self.now
+        }
+    }
+}
+
+/// Plant seconds to ns (times are validated finite; negative ones clamp to 0).
+fn ns(t: f64) -> u64 {
+    (t * 1e9).round().max(0.0) as u64
+}
