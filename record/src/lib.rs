@@ -4,14 +4,14 @@
 //! stand-alone `tilting record`; read back by `tilting info`, `tilting replay`, `tilting
 //! animate` and the figure of a live run.
 //!
-//! Each of the five topics ([`Topic`]) has two channels:
-//!
-//! - `/<key>` (for example `/tilting/demo/plant/state`): the message as a JSON object with a
-//!   JSON Schema (`message_encoding = "json"`, `schema encoding = "jsonschema"`), the encoding
-//!   Foxglove plots without plugins and PlotJuggler's MCAP loader parses (see
-//!   `docs/recordings.md`);
-//! - `/wire/<key>`: the exact payload received on the wire (`message_encoding =
-//!   "tilting-wire"`, no schema), so a replay is byte-exact.
+//! Each of the five topics ([`Topic`]) has one channel, named `/` + its zenoh key (for example
+//! `/tilting/demo/plant/state`): the message as a JSON object with a JSON Schema named
+//! `tilting.<MessageType>` (`message_encoding = "json"`, schema encoding `jsonschema`), the
+//! encoding Foxglove plots without plugins and PlotJuggler's MCAP loader parses (see
+//! `docs/recordings.md`). The exact wire payloads are recovered from the JSON
+//! ([`schema::from_json`]): numbers are written in shortest round-trip form and the wire
+//! encoding of a message is unique, so a replay is byte-exact without storing every message
+//! twice (which doubled the file).
 //!
 //! Log times are **plant time** in ns (a torque is logged at the time of the state it answers,
 //! a reference at the latest plant time seen); publish times are equal to log times.
@@ -48,19 +48,10 @@ pub use reader::{read, Entry, ReadError, Recording};
 pub use tilting_proto::Topic;
 pub use writer::{Recorder, FLUSH_INTERVAL};
 
-/// `message_encoding` of the JSON channels.
+/// `message_encoding` of the channels.
 pub const JSON_ENCODING: &str = "json";
-/// `message_encoding` of the wire channels: the payloads of `docs/protocol.md`, byte for byte.
-pub const WIRE_ENCODING: &str = "tilting-wire";
-/// Prefix of the wire channels' topics.
-pub const WIRE_PREFIX: &str = "/wire/";
 
-/// The JSON channel's topic for a zenoh key: `/` + key.
+/// The channel's topic for a zenoh key: `/` + key.
 pub fn json_topic(key: &str) -> String {
     format!("/{key}")
-}
-
-/// The wire channel's topic for a zenoh key: `/wire/` + key.
-pub fn wire_topic(key: &str) -> String {
-    format!("{WIRE_PREFIX}{key}")
 }

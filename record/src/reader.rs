@@ -1,7 +1,7 @@
 //! Reading a recording back: [`read`] checks the file and counts what it holds;
 //! [`Recording::messages`] streams the wire payloads in file order.
 
-use crate::{WIRE_ENCODING, WIRE_PREFIX};
+use crate::{schema, JSON_ENCODING};
 use mcap::read::{MessageStream, Options};
 use std::path::{Path, PathBuf};
 use tilting_proto::{codec, ModeEvent, Status, Topic};
@@ -25,8 +25,8 @@ pub enum ReadError {
     },
     /// It is MCAP, but holds none of the channels this project writes.
     #[error(
-        "{path} is an MCAP file but has no tilting wire channels (`{WIRE_PREFIX}tilting/<robot>/...` \
-         with encoding `{WIRE_ENCODING}`): it was not recorded by tilting"
+        "{path} is an MCAP file but has no tilting channels (JSON with schemas `tilting.PlantState`, \
+         `tilting.TorqueCommand`, ...): it was not recorded by tilting"
     )]
     Foreign {
         /// The file.
@@ -49,7 +49,8 @@ pub struct Entry {
     pub topic: Topic,
     /// Log time: plant time, ns.
     pub log_time: u64,
-    /// The payload exactly as it crossed the wire (decode with `tilting_proto::codec`).
+    /// The payload exactly as it crossed the wire (recovered from the JSON; decode with
+    /// `tilting_proto::codec`).
     pub wire: Vec<u8>,
 }
 
@@ -117,29 +118,31 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
                 break;
             }
         };
-        let Some(topic) = wire_topic_of(&m.channel) else {
+        let Some(topic) = topic_of(&m.channel) else {
             continue;
         };
         wire_channels += 1;
         if rec.robot.is_none() {
-            rec.robot = m
-                .channel
-                .topic
-                .strip_prefix(WIRE_PREFIX)
-                .and_then(|k| k.split('/').nth(1))
-                .map(str::to_owned);
+            rec.robot = m.channel.topic.split('/').nth(2).map(str::to_owned);
         }
+        let data = match schema::from_json(topic, &m.data) {
+            Ok(d) => d,
+            Err(e) => {
+                it.error = Some(format!("a {topic} message at log time {} ns: {e}", m.log_time));
+                break;
+            }
+        };
         rec.counts[topic.index()] += 1;
         rec.first = Some(rec.first.map_or(m.log_time, |f| f.min(m.log_time)));
         rec.last = Some(rec.last.map_or(m.log_time, |l| l.max(m.log_time)));
         match topic {
             Topic::Event => {
-                if let Ok(e) = codec::decode::<ModeEvent>(&m.data) {
+                if let Ok(e) = codec::decode::<ModeEvent>(&data) {
                     rec.tilts += u64::from(e.from == 0 && e.to != 0);
                 }
             }
             Topic::Status => {
-                if let Ok(s) = codec::decode::<Status>(&m.data) {
+                if let Ok(s) = codec::decode::<Status>(&data) {
                     if !s.fault.is_empty() && !rec.faults.contains(&s.fault) {
                         rec.faults.push(s.fault);
                     }
@@ -165,16 +168,15 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
     Ok(rec)
 }
 
-/// The topic of a wire channel of ours, `None` for any other channel.
-fn wire_topic_of(c: &mcap::Channel<'_>) -> Option<Topic> {
-    if c.message_encoding != WIRE_ENCODING || !c.topic.starts_with(WIRE_PREFIX) {
+/// The topic of a channel of ours (JSON with a `tilting.*` schema), `None` for any other.
+fn topic_of(c: &mcap::Channel<'_>) -> Option<Topic> {
+    if c.message_encoding != JSON_ENCODING {
         return None;
     }
-    let ty = c.metadata.get("message_type")?;
-    Topic::ALL.into_iter().find(|t| t.message_type() == ty)
+    schema::topic_of_schema(&c.schema.as_ref()?.name)
 }
 
-/// The wire messages of a recording in file order (log time order for one writer).
+/// The messages of a recording in file order (log time order for one writer).
 pub struct Messages<'a> {
     inner: MessageStream<'a>,
     error: Option<String>,
@@ -189,12 +191,23 @@ impl Iterator for Messages<'_> {
         loop {
             match self.inner.next()? {
                 Ok(m) => {
-                    if let Some(topic) = wire_topic_of(&m.channel) {
-                        return Some(Entry {
-                            topic,
-                            log_time: m.log_time,
-                            wire: m.data.into_owned(),
-                        });
+                    if let Some(topic) = topic_of(&m.channel) {
+                        match schema::from_json(topic, &m.data) {
+                            Ok(wire) => {
+                                return Some(Entry {
+                                    topic,
+                                    log_time: m.log_time,
+                                    wire,
+                                })
+                            }
+                            Err(e) => {
+                                self.error = Some(format!(
+                                    "a {topic} message at log time {} ns: {e}",
+                                    m.log_time
+                                ));
+                                return None;
+                            }
+                        }
                     }
                 }
                 Err(e) => {

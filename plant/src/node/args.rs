@@ -92,9 +92,10 @@ pub struct PlantArgs {
     /// Hard torque limit (N m) applied by the plant; 0 = none
     #[arg(long, default_value_t = 0.0, value_name = "NM")]
     pub torque_limit: f64,
-    /// Write every sample to this CSV file: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau (the
-    /// state columns in the order of `tilting live`'s state.csv, then the torque applied)
-    #[arg(long, value_name = "FILE.csv")]
+    /// Record the run into this file: MCAP (states, applied torques, events, status; JSON for
+    /// Foxglove and PlotJuggler plus the wire bytes), or for a name ending in `.csv` one row per
+    /// period: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau (the torque applied)
+    #[arg(long, value_name = "FILE.mcap|FILE.csv")]
     pub record: Option<PathBuf>,
     /// Start at once instead of waiting for a controller (its liveliness token or an answer)
     #[arg(long)]

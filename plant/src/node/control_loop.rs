@@ -52,7 +52,9 @@ pub(super) struct Loop {
     pub(super) shared: Arc<Shared>,
     pub(super) pubs: Arc<Publishers>,
     pub(super) obs: Obs,
-    pub(super) record: Option<csv::RowWriter>,
+    pub(super) record: Option<Recording>,
+    /// Torque commands taken into force.
+    pub(super) torques_applied: u64,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
     /// When it was published (ns).
@@ -105,6 +107,17 @@ impl Loop {
         if let Err(e) = self.pubs.state.put(&msg) {
             tracing::warn!("cannot publish the state: {e}");
         }
+        self.rec(|r| r.state(&msg));
+    }
+
+    /// Runs `f` on the `--record` file; a write error is logged once and stops the recording.
+    fn rec(&mut self, f: impl FnOnce(&mut Recording) -> anyhow::Result<()>) {
+        if let Some(r) = &mut self.record {
+            if let Err(e) = f(r) {
+                tracing::warn!("--record: write failed, recording stops: {e:#}");
+                self.record = None;
+            }
+        }
     }
 
     pub(super) fn status(&mut self) -> Status {
@@ -142,10 +155,12 @@ impl Loop {
         if let Err(e) = self.pubs.status.put(&s) {
             tracing::warn!("cannot publish the status: {e}");
         }
+        self.rec(|r| r.status(&s));
         self.next_status = Instant::now() + self.status_interval;
     }
 
     pub(super) fn maybe_status(&mut self) {
+        self.rec(|r| r.flush_if_due());
         let now = Instant::now();
         if now >= self.next_status {
             self.publish_status();
@@ -227,6 +242,8 @@ impl Loop {
                     self.torques_lost += cmd.seq.saturating_sub(a + 1);
                 }
                 self.applied_seq = Some(cmd.seq);
+                self.torques_applied += 1;
+                self.rec(|r| r.torque(&cmd));
                 self.age.push(age as f64);
                 self.missed = 0;
                 self.tau = cmd.tau;
@@ -364,25 +381,10 @@ impl Loop {
     }
 
     pub(super) fn write_record(&mut self, tau: Option<f64>) {
-        if let Some(w) = &mut self.record {
-            let x = self.plant.state();
-            let tau = tau.map(|t| t.to_string()).unwrap_or_default();
-            let r = w.row(format_args!(
-                "{},{},{},{},{},{},{},{}",
-                self.seq,
-                self.plant.time(),
-                self.plant.mode().as_u8(),
-                x[0],
-                x[1],
-                x[2],
-                x[3],
-                tau,
-            ));
-            if let Err(e) = r {
-                tracing::warn!("--record: write failed, recording stops: {e}");
-                self.record = None;
-            }
-        }
+        let (seq, t, mode) = (self.seq, self.plant.time(), self.plant.mode().as_u8());
+        let x = self.plant.state();
+        let x = [x[0], x[1], x[2], x[3]];
+        self.rec(|r| r.row(seq, t, mode, x, tau));
     }
 
     /// Integrates one period with `tau` and publishes the events and the next state.
@@ -415,6 +417,12 @@ impl Loop {
             };
             if let Err(e) = self.pubs.event.put(&msg) {
                 tracing::warn!("cannot publish an event: {e}");
+            }
+            if let Some(r) = &mut self.record {
+                if let Err(e) = r.event(&msg) {
+                    tracing::warn!("--record: write failed, recording stops: {e:#}");
+                    self.record = None;
+                }
             }
             tracing::debug!(t = ev.t, from = %ev.from, to = %ev.to, "transition");
         }
@@ -535,9 +543,9 @@ impl Loop {
                 self.set_state(Status::STOPPED);
             }
         }
-        if let Some(w) = &mut self.record {
-            if let Err(e) = w.flush() {
-                tracing::warn!("--record: flush failed: {e}");
+        if let Some(r) = self.record.take() {
+            if let Err(e) = r.finish() {
+                tracing::warn!("--record: cannot finish the file: {e:#}");
             }
         }
         outcome
@@ -572,6 +580,7 @@ impl Loop {
             torques_reordered: self.shared.reordered.load(Ordering::Relaxed),
             torques_late: self.torques_late,
             torques_lost: self.torques_lost,
+            torques_applied: self.torques_applied,
             age_periods: Some(Window {
                 p50: a.p50,
                 p99: a.p99,

@@ -80,6 +80,9 @@ pub struct PlantSummary {
     /// States whose answer was never applied (between two applied torques).
     #[serde(default)]
     pub torques_lost: u64,
+    /// Torque commands taken into force (the torque channel of an MCAP `--record`).
+    #[serde(default)]
+    pub torques_applied: u64,
     /// Age of the applied torques (periods between the state a torque answers and the state
     /// it was applied at): percentiles over the last 4096 applied torques.
     #[serde(default)]
