@@ -128,7 +128,10 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
         let data = match schema::from_json(topic, &m.data) {
             Ok(d) => d,
             Err(e) => {
-                it.error = Some(format!("a {topic} message at log time {} ns: {e}", m.log_time));
+                it.error = Some(format!(
+                    "a {topic} message at log time {} ns: {e}",
+                    m.log_time
+                ));
                 break;
             }
         };

@@ -180,7 +180,9 @@ pub enum FromJsonError {
 /// (JSON numbers are written in shortest round-trip form and parsed correctly rounded, and the
 /// wire encoding of a message is unique), after the message's own validation.
 pub fn from_json(topic: Topic, json: &[u8]) -> Result<Vec<u8>, FromJsonError> {
-    fn dec<T: Message + serde::de::DeserializeOwned>(json: &[u8]) -> Result<Vec<u8>, FromJsonError> {
+    fn dec<T: Message + serde::de::DeserializeOwned>(
+        json: &[u8],
+    ) -> Result<Vec<u8>, FromJsonError> {
         let m: T = serde_json::from_slice(json)?;
         m.validate()?;
         Ok(codec::encode(&m))
@@ -333,11 +335,17 @@ mod tests {
             mode: 2,
         };
         let wire = encode(&s);
-        assert_eq!(from_json(Topic::State, &to_json(Topic::State, &wire).unwrap()).unwrap(), wire);
+        assert_eq!(
+            from_json(Topic::State, &to_json(Topic::State, &wire).unwrap()).unwrap(),
+            wire
+        );
         // A JSON object out of range is refused with the field named.
-        let e = from_json(Topic::State, br#"{"seq":0,"time":0,"alpha":0,"beta":0,"alpha_dot":0,"beta_dot":0,"mode":7}"#)
-            .unwrap_err()
-            .to_string();
+        let e = from_json(
+            Topic::State,
+            br#"{"seq":0,"time":0,"alpha":0,"beta":0,"alpha_dot":0,"beta_dot":0,"mode":7}"#,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("mode"), "{e}");
     }
 

@@ -8,7 +8,9 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use tilting_proto::{codec, DecodeError, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
+use tilting_proto::{
+    codec, DecodeError, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand,
+};
 
 /// Longest time between two chunk closes while messages arrive: what a SIGKILL can lose.
 pub const FLUSH_INTERVAL: Duration = Duration::from_millis(100);
