@@ -491,12 +491,14 @@ fn a_recording_survives_sigkill_of_live_with_whole_rows() {
     // state.csv within a few flush intervals.
     let run = tilting_record::read(&out.join("run.mcap")).expect("run.mcap opens");
     assert!(!run.complete() && run.truncation().is_some());
-    let mut seq = 0u64;
-    for e in run.messages().filter(|e| e.topic == Topic::State) {
+    for (seq, e) in run
+        .messages()
+        .filter(|e| e.topic == Topic::State)
+        .enumerate()
+    {
         let s: PlantState = tilting_proto::decode(&e.wire).expect("a valid state");
-        assert_eq!(s.seq, seq);
+        assert_eq!(s.seq, seq as u64);
         assert_eq!(e.log_time, (s.time * 1e9).round() as u64);
-        seq += 1;
     }
     let n = run.count(Topic::State);
     assert!(
