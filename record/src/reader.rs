@@ -10,12 +10,12 @@ use tilting_proto::{codec, ModeEvent, Status, Topic};
 #[derive(Debug, thiserror::Error)]
 pub enum ReadError {
     /// The file cannot be opened or read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {cause}")]
     Io {
         /// The file.
         path: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// It does not start with the MCAP magic bytes.
     #[error("{path} is not an MCAP file (it does not start with the MCAP magic bytes)")]
@@ -32,13 +32,21 @@ pub enum ReadError {
         /// The file.
         path: PathBuf,
     },
+    /// It ends (torn) before its first message of ours.
+    #[error("{path} ends before its first message ({why}): nothing to read")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+        /// Where reading stopped.
+        why: String,
+    },
     /// It is MCAP, but broken before its first message.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Broken {
         /// The file.
         path: PathBuf,
         /// The cause.
-        source: mcap::McapError,
+        cause: mcap::McapError,
     },
 }
 
@@ -81,9 +89,9 @@ pub struct Recording {
 /// section, a torn last chunk) opens: [`Recording::complete`] is then false and
 /// [`Recording::truncation`] says where reading stopped.
 pub fn read(path: &Path) -> Result<Recording, ReadError> {
-    let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
+    let bytes = std::fs::read(path).map_err(|cause| ReadError::Io {
         path: path.to_owned(),
-        source,
+        cause,
     })?;
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(ReadError::NotMcap {
@@ -106,9 +114,9 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
         faults: Vec::new(),
     };
     let mut wire_channels = 0usize;
-    let mut it = stream(&bytes).map_err(|source| ReadError::Broken {
+    let mut it = stream(&bytes).map_err(|cause| ReadError::Broken {
         path: path.to_owned(),
-        source,
+        cause,
     })?;
     for item in &mut it.inner {
         let m = match item {
@@ -157,9 +165,15 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
     rec.truncation = it.error.take();
     drop(it);
     rec.bytes = bytes;
-    if wire_channels == 0 && rec.truncation.is_none() {
-        return Err(ReadError::Foreign {
-            path: path.to_owned(),
+    if wire_channels == 0 {
+        return Err(match rec.truncation {
+            None => ReadError::Foreign {
+                path: path.to_owned(),
+            },
+            Some(why) => ReadError::Empty {
+                path: path.to_owned(),
+                why,
+            },
         });
     }
     if rec.complete && rec.truncation.is_some() {

@@ -26,20 +26,20 @@ const SEQ_TIMES: usize = 1024;
 #[derive(Debug, thiserror::Error)]
 pub enum WriteError {
     /// The file could not be created or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Io {
         /// The file.
         path: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The MCAP writer refused (an I/O error underneath, usually).
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Mcap {
         /// The file.
         path: PathBuf,
         /// The cause.
-        source: mcap::McapError,
+        cause: mcap::McapError,
     },
 }
 
@@ -64,14 +64,14 @@ impl Recorder {
     /// Creates `path` and writes the header, the schemas, the five channels and a `tilting`
     /// metadata record naming the robot.
     pub fn create(path: &Path, keys: &Keys) -> Result<Self, WriteError> {
-        let io = |source| WriteError::Io {
+        let io = |cause| WriteError::Io {
             path: path.to_owned(),
-            source,
+            cause,
         };
         let file = File::create(path).map_err(io)?;
-        let mc = |source| WriteError::Mcap {
+        let mc = |cause| WriteError::Mcap {
             path: path.to_owned(),
-            source,
+            cause,
         };
         let mut writer = WriteOptions::new()
             .compression(Some(Compression::Zstd))
@@ -144,9 +144,9 @@ impl Recorder {
                 },
                 &json,
             )
-            .map_err(|source| WriteError::Mcap {
+            .map_err(|cause| WriteError::Mcap {
                 path: self.path.clone(),
-                source,
+                cause,
             })?;
         self.sequence[i] = self.sequence[i].wrapping_add(1);
         self.counts[i] += 1;
@@ -197,9 +197,9 @@ impl Recorder {
     /// Closes the current chunk and hands it to the operating system: a process killed after
     /// this leaves a file readable up to here.
     pub fn flush(&mut self) -> Result<(), WriteError> {
-        self.writer.flush().map_err(|source| WriteError::Mcap {
+        self.writer.flush().map_err(|cause| WriteError::Mcap {
             path: self.path.clone(),
-            source,
+            cause,
         })?;
         self.last_flush = Instant::now();
         self.dirty = false;
@@ -223,9 +223,9 @@ impl Recorder {
 
     /// Writes the last chunk and the summary section, and closes the file.
     pub fn finish(mut self) -> Result<(), WriteError> {
-        self.writer.finish().map_err(|source| WriteError::Mcap {
+        self.writer.finish().map_err(|cause| WriteError::Mcap {
             path: self.path.clone(),
-            source,
+            cause,
         })?;
         Ok(())
     }

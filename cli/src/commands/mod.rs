@@ -5,6 +5,7 @@
 
 pub mod figures;
 pub mod plan;
+pub mod recording;
 pub mod simulate;
 pub mod topics;
 

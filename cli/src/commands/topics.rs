@@ -85,13 +85,13 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
 }
 
 /// The session flags of `echo` and `hz`.
-fn session_args(z: &ZenohArgs) -> Result<Keys, CommandError> {
+pub(crate) fn session_args(z: &ZenohArgs) -> Result<Keys, CommandError> {
     let keys = z.keys().map_err(CommandError::Usage)?;
     z.config(Role::Peer).map_err(CommandError::Usage)?;
     Ok(keys)
 }
 
-fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
+pub(crate) fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
     match v {
         Some(s) if !(s.is_finite() && s > 0.0 && s <= 1e7) => Err(CommandError::Usage(anyhow!(
             "invalid `{flag}` = {s}: allowed a positive number of seconds up to 1e7"
