@@ -29,7 +29,6 @@ fault: fall, contact loss, Zeno, non-finite torque) or 1 (bad arguments).
 """
 
 import argparse
-import bisect
 import collections
 import json
 import math
