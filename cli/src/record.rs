@@ -105,7 +105,8 @@ pub struct RecordView {
     /// States missing between two consecutive rows (gaps in `seq`).
     pub missing_states: u64,
     /// The last tilt peaks `(t, alpha)` seen in the sampled states (extreme `alpha` of each
-    /// completed tilt), oldest first.
+    /// completed tilt, and, once the recording ends, of a tilt in progress whose `|alpha|` has
+    /// already turned back), oldest first.
     pub peaks: VecDeque<(f64, f64)>,
 }
 
@@ -259,8 +260,11 @@ impl Files {
 /// The current tilt, for peak tracking: its mode and extreme alpha so far.
 struct Tilt {
     mode: u8,
+    /// Time and `alpha` of the sample of largest `|alpha|` so far.
     t: f64,
     alpha: f64,
+    /// `alpha` of the latest sample of the tilt.
+    last: f64,
 }
 
 fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> Result<()> {
@@ -358,31 +362,49 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> Resu
             *view.lock().unwrap_or_else(|e| e.into_inner()) = local.clone();
         }
     }
+    finish_peak(&tilt, &mut local.peaks);
     *view.lock().unwrap_or_else(|e| e.into_inner()) = local;
     result?;
     f.finish()
+}
+
+fn push_peak(peaks: &mut VecDeque<(f64, f64)>, peak: (f64, f64)) {
+    if peaks.len() == PEAKS {
+        peaks.pop_front();
+    }
+    peaks.push_back(peak);
 }
 
 fn track_peak(tilt: &mut Option<Tilt>, s: &PlantState, peaks: &mut VecDeque<(f64, f64)>) {
     let same = tilt.as_ref().is_some_and(|c| c.mode == s.mode);
     if !same {
         if let Some(done) = tilt.take() {
-            if peaks.len() == PEAKS {
-                peaks.pop_front();
-            }
-            peaks.push_back((done.t, done.alpha));
+            push_peak(peaks, (done.t, done.alpha));
         }
         if s.mode != 0 {
             *tilt = Some(Tilt {
                 mode: s.mode,
                 t: s.time,
                 alpha: s.alpha,
+                last: s.alpha,
             });
         }
     } else if let Some(c) = tilt {
+        c.last = s.alpha;
         if s.alpha.abs() > c.alpha.abs() {
             c.alpha = s.alpha;
             c.t = s.time;
+        }
+    }
+}
+
+/// At the end of a recording: the tilt still in progress has reached its peak if `|alpha|` has
+/// come back down since its largest sample; that peak belongs to the run although the tilt has
+/// not landed. (A tilt whose `|alpha|` is still growing at the last sample has no peak yet.)
+fn finish_peak(tilt: &Option<Tilt>, peaks: &mut VecDeque<(f64, f64)>) {
+    if let Some(c) = tilt {
+        if c.last.abs() < c.alpha.abs() {
+            push_peak(peaks, (c.t, c.alpha));
         }
     }
 }
@@ -501,6 +523,32 @@ mod tests {
             alpha_dot: 0.0,
             beta_dot: 0.0,
             mode,
+        }
+    }
+
+    #[test]
+    fn a_peak_reached_in_the_unfinished_last_tilt_counts() {
+        // The truth is the samples themselves: alpha rises to its largest sample, then falls
+        // (a peak, though the tilt never lands) or only rises (no peak yet).
+        for (turned_back, want) in [(true, 1), (false, 0)] {
+            let tmp = tempfile::tempdir().unwrap();
+            let rec = Recorder::create(tmp.path(), &Keys::new("t").unwrap(), false).unwrap();
+            let tx = rec.sender();
+            let n = if turned_back { 60 } else { 20 };
+            for k in 0..n {
+                tx.send(Record::State(state(k, 1, 0.03 * (k as f64 * 0.06).sin())));
+            }
+            let v = rec.finish().unwrap();
+            assert_eq!(v.peaks.len(), want, "turned back: {turned_back}");
+            if turned_back {
+                let best = (0..n)
+                    .max_by(|&a, &b| (a as f64 * 0.06).sin().total_cmp(&(b as f64 * 0.06).sin()));
+                let k = best.unwrap();
+                assert_eq!(
+                    v.peaks[0],
+                    (k as f64 * 1e-3, 0.03 * (k as f64 * 0.06).sin())
+                );
+            }
         }
     }
 

@@ -37,7 +37,8 @@ pub struct EventRecord {
     pub x_after: [f64; 4],
 }
 
-/// The extreme tilt angle of one completed tilt.
+/// The extreme tilt angle of one tilt: every completed tilt, and the last tilt of the run if
+/// it reached its peak before the end.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PeakRecord {
     /// Time of the extreme (s).
@@ -102,7 +103,8 @@ pub struct Sample {
 pub struct SimulationReport {
     /// Mode transitions in time order.
     pub events: Vec<EventRecord>,
-    /// Extreme angle of each completed tilt.
+    /// Extreme angle of each tilt, in time order: every completed tilt, then the tilt in
+    /// progress at the end if its peak was reached before the end.
     pub tilt_peaks: Vec<PeakRecord>,
     /// Hybrid state at the end.
     #[serde(rename = "final")]
@@ -297,6 +299,11 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
     let wall = start.elapsed().as_secs_f64();
     if let Some(b) = bar {
         b.finish_and_clear();
+    }
+    // A peak reached in the last tilt, which has not landed (yet, or ever: the run ended in
+    // it, at its duration or by a fault), is a peak of the run too.
+    if let Some(p) = plant.peak_in_progress() {
+        rec.tilt_peak(&p);
     }
     rec.push(plant.time(), plant.mode(), &plant.state(), true);
     let st = plant.stats();

@@ -618,7 +618,18 @@ impl Loop {
                 count: None,
                 window: None,
             },
-            tilt_peaks: self.obs.peaks.iter().map(|p| [p.t, p.alpha]).collect(),
+            // The completed tilts, then the peak of a tilt still in progress (reached before
+            // the end of the run but not landed).
+            tilt_peaks: {
+                let mut peaks = self.obs.peaks.clone();
+                if let Some(p) = self.plant.peak_in_progress() {
+                    if peaks.len() == MAX_PEAKS {
+                        peaks.pop_front();
+                    }
+                    peaks.push_back(p);
+                }
+                peaks.iter().map(|p| [p.t, p.alpha]).collect()
+            },
         }
     }
 }
