@@ -45,8 +45,8 @@ import time
 PLANT_STATE = struct.Struct("<Q5dB")  # seq, time, alpha, beta, alpha_dot, beta_dot, mode
 TORQUE = struct.Struct("<Qd")  # seq, tau
 MODE_EVENT = struct.Struct("<Qd2B8d")  # seq, time, from, to, x_before[4], x_after[4]
-STATUS_HEAD = struct.Struct("<QdBB7Q5dQ")  # ... then `fault` length n, then n bytes of UTF-8
-assert (PLANT_STATE.size, TORQUE.size, MODE_EVENT.size, STATUS_HEAD.size) == (49, 16, 82, 122)
+STATUS_HEAD = struct.Struct("<QdBB7Q5d3Q3dQ")  # ... then `fault` length n, n bytes of UTF-8
+assert (PLANT_STATE.size, TORQUE.size, MODE_EVENT.size, STATUS_HEAD.size) == (49, 16, 82, 170)
 
 FLAT, LEFT, RIGHT = 0, 1, 2
 MODE_NAMES = {FLAT: "flat", LEFT: "left", RIGHT: "right"}
@@ -64,7 +64,7 @@ def pack_event(seq, ev):
 
 
 def pack_status(fields, fault):
-    """fields: the 16 values of the fixed part before the fault length, in table order."""
+    """fields: the 22 values of the fixed part before the fault length, in table order."""
     text = fault.encode("utf-8")
     if len(text) > MAX_FAULT_BYTES:  # cut on a character boundary
         text = text[:MAX_FAULT_BYTES].decode("utf-8", "ignore").encode("utf-8")
@@ -453,9 +453,12 @@ def self_test():
             pass
         else:
             raise AssertionError(f"accepted {bad.hex()}")
-    st = pack_status((1, 0.5, RUNNING, LEFT, 2, 3, 4, 0, 0, 0, 0, 0.0, 0.0, 0.0, 1.0, 2.0), "")
-    assert len(st) == 122
-    assert len(pack_status((0,) * 3 + (0,) * 8 + (0.0,) * 5, "é" * 600)) <= 122 + 1024
+    st = pack_status(
+        (1, 0.5, RUNNING, LEFT, 2, 3, 4, 0, 0, 0, 0, 0.0, 0.0, 0.0, 1.0, 2.0, 0, 0, 0, 0.0, 0.0, 0.0),
+        "",
+    )
+    assert len(st) == 170
+    assert len(pack_status((0,) * 11 + (0.0,) * 5 + (0,) * 3 + (0.0,) * 3, "é" * 600)) <= 170 + 1024
 
     p = Params()
     # Energy against the mass-matrix form T = 1/2 qd^T M qd.
@@ -660,6 +663,12 @@ class Node:
                 0.0,  # max overrun
                 percentile(lat, 0.5),
                 percentile(lat, 0.99),
+                0,  # torques late: lockstep applies only the answer to the current state
+                0,  # torques lost
+                0,  # torques reordered
+                0.0,  # age p50, periods: always 0 in lockstep
+                0.0,  # age p99
+                0.0,  # age max
             ),
             self.fault,
         )

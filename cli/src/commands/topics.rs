@@ -59,7 +59,7 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
         Topic::Status => {
             let s: Status = codec::decode(bytes).map_err(|e| e.to_string())?;
             let h = format!(
-                "t {:.3} s  {}  {}  tilts {}  misses {}  dropped {}  stale {}  latency p50 {:.0} us p99 {:.0} us{}",
+                "t {:.3} s  {}  {}  tilts {}  misses {}  dropped {}  stale {}  latency p50 {:.0} us p99 {:.0} us  age p50 {} p99 {} max {} periods  late {}  lost {}  reordered {}{}",
                 s.time,
                 s.state_name(),
                 mode(s.mode),
@@ -69,6 +69,12 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
                 s.torques_stale,
                 s.latency_p50_us,
                 s.latency_p99_us,
+                s.age_p50,
+                s.age_p99,
+                s.age_max,
+                s.torques_late,
+                s.torques_lost,
+                s.torques_reordered,
                 if s.fault.is_empty() {
                     String::new()
                 } else {

@@ -123,6 +123,7 @@ impl Loop {
     pub(super) fn status(&mut self) -> Status {
         let p = self.jitter.percentiles();
         let l = self.latency.percentiles();
+        let a = self.age.percentiles();
         let mut s = Status {
             seq: self.seq,
             time: self.plant.time(),
@@ -140,6 +141,12 @@ impl Loop {
             max_overrun_us: self.max_overrun_us(),
             latency_p50_us: l.p50,
             latency_p99_us: l.p99,
+            torques_late: self.torques_late,
+            torques_lost: self.torques_lost,
+            torques_reordered: self.shared.reordered.load(Ordering::Relaxed),
+            age_p50: a.p50,
+            age_p99: a.p99,
+            age_max: self.age.max(),
             fault: String::new(),
         };
         s.set_fault(&self.fault);
