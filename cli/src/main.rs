@@ -54,7 +54,7 @@ enum Command {
     Live(live::LiveArgs),
     /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
     /// default the paper's stabilised tilting orbit
-    Simulate(simulate::SimulateArgs),
+    Simulate(Box<simulate::SimulateArgs>),
     /// Plan: the paper's boundary value problems, stability and sweeps
     #[command(subcommand)]
     Plan(Plan),

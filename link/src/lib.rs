@@ -82,7 +82,9 @@ impl FromStr for Jitter {
     fn from_str(s: &str) -> Result<Self, LinkError> {
         const ALLOWED: &str = "uniform:MAX, normal:SIGMA or exp:MEAN, with a parameter in \
                                seconds in (0, 60]";
-        let (dist, param) = s.split_once(':').ok_or_else(|| err("--jitter", s, ALLOWED))?;
+        let (dist, param) = s
+            .split_once(':')
+            .ok_or_else(|| err("--jitter", s, ALLOWED))?;
         let v: f64 = param
             .trim()
             .parse()
@@ -164,9 +166,9 @@ impl LinkSpec {
         }
         let ok = |v: f64| v.is_finite() && v > 0.0 && v <= MAX_SECONDS;
         match self.jitter {
-            Some(Jitter::Uniform { max: v } | Jitter::Normal { sigma: v } | Jitter::Exp { mean: v })
-                if !ok(v) =>
-            {
+            Some(
+                Jitter::Uniform { max: v } | Jitter::Normal { sigma: v } | Jitter::Exp { mean: v },
+            ) if !ok(v) => {
                 return Err(err(
                     &format!("--{prefix}jitter"),
                     v,
@@ -234,7 +236,9 @@ impl Link {
                     break v;
                 }
             },
-            Some(Jitter::Exp { mean }) => Exp::new(1.0 / mean).map_or(0.0, |d| d.sample(&mut self.rng)),
+            Some(Jitter::Exp { mean }) => {
+                Exp::new(1.0 / mean).map_or(0.0, |d| d.sample(&mut self.rng))
+            }
         };
         (!lost).then_some(t + s.delay + jitter)
     }
@@ -315,7 +319,10 @@ mod tests {
         let outcomes: Vec<bool> = (0..n).map(|_| l.send(0.0).is_none()).collect();
         let rate = outcomes.iter().filter(|&&x| x).count() as f64 / n as f64;
         let want = b.p / (b.p + b.r);
-        assert!((rate / want - 1.0).abs() < 0.05, "loss {rate} against {want}");
+        assert!(
+            (rate / want - 1.0).abs() < 0.05,
+            "loss {rate} against {want}"
+        );
         let mut bursts = Vec::new();
         let mut run = 0;
         for &x in &outcomes {
@@ -327,7 +334,11 @@ mod tests {
             }
         }
         let mean = bursts.iter().sum::<usize>() as f64 / bursts.len() as f64;
-        assert!((mean * b.r - 1.0).abs() < 0.05, "mean burst {mean} against {}", 1.0 / b.r);
+        assert!(
+            (mean * b.r - 1.0).abs() < 0.05,
+            "mean burst {mean} against {}",
+            1.0 / b.r
+        );
     }
 
     #[test]
@@ -366,10 +377,16 @@ mod tests {
         .to_string();
         assert!(e.contains("--torque-loss") && e.contains("[0, 1]"), "{e}");
         let e = "gamma:0.001".parse::<Jitter>().unwrap_err().to_string();
-        assert!(e.contains("--jitter") && e.contains("unknown distribution `gamma`"), "{e}");
+        assert!(
+            e.contains("--jitter") && e.contains("unknown distribution `gamma`"),
+            "{e}"
+        );
         assert!("uniform:-1".parse::<Jitter>().is_err());
         assert!("normal".parse::<Jitter>().is_err());
-        assert_eq!("exp:0.002".parse::<Jitter>(), Ok(Jitter::Exp { mean: 0.002 }));
+        assert_eq!(
+            "exp:0.002".parse::<Jitter>(),
+            Ok(Jitter::Exp { mean: 0.002 })
+        );
         let e = "0.1".parse::<Burst>().unwrap_err().to_string();
         assert!(e.contains("--loss-burst"), "{e}");
         assert!("0.1,0".parse::<Burst>().is_err());

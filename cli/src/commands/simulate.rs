@@ -6,7 +6,7 @@ use anyhow::Context as _;
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use tilting_planner::CommandError;
-use tilting_sim::{ScenarioArgs, SimOptions};
+use tilting_sim::{NetworkArgs, ScenarioArgs, SimOptions};
 use tilting_viz::plot::plot_run;
 
 /// Flags of `tilting simulate`.
@@ -15,6 +15,9 @@ pub struct SimulateArgs {
     /// The scenario.
     #[command(flatten)]
     pub scenario: ScenarioArgs,
+    /// An impaired network between plant and controller (sampled loop only).
+    #[command(flatten)]
+    pub network: NetworkArgs,
     /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
     /// summary
     #[arg(long)]
@@ -48,9 +51,14 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
             }
         }
     }
+    let network = args
+        .network
+        .impairment()
+        .map_err(|e| CommandError::Usage(e.into()))?;
     let opts = SimOptions {
         record_samples: args.plot.is_some(),
         progress: !args.json && std::io::stderr().is_terminal(),
+        network,
     };
     let report = tilting_sim::simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
     if args.json {
