@@ -249,6 +249,120 @@ impl Link {
     }
 }
 
+/// What an impaired loop did (see [`ImpairedHold`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct NetStats {
+    /// States the state link lost.
+    pub states_lost: u64,
+    /// Torques the torque link lost.
+    pub torques_lost_on_link: u64,
+    /// Torques taken into force.
+    pub torques_applied: u64,
+    /// Torques applied after their own period (age > 0).
+    pub torques_late: u64,
+    /// Torques that arrived after a newer one had been applied (dropped).
+    pub torques_reordered: u64,
+    /// Torques overtaken at the instant they would act by a newer one that arrived by then.
+    pub torques_superseded: u64,
+    /// Torques that arrived too old (age > `max_age`) and were dropped.
+    pub torques_too_old: u64,
+    /// Periods integrated with zero torque before the first torque arrived.
+    pub periods_before_first_torque: u64,
+    /// Histogram of the age of the applied torques: `age_histogram[a]` torques of age `a`
+    /// periods.
+    pub age_histogram: Vec<u64>,
+}
+
+/// The zero-order hold of a sampled loop whose states and torques cross two emulated links,
+/// with the plant's rule for late torques (the semantics are in `tilting_sim::network`).
+/// Used by the offline `simulate` and by the plant node in lockstep, so the two agree bit for
+/// bit.
+#[derive(Debug, Clone)]
+pub struct ImpairedHold {
+    up: Link,
+    down: Link,
+    max_age: u64,
+    tol: f64,
+    flight: Vec<(u64, f64, f64)>,
+    applied: Option<u64>,
+    tau: f64,
+    stats: NetStats,
+}
+
+impl ImpairedHold {
+    /// The hold for states on `state`, torques on `torque` (random streams 0 and 1 of `seed`),
+    /// sampling `period` (s), applying torques at most `max_age` periods old.
+    pub fn new(state: LinkSpec, torque: LinkSpec, seed: u64, period: f64, max_age: u64) -> Self {
+        Self {
+            up: Link::new(state, seed, 0),
+            down: Link::new(torque, seed, 1),
+            max_age,
+            tol: 1e-9 * period,
+            flight: Vec::new(),
+            applied: None,
+            tau: 0.0,
+            stats: NetStats::default(),
+        }
+    }
+
+    /// Sample `k` at `t_k` (s): the state leaves; if it arrives, `answer` computes the
+    /// controller's torque for it, which goes back over the torque link. Then returns the
+    /// torque to hold over `[t_k, t_{k+1})`. `answer` is called only for a state that arrives
+    /// (a controller never sees a lost one).
+    pub fn step(&mut self, k: u64, t_k: f64, answer: impl FnOnce() -> f64) -> f64 {
+        match self.up.send(t_k) {
+            None => self.stats.states_lost += 1,
+            Some(a) => {
+                let tau = answer();
+                match self.down.send(a) {
+                    None => self.stats.torques_lost_on_link += 1,
+                    Some(r) => self.flight.push((k, r, tau)),
+                }
+            }
+        }
+        let mut best: Option<(u64, f64, f64)> = None;
+        let (tol, max_age, applied) = (self.tol, self.max_age, self.applied);
+        let stats = &mut self.stats;
+        self.flight.retain(|&f| {
+            if f.1 > t_k + tol {
+                return true;
+            }
+            if applied.is_some_and(|a| f.0 <= a) {
+                stats.torques_reordered += 1;
+            } else if k - f.0 > max_age {
+                stats.torques_too_old += 1;
+            } else if let Some(b) = best {
+                if f.0 > b.0 {
+                    best = Some(f);
+                }
+                stats.torques_superseded += 1;
+            } else {
+                best = Some(f);
+            }
+            false
+        });
+        if let Some(b) = best {
+            let age = (k - b.0) as usize;
+            if self.stats.age_histogram.len() <= age {
+                self.stats.age_histogram.resize(age + 1, 0);
+            }
+            self.stats.age_histogram[age] += 1;
+            self.stats.torques_applied += 1;
+            self.stats.torques_late += u64::from(age > 0);
+            self.applied = Some(b.0);
+            self.tau = b.2;
+        } else if self.applied.is_none() {
+            self.stats.periods_before_first_torque += 1;
+        }
+        self.tau
+    }
+
+    /// What the links and the rule did so far.
+    pub fn stats(&self) -> &NetStats {
+        &self.stats
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

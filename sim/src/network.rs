@@ -17,7 +17,7 @@
 //! So with a constant delay `D` (both directions together) and no loss, the torque computed
 //! from the state at `t_k` acts from the first sample instant at or after `t_k + D`.
 
-use tilting_link::{Burst, Jitter, Link, LinkError, LinkSpec};
+use tilting_link::{Burst, ImpairedHold, Jitter, LinkError, LinkSpec};
 use tilting_plant::{Fault, Observer, Plant, TorqueLaw};
 
 /// The impairments of the loop: one link per direction and the seed of their random streams.
@@ -41,41 +41,12 @@ impl Impairment {
     }
 }
 
-/// What the network did to a run.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct NetStats {
-    /// States the state link lost.
-    pub states_lost: u64,
-    /// Torques the torque link lost.
-    pub torques_lost_on_link: u64,
-    /// Torques taken into force.
-    pub torques_applied: u64,
-    /// Torques applied after their own period (age > 0).
-    pub torques_late: u64,
-    /// Torques that arrived after a newer one had been applied (dropped).
-    pub torques_reordered: u64,
-    /// Torques overtaken at the instant they would act by a newer one that arrived by then.
-    pub torques_superseded: u64,
-    /// Torques that arrived too old (age > `max_age`) and were dropped.
-    pub torques_too_old: u64,
-    /// Periods integrated with zero torque before the first torque arrived.
-    pub periods_before_first_torque: u64,
-    /// Histogram of the age of the applied torques: `age_histogram[a]` torques of age `a`
-    /// periods.
-    pub age_histogram: Vec<u64>,
-}
-
-/// A torque on its way: answers state `seq`, arrives at `at` (s).
-#[derive(Debug, Clone, Copy)]
-struct InFlight {
-    seq: u64,
-    at: f64,
-    tau: f64,
-}
+pub use tilting_link::NetStats;
 
 /// [`crate::closed_loop::run_sampled`] over the links of `imp`: the zero-order hold with the
-/// controller `law` at `period` (s) up to `t_end` (s). Returns the run's result, the number of
-/// samples, and what the network did.
+/// controller `law` at `period` (s) up to `t_end` (s), torques chosen by
+/// [`tilting_link::ImpairedHold`]. Returns the run's result, the number of samples, and what
+/// the network did.
 pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     plant: &mut Plant,
     law: &L,
@@ -85,69 +56,15 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     obs: &mut O,
     progress: &mut dyn FnMut(f64),
 ) -> (Result<(), Fault>, u64, NetStats) {
-    let mut up = Link::new(imp.state, imp.seed, 0);
-    let mut down = Link::new(imp.torque, imp.seed, 1);
-    let mut stats = NetStats::default();
-    let mut flight: Vec<InFlight> = Vec::new();
-    let tol = 1e-9 * period;
+    let mut hold = ImpairedHold::new(imp.state, imp.torque, imp.seed, period, imp.max_age);
     let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
     let mut next_update = every;
     let mut samples = 0u64;
-    let mut applied: Option<u64> = None;
-    let mut tau = 0.0;
     let mut k: u64 = 0;
     loop {
         let t_k = k as f64 * period;
-        // The state leaves now; the answer comes back over the torque link.
-        match up.send(t_k) {
-            None => stats.states_lost += 1,
-            Some(a) => {
-                let answer = law.torque(t_k, plant.mode(), &plant.state());
-                match down.send(a) {
-                    None => stats.torques_lost_on_link += 1,
-                    Some(r) => flight.push(InFlight {
-                        seq: k,
-                        at: r,
-                        tau: answer,
-                    }),
-                }
-            }
-        }
+        let tau = hold.step(k, t_k, || law.torque(t_k, plant.mode(), &plant.state()));
         samples += 1;
-        // Torques arrived by t_k: the newest state's answer wins; older ones are reordered.
-        let mut best: Option<InFlight> = None;
-        flight.retain(|f| {
-            if f.at > t_k + tol {
-                return true;
-            }
-            if applied.is_some_and(|a| f.seq <= a) {
-                stats.torques_reordered += 1;
-            } else if k - f.seq > imp.max_age {
-                stats.torques_too_old += 1;
-            } else if let Some(b) = best {
-                if f.seq > b.seq {
-                    best = Some(*f);
-                }
-                // Two answers in by the same instant: the older one never acts.
-                stats.torques_superseded += 1;
-            } else {
-                best = Some(*f);
-            }
-            false
-        });
-        if let Some(b) = best {
-            let age = (k - b.seq) as usize;
-            if stats.age_histogram.len() <= age {
-                stats.age_histogram.resize(age + 1, 0);
-            }
-            stats.age_histogram[age] += 1;
-            stats.torques_applied += 1;
-            stats.torques_late += u64::from(age > 0);
-            applied = Some(b.seq);
-            tau = b.tau;
-        } else if applied.is_none() {
-            stats.periods_before_first_torque += 1;
-        }
         let next = (k + 1) as f64 * period;
         let t_next = if next >= t_end - 1e-9 * period {
             t_end
@@ -155,10 +72,10 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
             next
         };
         if let Err(f) = plant.advance_held(tau, t_next, obs) {
-            return (Err(f), samples, stats);
+            return (Err(f), samples, hold.stats().clone());
         }
         if t_next >= t_end {
-            return (Ok(()), samples, stats);
+            return (Ok(()), samples, hold.stats().clone());
         }
         k += 1;
         if k >= next_update {
