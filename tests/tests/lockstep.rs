@@ -175,3 +175,91 @@ fn plant_summary_reports_the_peak_of_the_unfinished_last_tilt() {
         assert!(p[0] >= b.0 && p[0] <= b.1, "peak {p:?} outside {b:?}");
     }
 }
+
+/// The plant in lockstep emulating an impaired network (delay, jitter, loss; seeded) equals the
+/// offline `simulate` with the same flags, bit for bit: both run the same impaired hold
+/// (`tilting_link::ImpairedHold`) on the same answers, and the controller's law is the same
+/// code.
+#[test]
+fn lockstep_over_an_emulated_link_equals_simulate_with_the_same_flags() {
+    let net = [
+        "--state-delay",
+        "0.0005",
+        "--torque-delay",
+        "0.001",
+        "--jitter",
+        "exp:0.0007",
+        "--loss",
+        "0.03",
+        "--seed",
+        "11",
+    ];
+    let dir = Scratch::new("lockstep-net");
+    let port = free_port();
+    let robot = robot("locknet");
+    let mut extra = vec!["--clock", "lockstep", "--duration", "2"];
+    extra.extend(net);
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(&robot, port, &extra),
+        dir.path(),
+    );
+    let mut ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &peer_args(&robot, port, &[]),
+        dir.path(),
+    );
+    let status = plant.expect_exit(Duration::from_secs(60));
+    assert!(status.success(), "plant: {status}\n{}", plant.logs());
+    ctl.interrupt(Duration::from_secs(10));
+    let summary = plant.plant_summary();
+    let got_net = summary
+        .network
+        .clone()
+        .expect("the plant's network counters");
+
+    let out = std::process::Command::new(bin("tilting"))
+        .args([
+            "simulate",
+            "--json",
+            "--control-period",
+            "0.001",
+            "--duration",
+            "2",
+        ])
+        .args(net)
+        .output()
+        .expect("run simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let want_x: Vec<f64> = v["final"]["x"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    eprintln!("network: {got_net:?}");
+    assert!(
+        got_net.states_lost > 0 && got_net.torques_late > 0,
+        "{got_net:?}"
+    );
+    assert_eq!(summary.time, 2.0);
+    for i in 0..4 {
+        assert_eq!(
+            summary.x[i].to_bits(),
+            want_x[i].to_bits(),
+            "component {i}: {} vs {}",
+            summary.x[i],
+            want_x[i]
+        );
+    }
+    let want_net: tilting_link::NetStats =
+        serde_json::from_value(v["network"].clone()).expect("simulate's network counters");
+    assert_eq!(got_net, want_net);
+}

@@ -18,6 +18,10 @@ pub struct SimulateArgs {
     /// An impaired network between plant and controller (sampled loop only).
     #[command(flatten)]
     pub network: NetworkArgs,
+    /// With an impaired network: the oldest torque the plant applies (periods between the state
+    /// it answers and the current one), as the plant's --max-age
+    #[arg(long, default_value_t = 10, value_name = "PERIODS")]
+    pub max_age: u64,
     /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
     /// summary
     #[arg(long)]
@@ -53,7 +57,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
     }
     let network = args
         .network
-        .impairment()
+        .impairment(args.max_age)
         .map_err(|e| CommandError::Usage(e.into()))?;
     let opts = SimOptions {
         record_samples: args.plot.is_some(),

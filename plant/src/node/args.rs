@@ -38,6 +38,11 @@ pub struct PlantArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    /// Network impairments emulated by the plant (lockstep only): states and torques cross
+    /// links with these delays and losses, deterministically from --seed, exactly as in
+    /// `tilting simulate` with the same flags.
+    #[command(flatten)]
+    pub network: tilting_link::NetworkArgs,
     /// Pace plant time by the wall clock (realtime) or by the controller's answers (lockstep)
     #[arg(long, value_enum, default_value_t = ClockMode::Realtime)]
     pub clock: ClockMode,
@@ -174,6 +179,13 @@ impl PlantArgs {
                 "invalid --duration = {d}: allowed a positive number of seconds, at most \
                  {MAX_PERIODS:e} periods ({} s at this rate)",
                 MAX_PERIODS * h
+            );
+        }
+        if self.network.impairment(self.max_age)?.is_some() {
+            anyhow::ensure!(
+                self.clock == ClockMode::Lockstep,
+                "--delay, --jitter, --loss and --loss-burst are emulated in lockstep only \
+                 (--clock lockstep); in real time, put a real or proxied link between the nodes"
             );
         }
         anyhow::ensure!(

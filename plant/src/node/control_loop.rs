@@ -55,6 +55,8 @@ pub(super) struct Loop {
     pub(super) record: Option<Recording>,
     /// Torque commands taken into force.
     pub(super) torques_applied: u64,
+    /// Lockstep over emulated links (`--delay` ...): the hold that picks the torque.
+    pub(super) hold: Option<tilting_link::ImpairedHold>,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
     /// When it was published (ns).
@@ -499,7 +501,16 @@ impl Loop {
             if self.shared.stop.load(Ordering::Acquire) {
                 return Outcome::Stopped;
             }
-            let tau = self.choose_torque(fresh, true);
+            let fresh_tau = fresh.map(|(c, _)| c.tau);
+            let mut tau = self.choose_torque(fresh, true);
+            if let (Some(answer), Some(hold)) = (fresh_tau, self.hold.as_mut()) {
+                // The answer crosses the emulated links; the hold picks the torque in force,
+                // as `simulate` does with the same flags.
+                tau = hold.step(self.seq, self.plant.time(), || answer);
+                if self.args.torque_limit > 0.0 {
+                    tau = tau.clamp(-self.args.torque_limit, self.args.torque_limit);
+                }
+            }
             match self.step(tau) {
                 Ok(true) => return Outcome::Completed,
                 Ok(false) => {}
@@ -588,6 +599,7 @@ impl Loop {
             torques_late: self.torques_late,
             torques_lost: self.torques_lost,
             torques_applied: self.torques_applied,
+            network: self.hold.as_ref().map(|h| h.stats().clone()),
             age_periods: Some(Window {
                 p50: a.p50,
                 p99: a.p99,

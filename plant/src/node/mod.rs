@@ -137,6 +137,10 @@ async fn run_async(
 
     let h = args.period();
     let safe_pd = (args.safe_kp, args.safe_kd);
+    let hold = args
+        .network
+        .impairment(args.max_age)?
+        .map(|imp| imp.hold(args.period()));
     let mut lp = Loop {
         args,
         h,
@@ -156,6 +160,7 @@ async fn run_async(
         torques_late: 0,
         torques_lost: 0,
         torques_applied: 0,
+        hold,
         age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,
