@@ -250,14 +250,8 @@ fn lockstep_over_an_emulated_link_equals_simulate_with_the_same_flags() {
         "{got_net:?}"
     );
     assert_eq!(summary.time, 2.0);
-    for i in 0..4 {
-        assert_eq!(
-            summary.x[i].to_bits(),
-            want_x[i].to_bits(),
-            "component {i}: {} vs {}",
-            summary.x[i],
-            want_x[i]
-        );
+    for (i, (g, w)) in summary.x.iter().zip(&want_x).enumerate() {
+        assert_eq!(g.to_bits(), w.to_bits(), "component {i}: {g} vs {w}");
     }
     let want_net: tilting_link::NetStats =
         serde_json::from_value(v["network"].clone()).expect("simulate's network counters");
