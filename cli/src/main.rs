@@ -3,7 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting::commands::{figures, plan, recording, simulate, topics};
+use tilting::commands::{figures, margins, plan, recording, simulate, topics};
 use tilting::live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -18,8 +18,8 @@ Run:
   simulate    The closed loop offline for one scenario (default: the paper's orbit)
 
 Plan:
-  plan        orbit | sinusoid | bifurcation | gains: the paper's boundary value problems,
-              stability and sweeps
+  plan        orbit | sinusoid | bifurcation | gains | margins: the paper's boundary value
+              problems, stability, sweeps, and what the orbit survives on a network
 
 Look:
   figures     The paper's Figs. 4 to 8 as PNG files
@@ -84,6 +84,8 @@ enum Plan {
     Bifurcation(plan::BifurcationArgs),
     /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
     Gains(plan::GainsArgs),
+    /// What the stabilised orbit survives: maps over delay × loss and over the control rate
+    Margins(margins::MarginsArgs),
 }
 
 fn main() -> ExitCode {
@@ -96,6 +98,7 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Sinusoid(args)) => plan::sinusoid(args),
         Command::Plan(Plan::Bifurcation(args)) => plan::bifurcation(args),
         Command::Plan(Plan::Gains(args)) => plan::gains(args),
+        Command::Plan(Plan::Margins(args)) => margins::margins(args),
         Command::Figures(args) => figures::figures(args),
         Command::Echo(args) => topics::echo(args),
         Command::Hz(args) => topics::hz(args),

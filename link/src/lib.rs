@@ -271,6 +271,10 @@ pub struct NetStats {
     /// Histogram of the age of the applied torques: `age_histogram[a]` torques of age `a`
     /// periods.
     pub age_histogram: Vec<u64>,
+    /// Longest run of periods without a new torque taken into force (the plant's watchdog
+    /// trips when this reaches `--watchdog`).
+    #[serde(default)]
+    pub longest_gap: u64,
 }
 
 /// The zero-order hold of a sampled loop whose states and torques cross two emulated links,
@@ -286,6 +290,7 @@ pub struct ImpairedHold {
     flight: Vec<(u64, f64, f64)>,
     applied: Option<u64>,
     tau: f64,
+    gap: u64,
     stats: NetStats,
 }
 
@@ -301,6 +306,7 @@ impl ImpairedHold {
             flight: Vec::new(),
             applied: None,
             tau: 0.0,
+            gap: 0,
             stats: NetStats::default(),
         }
     }
@@ -351,8 +357,13 @@ impl ImpairedHold {
             self.stats.torques_late += u64::from(age > 0);
             self.applied = Some(b.0);
             self.tau = b.2;
-        } else if self.applied.is_none() {
-            self.stats.periods_before_first_torque += 1;
+            self.gap = 0;
+        } else {
+            self.gap += 1;
+            self.stats.longest_gap = self.stats.longest_gap.max(self.gap);
+            if self.applied.is_none() {
+                self.stats.periods_before_first_torque += 1;
+            }
         }
         self.tau
     }

@@ -6,6 +6,7 @@
 //!   their Floquet multipliers;
 //! - [`gains`]: orbits over a `(K_P, K_D)` grid (Fig. 6);
 //! - [`bifurcation`]: the sweep over the adaptation gain `k` (Fig. 8) and `k*`;
+//! - [`margins`]: what the stabilised orbit survives: delay × loss, control rate;
 //! - [`node`] (feature `node`): the planner node that publishes the controller's reference over
 //!   zenoh (the `tilting-planner` binary).
 //!
@@ -15,6 +16,7 @@
 
 pub mod bifurcation;
 pub mod gains;
+pub mod margins;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod orbit;

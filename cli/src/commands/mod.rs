@@ -4,6 +4,7 @@
 //! or one JSON object with `--json`); the computations live in the library crates.
 
 pub mod figures;
+pub mod margins;
 pub mod plan;
 pub mod recording;
 pub mod simulate;

@@ -1,0 +1,250 @@
+//! `tilting plan margins`: what the paper's stabilised orbit (`k = 500`) survives, mapped over
+//! constant delay × loss and over the control rate (see `tilting_planner::margins` for the
+//! criteria).
+
+use super::{bar, emit, usage};
+use anyhow::Context as _;
+use clap::Args;
+use serde::Serialize;
+use std::path::PathBuf;
+use tilting_planner::margins::{self, Criteria, Point};
+use tilting_planner::CommandError;
+use tilting_sim::Scenario;
+
+/// Most points of one map.
+const MAX_POINTS: usize = 10_000;
+
+/// Flags of `tilting plan margins`.
+#[derive(Debug, Clone, Args)]
+pub struct MarginsArgs {
+    /// Total constant delays, state and torque together (s), comma-separated, each in [0, 60]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0,0.002,0.004,0.006,0.008,0.010",
+        allow_negative_numbers = true
+    )]
+    pub delays: Vec<f64>,
+    /// Loss probabilities of each direction, comma-separated, each in [0, 1]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0,0.05,0.1,0.2,0.3,0.5",
+        allow_negative_numbers = true
+    )]
+    pub losses: Vec<f64>,
+    /// Control rate of the delay × loss map (Hz), in [1, 10000]
+    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
+    pub rate: f64,
+    /// Control rates of the rate map (Hz), comma-separated, each in [1, 10000]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1000,500,250,200,150,100,75,50",
+        allow_negative_numbers = true
+    )]
+    pub rates: Vec<f64>,
+    /// Tilts a point must complete, in [10, 100000]
+    #[arg(long, default_value_t = 200)]
+    pub tilts: u64,
+    /// Largest relative deviation of the last peaks from the nominal orbit's, in (0, 10]
+    #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
+    pub tolerance: f64,
+    /// Longest stretch of periods without a new torque (the plant's --watchdog), in [1, 1e6]
+    #[arg(long, default_value_t = 50)]
+    pub watchdog: u64,
+    /// Seed of the links' random streams
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Draw the maps (heat map with the survival boundary, and the rate map) into this PNG
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON object instead of the tables
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The JSON of `plan margins`.
+#[derive(Debug, Serialize)]
+pub struct MarginsReport {
+    /// The criteria a point must meet.
+    pub criteria: Criteria,
+    /// The survival criteria in words.
+    pub survives_means: String,
+    /// Nominal mean |peak| of the last 10 tilts, 1 kHz, perfect network (rad).
+    pub nominal_peak: f64,
+    /// Control rate of the delay × loss map (Hz).
+    pub rate: f64,
+    /// The delay × loss map (delays outer).
+    pub delay_loss: Vec<Point>,
+    /// The rate map (perfect network).
+    pub rates: Vec<Point>,
+    /// Largest surviving delay with no loss (s).
+    pub largest_delay: Option<f64>,
+    /// Largest surviving loss with no delay.
+    pub largest_loss: Option<f64>,
+    /// Lowest surviving control rate (Hz).
+    pub lowest_rate: Option<f64>,
+    /// Not mapped yet: the controller with prediction and the event-triggered sampling.
+    pub not_mapped: Vec<&'static str>,
+}
+
+fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), CommandError> {
+    if v.is_empty() {
+        return Err(usage(format!("invalid `{flag}`: give at least one value")));
+    }
+    for &x in v {
+        if !(x.is_finite() && (lo..=hi).contains(&x)) {
+            return Err(usage(format!(
+                "invalid `{flag}` value {x}: allowed {lo} to {hi}"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// `tilting plan margins`.
+pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
+    check_list("--delays", &args.delays, 0.0, 60.0)?;
+    check_list("--losses", &args.losses, 0.0, 1.0)?;
+    check_list("--rates", &args.rates, 1.0, 10_000.0)?;
+    check_list("--rate", &[args.rate], 1.0, 10_000.0)?;
+    if !(10..=100_000).contains(&args.tilts) {
+        return Err(usage(format!(
+            "invalid `--tilts` = {}: allowed 10 to 100000",
+            args.tilts
+        )));
+    }
+    if !(args.tolerance.is_finite() && args.tolerance > 0.0 && args.tolerance <= 10.0) {
+        return Err(usage(format!(
+            "invalid `--tolerance` = {}: allowed (0, 10]",
+            args.tolerance
+        )));
+    }
+    if !(1..=1_000_000).contains(&args.watchdog) {
+        return Err(usage(format!(
+            "invalid `--watchdog` = {}: allowed 1 to 1000000 periods",
+            args.watchdog
+        )));
+    }
+    let n = args.delays.len() * args.losses.len();
+    if n > MAX_POINTS || args.rates.len() > MAX_POINTS {
+        return Err(usage(format!(
+            "too many points: {n} delay × loss and {} rates, at most {MAX_POINTS} each",
+            args.rates.len()
+        )));
+    }
+    if let Some(p) = &args.plot {
+        if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            return Err(usage(format!(
+                "invalid `--plot` = {}: must be a file name ending in .png",
+                p.display()
+            )));
+        }
+    }
+    let c = Criteria {
+        tilts: args.tilts,
+        watchdog: args.watchdog,
+        tolerance: args.tolerance,
+    };
+    let sc = Scenario::default();
+    let b = bar((n + args.rates.len() + 1) as u64, "margins", args.json);
+    let nominal = margins::nominal_peak(&sc, &c);
+    b.inc(1);
+    if nominal <= 0.0 {
+        return Err(CommandError::Failed(anyhow::anyhow!(
+            "the nominal loop did not complete {} tilts",
+            c.tilts
+        )));
+    }
+    let map = margins::delay_loss_map(
+        &sc,
+        args.rate,
+        &args.delays,
+        &args.losses,
+        args.seed,
+        &c,
+        nominal,
+        &|| b.inc(1),
+    );
+    let rates = margins::rate_map(&sc, &args.rates, &c, nominal, &|| b.inc(1));
+    b.finish_and_clear();
+    let (largest_delay, largest_loss, lowest_rate) = margins::boundaries(&map, &rates);
+    let report = MarginsReport {
+        criteria: c,
+        survives_means: format!(
+            "{} tilts completed, alternating sides; no fault and never {} periods without a new \
+             torque (the plant's safe mode); mean |peak| of the last 10 tilts within {:.0} % of \
+             the nominal {nominal:.4} rad (1 kHz, perfect network)",
+            c.tilts,
+            c.watchdog,
+            100.0 * c.tolerance
+        ),
+        nominal_peak: nominal,
+        rate: args.rate,
+        delay_loss: map,
+        rates,
+        largest_delay,
+        largest_loss,
+        lowest_rate,
+        not_mapped: vec![
+            "the controller with prediction (--predict): not implemented yet",
+            "event-triggered sampling (--sample-on-event): not implemented yet",
+        ],
+    };
+    if let Some(p) = &args.plot {
+        tilting_viz::margins::plot(p, &report.delay_loss, &report.rates, nominal, &c)
+            .with_context(|| format!("cannot draw {}", p.display()))
+            .map_err(CommandError::Failed)?;
+    }
+    emit(args.json, &report, || {
+        let mut s = format!(
+            "survives = {}\n\ndelay × loss at {} Hz (rows: total delay, columns: loss of each direction)\n{:>10}",
+            report.survives_means, report.rate, "delay \\ loss"
+        );
+        for l in &args.losses {
+            s += &format!("{l:>8}");
+        }
+        s += "\n";
+        for d in &args.delays {
+            s += &format!("{:>10.4} s ", d);
+            for l in &args.losses {
+                let p = report
+                    .delay_loss
+                    .iter()
+                    .find(|p| p.delay == *d && p.loss == *l);
+                s += &format!(
+                    "{:>8}",
+                    p.map_or("?", |p| if p.survived { "yes" } else { "no" })
+                );
+            }
+            s += "\n";
+        }
+        s += "\ncontrol rate (perfect network)\n";
+        for p in &report.rates {
+            s += &format!(
+                "  {:>7.1} Hz: {}{}\n",
+                p.rate,
+                if p.survived { "survives" } else { "fails" },
+                if p.why.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", p.why)
+                }
+            );
+        }
+        let f = |v: Option<f64>, unit: &str| {
+            v.map_or("none of the grid".into(), |v| format!("{v} {unit}"))
+        };
+        s += &format!(
+            "\nlargest delay survived (no loss): {}\nlargest loss survived (no delay): {}\nlowest rate survived: {}\nnot mapped yet: prediction, event-triggered sampling\n",
+            f(report.largest_delay, "s"),
+            f(report.largest_loss, ""),
+            f(report.lowest_rate, "Hz"),
+        );
+        if let Some(p) = &args.plot {
+            s += &format!("plot: {}\n", p.display());
+        }
+        s
+    })
+}

@@ -1,0 +1,65 @@
+//! Runs the built `tilting plan margins` on a small grid: the JSON states its criteria, the
+//! map brackets what `simulate` shows (no delay survives, 20 ms does not; 1 kHz survives, 50 Hz
+//! does not), the PNG is drawn, and bad lists are refused naming the flag and the range.
+
+use serde_json::Value;
+use std::process::Command;
+
+mod common;
+use common::{TempDir, BIN};
+
+#[test]
+fn a_small_map_with_its_criteria_and_plot() {
+    let dir = TempDir::new("margins");
+    let png = dir.path().join("m.png");
+    let o = Command::new(BIN)
+        .args([
+            "plan", "margins", "--tilts", "20", "--delays", "0,0.02", "--losses", "0",
+        ])
+        .args(["--rates", "1000,50", "--json", "--plot"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["survives_means"].as_str().unwrap().contains("20 tilts"));
+    let map = v["delay_loss"].as_array().unwrap();
+    assert_eq!(map.len(), 2);
+    assert_eq!(map[0]["survived"], true, "{}", map[0]);
+    assert_eq!(map[1]["survived"], false, "{}", map[1]);
+    assert_eq!(v["largest_delay"], 0.0);
+    let rates = v["rates"].as_array().unwrap();
+    assert_eq!(rates[0]["survived"], true);
+    assert_eq!(rates[1]["survived"], false);
+    assert_eq!(v["lowest_rate"], 1000.0);
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
+}
+
+#[test]
+fn bad_lists_name_the_flag_and_the_range() {
+    for (args, want) in [
+        (
+            vec!["--losses", "0,1.5"],
+            "`--losses` value 1.5: allowed 0 to 1",
+        ),
+        (
+            vec!["--delays", "-0.001"],
+            "`--delays` value -0.001: allowed 0 to 60",
+        ),
+        (
+            vec!["--rates", "0"],
+            "`--rates` value 0: allowed 1 to 10000",
+        ),
+        (vec!["--tilts", "5"], "`--tilts` = 5: allowed 10 to 100000"),
+    ] {
+        let o = Command::new(BIN)
+            .args(["plan", "margins"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}

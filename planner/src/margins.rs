@@ -1,0 +1,288 @@
+//! What the stabilised orbit survives: the sampled loop over an emulated network
+//! (`tilting_sim::network`) on a grid of constant delay × Bernoulli loss, and over a range of
+//! control rates.
+//!
+//! A point **survives** when all of these hold (stated in every report):
+//!
+//! - `tilts` tilts (default 200) are completed, and they alternate sides;
+//! - no fault of the model (fall, contact loss, Zeno, integrator failure) and no stretch of
+//!   `watchdog` periods (default 50, the plant's `--watchdog`) without a new torque, which would
+//!   put the plant into its safe mode;
+//! - the mean |peak| of the last 10 tilts is within `tolerance` (default 25 %) of the nominal
+//!   orbit's: the same loop at 1 kHz over a perfect network.
+//!
+//! Each point is one run of up to `tilts × 0.6 s` of plant time (the orbit tilts every 0.435 s),
+//! stopped early at the first fault; points run in parallel (rayon).
+
+use rayon::prelude::*;
+use serde::Serialize;
+use tilting_link::{Impairment, LinkSpec};
+use tilting_plant::{Mode, Plant, TiltPeak, Transition};
+use tilting_sim::{run_sampled_over, Scenario};
+
+/// Plant time allowed per requested tilt (s): the orbit tilts every 0.435 s.
+const SECONDS_PER_TILT: f64 = 0.6;
+/// Tilts whose peaks are compared with the nominal orbit.
+const LAST: usize = 10;
+
+/// The survival criteria.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Criteria {
+    /// Tilts to complete.
+    pub tilts: u64,
+    /// Longest run of periods without a new torque (the plant's watchdog).
+    pub watchdog: u64,
+    /// Largest relative deviation of the last peaks from the nominal ones.
+    pub tolerance: f64,
+}
+
+impl Default for Criteria {
+    fn default() -> Self {
+        Self {
+            tilts: 200,
+            watchdog: 50,
+            tolerance: 0.25,
+        }
+    }
+}
+
+/// One point of a map.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Point {
+    /// Total constant delay, state and torque together (s).
+    pub delay: f64,
+    /// Loss probability of each direction.
+    pub loss: f64,
+    /// Control rate (Hz).
+    pub rate: f64,
+    /// All criteria hold.
+    pub survived: bool,
+    /// Tilts completed.
+    pub tilts: u64,
+    /// Mean |peak| of the last 10 tilts (rad); 0 with fewer tilts.
+    pub last_peak: f64,
+    /// Why it did not survive (empty if it did).
+    pub why: String,
+}
+
+#[derive(Default)]
+struct Watch {
+    tilts: u64,
+    last_side: Option<Mode>,
+    alternate: bool,
+    peaks: Vec<f64>,
+}
+
+impl tilting_plant::Observer for Watch {
+    fn transition(&mut self, ev: &Transition) {
+        if ev.from == Mode::Flat && ev.to != Mode::Flat {
+            if self.last_side == Some(ev.to) {
+                self.alternate = false;
+            }
+            self.last_side = Some(ev.to);
+            self.tilts += 1;
+        }
+    }
+    fn tilt_peak(&mut self, p: &TiltPeak) {
+        if self.peaks.len() == LAST {
+            self.peaks.remove(0);
+        }
+        self.peaks.push(p.alpha.abs());
+    }
+}
+
+/// Mean |peak| of the last tilts of the loop at `rate` over `imp` (a run of `tilts` tilts), or
+/// the reason it failed.
+fn run(sc: &Scenario, rate: f64, imp: &Impairment, c: &Criteria) -> (u64, f64, String) {
+    let Ok(law) = sc.controller() else {
+        return (0, 0.0, "invalid scenario".into());
+    };
+    let Ok(mut plant) = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()) else {
+        return (0, 0.0, "invalid initial state".into());
+    };
+    let mut w = Watch {
+        alternate: true,
+        ..Watch::default()
+    };
+    let t_end = c.tilts as f64 * SECONDS_PER_TILT;
+    let (r, _, net) = run_sampled_over(
+        &mut plant,
+        &law,
+        1.0 / rate,
+        t_end,
+        imp,
+        &mut w,
+        &mut |_| {},
+    );
+    let peak = if w.peaks.len() == LAST {
+        w.peaks.iter().sum::<f64>() / LAST as f64
+    } else {
+        0.0
+    };
+    let why = if let Err(f) = r {
+        format!("fault after {} tilts: {f}", w.tilts)
+    } else if net.longest_gap >= c.watchdog {
+        format!(
+            "{} periods without a new torque (watchdog {})",
+            net.longest_gap, c.watchdog
+        )
+    } else if w.tilts < c.tilts {
+        format!("{} tilts of {}", w.tilts, c.tilts)
+    } else if !w.alternate {
+        "tilts do not alternate".into()
+    } else {
+        String::new()
+    };
+    (w.tilts, peak, why)
+}
+
+/// The nominal last peak: the loop at 1 kHz over a perfect network (rad).
+pub fn nominal_peak(sc: &Scenario, c: &Criteria) -> f64 {
+    run(sc, 1000.0, &Impairment::default(), c).1
+}
+
+fn point(
+    sc: &Scenario,
+    rate: f64,
+    delay: f64,
+    loss: f64,
+    seed: u64,
+    c: &Criteria,
+    nominal: f64,
+) -> Point {
+    let imp = Impairment {
+        state: LinkSpec {
+            loss,
+            ..LinkSpec::default()
+        },
+        torque: LinkSpec {
+            delay,
+            loss,
+            ..LinkSpec::default()
+        },
+        seed,
+        // Any age: the delay is what is measured, not the plant's age rule.
+        max_age: u64::MAX,
+    };
+    let (tilts, last_peak, mut why) = run(sc, rate, &imp, c);
+    if why.is_empty() && (last_peak / nominal - 1.0).abs() > c.tolerance {
+        why = format!(
+            "last peaks {last_peak:.4} rad, {:+.0} % from the nominal {nominal:.4} rad",
+            100.0 * (last_peak / nominal - 1.0)
+        );
+    }
+    Point {
+        delay,
+        loss,
+        rate,
+        survived: why.is_empty(),
+        tilts,
+        last_peak,
+        why,
+    }
+}
+
+/// The delay × loss map at `rate` (Hz): every `(delay, loss)` pair, in row order (delays
+/// outer); `tick` is called after each point.
+#[allow(clippy::too_many_arguments)]
+pub fn delay_loss_map(
+    sc: &Scenario,
+    rate: f64,
+    delays: &[f64],
+    losses: &[f64],
+    seed: u64,
+    c: &Criteria,
+    nominal: f64,
+    tick: &(dyn Fn() + Sync),
+) -> Vec<Point> {
+    let pairs: Vec<(f64, f64)> = delays
+        .iter()
+        .flat_map(|&d| losses.iter().map(move |&l| (d, l)))
+        .collect();
+    pairs
+        .par_iter()
+        .map(|&(d, l)| {
+            let p = point(sc, rate, d, l, seed, c, nominal);
+            tick();
+            p
+        })
+        .collect()
+}
+
+/// The control-rate map over a perfect network: one point per rate (Hz).
+pub fn rate_map(
+    sc: &Scenario,
+    rates: &[f64],
+    c: &Criteria,
+    nominal: f64,
+    tick: &(dyn Fn() + Sync),
+) -> Vec<Point> {
+    rates
+        .par_iter()
+        .map(|&r| {
+            let p = point(sc, r, 0.0, 0.0, 0, c, nominal);
+            tick();
+            p
+        })
+        .collect()
+}
+
+/// The largest delay that survives with no loss, the largest loss that survives with no delay
+/// (of the grid's values, `None` if none does), and the lowest surviving rate.
+pub fn boundaries(map: &[Point], rates: &[Point]) -> (Option<f64>, Option<f64>, Option<f64>) {
+    let d = map
+        .iter()
+        .filter(|p| p.loss == 0.0 && p.survived)
+        .map(|p| p.delay)
+        .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
+    let l = map
+        .iter()
+        .filter(|p| p.delay == 0.0 && p.survived)
+        .map(|p| p.loss)
+        .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
+    let r = rates
+        .iter()
+        .filter(|p| p.survived)
+        .map(|p| p.rate)
+        .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.min(v))));
+    (d, l, r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Short runs (20 tilts) bracket what `simulate` shows: no delay survives, a 20 ms delay
+    /// (far past the 9 ms at which the orbit falls) does not; a loss of everything leaves no
+    /// torque and trips the watchdog.
+    #[test]
+    fn a_short_map_separates_survival_from_failure() {
+        let sc = Scenario::default();
+        let c = Criteria {
+            tilts: 20,
+            ..Criteria::default()
+        };
+        let nominal = nominal_peak(&sc, &c);
+        assert!((0.035..0.05).contains(&nominal), "{nominal}");
+        let map = delay_loss_map(
+            &sc,
+            1000.0,
+            &[0.0, 0.02],
+            &[0.0, 1.0],
+            1,
+            &c,
+            nominal,
+            &|| {},
+        );
+        assert_eq!(map.len(), 4);
+        assert!(map[0].survived, "{:?}", map[0]);
+        assert!(
+            !map[1].survived && map[1].why.contains("watchdog"),
+            "{:?}",
+            map[1]
+        );
+        assert!(!map[2].survived, "{:?}", map[2]);
+        let (d, l, _) = boundaries(&map, &[]);
+        assert_eq!((d, l), (Some(0.0), Some(0.0)));
+    }
+}

@@ -1,0 +1,142 @@
+//! The maps of `tilting plan margins`: survival over delay × loss as a heat map with the
+//! survival boundary drawn, and survival over the control rate.
+
+use anyhow::Result;
+use plotters::prelude::*;
+use std::path::Path;
+use tilting_planner::margins::{Criteria, Point};
+
+const FONT: &str = "sans-serif";
+
+/// Draws the delay × loss map (`map`, delays in s, losses per direction) and the rate map
+/// (`rates`) into `path` (PNG). A cell's colour is the deviation of its last peaks from
+/// `nominal` (rad): green when it survives, red when it does not; the black line is the survival
+/// boundary (the largest surviving delay of each loss).
+pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Criteria) -> Result<()> {
+    crate::plot::register_fonts()?;
+    let root = BitMapBackend::new(path, (1400, 650)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        &format!(
+            "What the k = 500 orbit survives ({} tilts, peaks within {:.0} % of {:.4} rad, no fault, no {}-period gap)",
+            c.tilts,
+            100.0 * c.tolerance,
+            nominal,
+            c.watchdog
+        ),
+        (FONT, 22),
+    )?;
+    let (left, right) = root.split_horizontally(900);
+    let mut delays: Vec<f64> = map.iter().map(|p| p.delay).collect();
+    delays.sort_by(f64::total_cmp);
+    delays.dedup();
+    let mut losses: Vec<f64> = map.iter().map(|p| p.loss).collect();
+    losses.sort_by(f64::total_cmp);
+    losses.dedup();
+    let (nl, nd) = (losses.len().max(1), delays.len().max(1));
+    let mut chart = ChartBuilder::on(&left)
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .caption(
+            "survival over delay × loss (a cell per run; labels at its lower left corner)",
+            (FONT, 20),
+        )
+        .build_cartesian_2d(0f64..nl as f64, 0f64..nd as f64)?;
+    let ls = losses.clone();
+    let ds = delays.clone();
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_labels(nl + 1)
+        .y_labels(nd + 1)
+        .x_label_formatter(&move |x| {
+            ls.get(x.floor() as usize)
+                .map_or(String::new(), |l| format!("{l}"))
+        })
+        .y_label_formatter(&move |y| {
+            ds.get(y.floor() as usize)
+                .map_or(String::new(), |d| format!("{:.1}", d * 1e3))
+        })
+        .x_desc("loss probability of each direction")
+        .y_desc("total constant delay (ms)")
+        .axis_desc_style((FONT, 18))
+        .label_style((FONT, 15))
+        .draw()?;
+    let idx = |v: &[f64], x: f64| v.iter().position(|&y| y == x).unwrap_or(0) as f64;
+    chart.draw_series(map.iter().map(|p| {
+        let (x, y) = (idx(&losses, p.loss), idx(&delays, p.delay));
+        let dev = if p.last_peak > 0.0 {
+            ((p.last_peak / nominal - 1.0).abs() / c.tolerance).min(1.0)
+        } else {
+            1.0
+        };
+        let color = if p.survived {
+            RGBColor(40 + (150.0 * dev) as u8, 170, 60)
+        } else {
+            RGBColor(200, 60 + (80.0 * (1.0 - dev)) as u8, 60)
+        };
+        Rectangle::new([(x, y), (x + 1.0, y + 1.0)], color.filled())
+    }))?;
+    // The boundary: above the largest surviving delay of each loss column.
+    let mut line = Vec::new();
+    for (i, l) in losses.iter().enumerate() {
+        let top = map
+            .iter()
+            .filter(|p| p.loss == *l && p.survived)
+            .map(|p| idx(&delays, p.delay) + 1.0)
+            .fold(0.0, f64::max);
+        line.push((i as f64, top));
+        line.push((i as f64 + 1.0, top));
+    }
+    chart.draw_series(LineSeries::new(line, BLACK.stroke_width(4)))?;
+
+    let mut rs: Vec<&Point> = rates.iter().collect();
+    rs.sort_by(|a, b| a.rate.total_cmp(&b.rate));
+    let n = rs.len().max(1);
+    let y_hi = rs
+        .iter()
+        .map(|p| p.last_peak / nominal)
+        .fold(1.0 + c.tolerance, f64::max)
+        * 1.1;
+    let labels: Vec<String> = rs.iter().map(|p| format!("{}", p.rate)).collect();
+    let mut chart = ChartBuilder::on(&right)
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(60)
+        .caption("control rate, perfect network", (FONT, 20))
+        .build_cartesian_2d(0f64..n as f64, 0f64..y_hi)?;
+    chart
+        .configure_mesh()
+        .x_labels(n)
+        .x_label_formatter(&move |x| labels.get(x.floor() as usize).cloned().unwrap_or_default())
+        .x_desc("control rate (Hz)")
+        .y_desc("last peaks / nominal")
+        .axis_desc_style((FONT, 18))
+        .label_style((FONT, 15))
+        .draw()?;
+    chart.draw_series(rs.iter().enumerate().map(|(i, p)| {
+        let color = if p.survived {
+            RGBColor(40, 170, 60)
+        } else {
+            RGBColor(200, 60, 60)
+        };
+        let h = if p.last_peak > 0.0 {
+            p.last_peak / nominal
+        } else {
+            0.02 * y_hi
+        };
+        Rectangle::new(
+            [(i as f64 + 0.15, 0.0), (i as f64 + 0.85, h)],
+            color.filled(),
+        )
+    }))?;
+    for y in [1.0 - c.tolerance, 1.0 + c.tolerance] {
+        chart.draw_series(LineSeries::new(
+            vec![(0.0, y), (n as f64, y)],
+            BLACK.stroke_width(2),
+        ))?;
+    }
+    root.present()?;
+    Ok(())
+}
