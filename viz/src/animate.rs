@@ -1,5 +1,6 @@
-//! The robot, moving: the plate and the arm of a [`Trace`] drawn frame by frame into an animated
-//! GIF (plotters' GIF backend) or into a directory of numbered PNG frames (for a video encoder).
+//! The robot, moving: the plate and the arm of a [`Trace`] drawn frame by frame with plotters into
+//! an animated GIF (encoded with the `gif` crate: one fixed palette, only the changed rectangle
+//! of each frame) or into a directory of numbered PNG frames (for a video encoder).
 //!
 //! Geometry and conventions are those of `docs/model.md`: world frame with the origin at the
 //! plate's left edge lying flat, `x` to the right, `y` up (m); `alpha` is the plate's tilt
@@ -223,15 +224,7 @@ pub fn animate(
     let mut flashed = 0;
     match out {
         Output::Gif(path) => {
-            let root = BitMapBackend::gif(path, opts.size, tl.delay_cs * 10)
-                .map_err(|e| anyhow!("cannot create {}: {e}", path.display()))?
-                .into_drawing_area();
-            for i in 0..tl.frames {
-                flashed += scene.draw(&root, tl.time(i))? as usize;
-                root.present()
-                    .with_context(|| format!("cannot write a frame to {}", path.display()))?;
-                bar.inc(1);
-            }
+            flashed = write_gif(path, &scene, &tl, opts.size, bar)?;
         }
         Output::Frames(dir) => {
             if !dir.is_dir() {
@@ -252,6 +245,115 @@ pub fn animate(
         timeline: tl,
         flashed,
     })
+}
+
+/// The GIF's palette (256 RGB triples): the 6 x 6 x 6 colour cube, levels `0, 51, ..., 255`,
+/// index `36 r + 6 g + b`; the last 40 entries are unused (black).
+fn cube_palette() -> Vec<u8> {
+    let mut palette = Vec::with_capacity(256 * 3);
+    for r in 0..6u8 {
+        for g in 0..6u8 {
+            for b in 0..6u8 {
+                palette.extend_from_slice(&[r * 51, g * 51, b * 51]);
+            }
+        }
+    }
+    palette.resize(256 * 3, 0);
+    palette
+}
+
+/// Each RGB pixel of `rgb` to the index of the nearest colour of [`cube_palette`].
+fn quantise(rgb: &[u8], idx: &mut [u8]) {
+    let level = |v: u8| (v as u16 * 5 + 127) / 255;
+    for (k, px) in idx.iter_mut().zip(rgb.chunks_exact(3)) {
+        *k = (level(px[0]) * 36 + level(px[1]) * 6 + level(px[2])) as u8;
+    }
+}
+
+/// Writes the frames of `scene` into the GIF `path`; returns the number of flashed frames.
+///
+/// One global palette, the 6 x 6 x 6 colour cube (each pixel rounded to the nearest level of
+/// 51), so no per-frame quantisation; every frame after the first holds only the rectangle that
+/// changed (disposal "keep"), which the viewers compose over the previous frame.
+fn write_gif(
+    path: &Path,
+    scene: &Scene,
+    tl: &Timeline,
+    size: (u32, u32),
+    bar: &indicatif::ProgressBar,
+) -> Result<usize> {
+    let (w, h) = (size.0 as usize, size.1 as usize);
+    let palette = cube_palette();
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let io = |e: gif::EncodingError| anyhow!("cannot write {}: {e}", path.display());
+    let mut enc = gif::Encoder::new(
+        std::io::BufWriter::new(file),
+        size.0 as u16,
+        size.1 as u16,
+        &palette,
+    )
+    .map_err(io)?;
+    enc.set_repeat(gif::Repeat::Infinite).map_err(io)?;
+    let mut rgb = vec![0u8; w * h * 3];
+    let mut idx = vec![0u8; w * h];
+    let mut prev: Option<Vec<u8>> = None;
+    let mut flashed = 0;
+    for i in 0..tl.frames {
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+            flashed += scene.draw(&root, tl.time(i))? as usize;
+            root.present()?;
+        }
+        quantise(&rgb, &mut idx);
+        // The rectangle [x0, x1) x [y0, y1) that differs from the previous frame.
+        let (mut x0, mut y0, mut x1, mut y1) = (0, 0, w, h);
+        if let Some(p) = &prev {
+            (x0, y0, x1, y1) = (w, h, 0, 0);
+            for y in 0..h {
+                let (a, b) = (&idx[y * w..(y + 1) * w], &p[y * w..(y + 1) * w]);
+                if let Some(first) = a.iter().zip(b).position(|(u, v)| u != v) {
+                    let last = w - a
+                        .iter()
+                        .rev()
+                        .zip(b.iter().rev())
+                        .position(|(u, v)| u != v)
+                        .unwrap_or(0);
+                    (x0, x1) = (x0.min(first), x1.max(last));
+                    (y0, y1) = (y0.min(y), y + 1);
+                }
+            }
+            if x1 <= x0 {
+                // Nothing changed: one pixel, to keep the frame's delay.
+                (x0, y0, x1, y1) = (0, 0, 1, 1);
+            }
+        }
+        let mut sub = Vec::with_capacity((x1 - x0) * (y1 - y0));
+        for y in y0..y1 {
+            sub.extend_from_slice(&idx[y * w + x0..y * w + x1]);
+        }
+        let frame = gif::Frame {
+            left: x0 as u16,
+            top: y0 as u16,
+            width: (x1 - x0) as u16,
+            height: (y1 - y0) as u16,
+            buffer: std::borrow::Cow::Owned(sub),
+            delay: tl.delay_cs as u16,
+            dispose: gif::DisposalMethod::Keep,
+            ..gif::Frame::default()
+        };
+        enc.write_frame(&frame).map_err(io)?;
+        match &mut prev {
+            Some(p) => p.copy_from_slice(&idx),
+            None => prev = Some(idx.clone()),
+        }
+        bar.inc(1);
+    }
+    let mut file = enc
+        .into_inner()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    std::io::Write::flush(&mut file).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(flashed)
 }
 
 const PLATE: RGBColor = RGBColor(40, 70, 150);
@@ -672,11 +774,17 @@ mod tests {
         assert_eq!((d.width(), d.height()), (320, 240));
         let mut n = 0;
         let mut red = Vec::new();
+        // Frames after the first are rectangles over the previous one: compose them.
+        let mut canvas = vec![0u8; 320 * 240 * 4];
         while let Some(f) = d.read_next_frame().unwrap() {
             assert_eq!(f.delay, 4);
+            let (l, t, fw) = (f.left as usize, f.top as usize, f.width as usize);
+            for (y, row) in f.buffer.chunks(fw * 4).enumerate() {
+                let at = ((t + y) * 320 + l) * 4;
+                canvas[at..at + fw * 4].copy_from_slice(row);
+            }
             // Count strongly red pixels: the flashed plate and ring.
-            let reds = f
-                .buffer
+            let reds = canvas
                 .chunks(4)
                 .filter(|p| p[0] > 180 && p[1] < 90 && p[2] < 90)
                 .count();
@@ -684,6 +792,23 @@ mod tests {
             n += 1;
         }
         assert_eq!(n, 13);
+        // The composed last frame is the frame drawn directly, in the palette's colours.
+        let tl = timeline(&tr, &opts).unwrap();
+        let scene = Scene::new(&Params::default(), &tr, &tl, &opts);
+        let mut rgb = vec![0u8; 320 * 240 * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, (320, 240)).into_drawing_area();
+            scene.draw(&root, tl.time(12)).unwrap();
+        }
+        let mut idx = vec![0u8; 320 * 240];
+        quantise(&rgb, &mut idx);
+        let pal = cube_palette();
+        let differ = idx
+            .iter()
+            .zip(canvas.chunks(4))
+            .filter(|(&k, c)| pal[3 * k as usize..3 * k as usize + 3] != c[..3])
+            .count();
+        assert_eq!(differ, 0);
         let flashed: Vec<bool> = red.iter().map(|&r| r > 50).collect();
         let expect: Vec<bool> = (0..13).map(|i| (5..8).contains(&i)).collect();
         assert_eq!(flashed, expect, "red pixels per frame: {red:?}");
