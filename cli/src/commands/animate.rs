@@ -100,6 +100,12 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
             check(name, v, true, "a number of seconds")?;
         }
     }
+    let (w, h) = args.size;
+    if !((160..=4096).contains(&w) && (120..=4096).contains(&h)) {
+        return Err(usage(format!(
+            "invalid `--size` = {w}x{h}: must be from 160x120 to 4096x4096 px"
+        )));
+    }
     if let (Some(a), Some(b)) = (args.start, args.end) {
         if b <= a {
             return Err(usage(format!(
