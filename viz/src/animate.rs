@@ -534,7 +534,13 @@ impl<'a> Scene<'a> {
         // Readouts.
         let font = ("sans-serif", 20).into_font();
         let small = ("sans-serif", 16).into_font();
-        root.draw(&Text::new(format!("t = {t:.2} s"), (10, 8), font.clone()))?;
+        // Enough decimals to tell consecutive frames apart.
+        let digits = (-self.tl.dt.log10()).ceil().clamp(2.0, 6.0) as usize;
+        root.draw(&Text::new(
+            format!("t = {t:.digits$} s"),
+            (10, 8),
+            font.clone(),
+        ))?;
         let what = match mode {
             Mode::Flat => "flat",
             Mode::Left => "tilted left (pivot: left edge)",
@@ -543,12 +549,19 @@ impl<'a> Scene<'a> {
         let mode_style = font
             .clone()
             .color(&if mode.is_tilted() { PIVOT } else { BLACK });
-        root.draw(&Text::new(what, (150, 8), mode_style))?;
+        root.draw(&Text::new(what, (170, 8), mode_style))?;
         root.draw(&Text::new(
             format!("α = {alpha:+.4} rad   β = {beta:.4} rad"),
             (10, 36),
             small.clone(),
         ))?;
+        if self.trace.stopped_early && t >= self.trace.end - 0.5 * self.tl.dt {
+            root.draw(&Text::new(
+                "the run stopped early here",
+                (w / 2 - 90, TOP - 4),
+                small.clone().color(&FLASHED),
+            ))?;
+        }
         if self.speed != 1.0 {
             root.draw(&Text::new(
                 format!("speed ×{}", self.speed),

@@ -9,7 +9,7 @@ use anyhow::{anyhow, bail, Context as _, Result};
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::fs::File;
-use std::io::{BufRead as _, BufReader};
+use std::io::{BufRead as _, BufReader, IsTerminal as _};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tilting_planner::CommandError;
@@ -162,7 +162,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
                 &sc,
                 SimOptions {
                     record_samples: true,
-                    progress: false,
+                    progress: !args.json && std::io::stderr().is_terminal(),
                 },
             )
             .map_err(|e| CommandError::Usage(e.into()))?;
