@@ -66,6 +66,18 @@ alpha_after,beta_after,alpha_dot_after,beta_dot_after\n";
         ["frame_000000.png", "frame_000001.png", "frame_000002.png"]
     );
 
+    // Frames already there are not mixed with new ones.
+    let out = Command::new(bin("tilting"))
+        .args(["animate", "--from"])
+        .arg(&run)
+        .arg("--frames")
+        .arg(&frames)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("already holds frames"), "{err}");
+
     // A garbled row: a usage error naming the file, the line and the column.
     std::fs::write(
         run.join("state.csv"),

@@ -32,7 +32,8 @@ pub struct AnimateArgs {
     #[arg(long, value_name = "FILE.gif")]
     pub out: Option<PathBuf>,
     /// Write PNG frames frame_000000.png, ... into this directory instead of a GIF (created if
-    /// missing); for a video: ffmpeg -framerate FPS -i DIR/frame_%06d.png robot.mp4
+    /// missing, refused if it already holds frames); for a video:
+    /// ffmpeg -framerate FPS -i DIR/frame_%06d.png robot.mp4
     #[arg(long, value_name = "DIR", conflicts_with = "out")]
     pub frames: Option<PathBuf>,
     /// Frames per second of playback, at most 50 (GIF delays are whole 1/100 s: 25 and 50 are
@@ -115,6 +116,20 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
     }
     let (out, gif) = match (&args.frames, &args.out) {
         (Some(d), _) => {
+            // Frames of an earlier, longer render would join this one in a video.
+            let old = std::fs::read_dir(d).ok().and_then(|mut it| {
+                it.find_map(|e| {
+                    let name = e.ok()?.file_name().into_string().ok()?;
+                    (name.starts_with("frame_") && name.ends_with(".png")).then_some(name)
+                })
+            });
+            if let Some(name) = old {
+                return Err(usage(format!(
+                    "invalid `--frames` = {}: the directory already holds frames ({name}); \
+                     remove them or choose another directory",
+                    d.display()
+                )));
+            }
             std::fs::create_dir_all(d)
                 .with_context(|| format!("cannot create the frame directory {}", d.display()))
                 .map_err(CommandError::Failed)?;
