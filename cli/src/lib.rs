@@ -1,7 +1,7 @@
 //! The front door of the tilting system: the `tilting` binary and what it runs.
 //!
 //! - [`commands`]: the subcommands, grouped by what a person wants (run: `live`, `simulate`;
-//!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`);
+//!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`, `animate`);
 //! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
 //!   and a report;
 //! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);

@@ -3,7 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting::commands::{figures, margins, plan, recording, simulate, topics};
+use tilting::commands::{animate, figures, margins, plan, recording, simulate, topics};
 use tilting::live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -23,6 +23,7 @@ Plan:
 
 Look:
   figures     The paper's Figs. 4 to 8 as PNG files
+  animate     The plate and the arm, moving, as an animated GIF (from a simulation or a live run)
   echo        Print a robot's topic live, decoded (one line or one JSON object per message)
   hz          Rate, largest gap and message size of a robot's topics
   record      Record a robot's topics into an MCAP file (opens in Foxglove, PlotJuggler)
@@ -60,6 +61,9 @@ enum Command {
     Plan(Plan),
     /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png) in a directory
     Figures(figures::FiguresArgs),
+    /// The plate and the arm, moving, as an animated GIF (or PNG frames): from a simulated
+    /// scenario (the flags of `simulate`) or a live run's directory (--from DIR)
+    Animate(animate::AnimateArgs),
     /// Print a robot's topic live, decoded: one line (or one JSON object) per message
     Echo(topics::EchoArgs),
     /// The rate, the largest gap and the message size of a robot's topics, every second
@@ -100,6 +104,7 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Gains(args)) => plan::gains(args),
         Command::Plan(Plan::Margins(args)) => margins::margins(args),
         Command::Figures(args) => figures::figures(args),
+        Command::Animate(args) => animate::run(args),
         Command::Echo(args) => topics::echo(args),
         Command::Hz(args) => topics::hz(args),
         Command::Record(args) => recording::record(args),

@@ -428,6 +428,22 @@ pub struct RecordedTrace {
 /// Reads the states and events of the MCAP recording at `path`, keeping about `max_points`
 /// states (every state for `None`).
 pub fn load_trace(path: &Path, max_points: Option<u64>) -> Result<RecordedTrace> {
+    load_window(path, max_points, Window::default())
+}
+
+/// The part of a recording to read (plant time, s).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Window {
+    /// First time kept.
+    pub start: Option<f64>,
+    /// Last time kept.
+    pub end: Option<f64>,
+    /// Keep only this many seconds before the end of the recording.
+    pub tail: Option<f64>,
+}
+
+/// [`load_trace`] of the states in `w` only (memory bounded by the window).
+pub fn load_window(path: &Path, max_points: Option<u64>, w: Window) -> Result<RecordedTrace> {
     let run = tilting_record::read(path)?;
     let states = run.count(Topic::State);
     if states == 0 {
@@ -436,6 +452,14 @@ pub fn load_trace(path: &Path, max_points: Option<u64>) -> Result<RecordedTrace>
             path.display()
         ));
     }
+    let last = run.span().map_or(0.0, |s| s.1);
+    let t0 = match (w.start, w.tail) {
+        (Some(a), Some(t)) => a.max(last - t),
+        (Some(a), None) => a,
+        (None, Some(t)) => last - t,
+        (None, None) => f64::NEG_INFINITY,
+    };
+    let t1 = w.end.unwrap_or(f64::INFINITY);
     let stride = max_points.map_or(1, |m| states.div_ceil(m.max(1)).max(1));
     let mut out = RecordedTrace {
         samples: Vec::with_capacity((states / stride + 1024).min(1 << 22) as usize),
@@ -450,6 +474,9 @@ pub fn load_trace(path: &Path, max_points: Option<u64>) -> Result<RecordedTrace>
         match e.topic {
             Topic::State => {
                 let s: PlantState = tilting_proto::decode(&e.wire)?;
+                if s.time < t0 || s.time > t1 {
+                    continue;
+                }
                 let mode = s.mode()?;
                 let sample = Sample {
                     t: s.time,
@@ -483,6 +510,12 @@ pub fn load_trace(path: &Path, max_points: Option<u64>) -> Result<RecordedTrace>
         }
     }
     out.end = last.map_or(0.0, |l| l.t);
+    if out.samples.is_empty() {
+        return Err(anyhow!(
+            "{} holds no plant state in the window asked for",
+            path.display()
+        ));
+    }
     Ok(out)
 }
 

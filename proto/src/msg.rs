@@ -258,17 +258,25 @@ pub struct Status {
     pub latency_p50_us: f64,
     /// 99th percentile of the loop latency, µs.
     pub latency_p99_us: f64,
-    /// Torques applied after their own period (age > 0; under `--max-age`).
+    /// Torques applied after their own period (age > 0; under `--max-age`). (This field and the
+    /// five after it are new in this release: `#[serde(default)]` lets the JSON of older
+    /// recordings, which lack them, still load; the wire format has no optional fields.)
+    #[serde(default)]
     pub torques_late: u64,
     /// States whose answer was never applied (skipped between two applied torques).
+    #[serde(default)]
     pub torques_lost: u64,
     /// Valid torques that arrived after a newer one (dropped).
+    #[serde(default)]
     pub torques_reordered: u64,
     /// Median age of the applied torques, periods (state answered to state in force).
+    #[serde(default)]
     pub age_p50: f64,
     /// 99th percentile of the age, periods.
+    #[serde(default)]
     pub age_p99: f64,
     /// Largest age since start, periods.
+    #[serde(default)]
     pub age_max: f64,
     /// Fault description, empty if none; at most [`Status::MAX_FAULT_LEN`] bytes of UTF-8.
     pub fault: String,

@@ -82,6 +82,8 @@ pub struct Recording {
     truncation: Option<String>,
     tilts: u64,
     faults: Vec<String>,
+    invalid: u64,
+    first_invalid: Option<String>,
 }
 
 /// Opens `path`, checks it is a tilting recording and counts its messages per topic, its tilts
@@ -112,6 +114,8 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
         truncation: None,
         tilts: 0,
         faults: Vec::new(),
+        invalid: 0,
+        first_invalid: None,
     };
     let mut wire_channels = 0usize;
     let mut it = stream(&bytes).map_err(|cause| ReadError::Broken {
@@ -136,11 +140,15 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
         let data = match schema::from_json(topic, &m.data) {
             Ok(d) => d,
             Err(e) => {
-                it.error = Some(format!(
-                    "a {topic} message at log time {} ns: {e}",
-                    m.log_time
-                ));
-                break;
+                // One bad message (another version's, or edited) does not hide the rest.
+                if rec.invalid == 0 {
+                    rec.first_invalid = Some(format!(
+                        "a {topic} message at log time {} ns: {e}",
+                        m.log_time
+                    ));
+                }
+                rec.invalid += 1;
+                continue;
             }
         };
         rec.counts[topic.index()] += 1;
@@ -209,21 +217,13 @@ impl Iterator for Messages<'_> {
             match self.inner.next()? {
                 Ok(m) => {
                     if let Some(topic) = topic_of(&m.channel) {
-                        match schema::from_json(topic, &m.data) {
-                            Ok(wire) => {
-                                return Some(Entry {
-                                    topic,
-                                    log_time: m.log_time,
-                                    wire,
-                                })
-                            }
-                            Err(e) => {
-                                self.error = Some(format!(
-                                    "a {topic} message at log time {} ns: {e}",
-                                    m.log_time
-                                ));
-                                return None;
-                            }
+                        // Messages that do not decode are skipped (counted by `read`).
+                        if let Ok(wire) = schema::from_json(topic, &m.data) {
+                            return Some(Entry {
+                                topic,
+                                log_time: m.log_time,
+                                wire,
+                            });
                         }
                     }
                 }
@@ -299,6 +299,11 @@ impl Recording {
     /// Tilts (flat to left or right events).
     pub fn tilts(&self) -> u64 {
         self.tilts
+    }
+
+    /// Messages of our channels that did not decode or validate (skipped), and the first one.
+    pub fn invalid(&self) -> (u64, Option<&str>) {
+        (self.invalid, self.first_invalid.as_deref())
     }
 
     /// Distinct faults reported by status messages, in order of first appearance.

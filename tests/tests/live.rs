@@ -181,6 +181,11 @@ fn live_runs_the_orbit_for_5_s_and_records_it() {
     let png = std::fs::read(out.join("run.png")).expect("run.png");
     assert!(png.starts_with(b"\x89PNG"), "not a PNG");
     assert!(png.len() > 20_000, "run.png is {} bytes", png.len());
+    // The animation of the last seconds: a GIF of 480 x 360 px (logical screen, little-endian).
+    let gif = std::fs::read(out.join("run.gif")).expect("run.gif");
+    assert!(gif.starts_with(b"GIF89a"), "not a GIF");
+    assert_eq!(&gif[6..10], &[224, 1, 104, 1], "480 x 360 px");
+    assert!(gif.len() > 50_000, "run.gif is {} bytes", gif.len());
     let summary = live_summary(&out);
     assert_eq!(summary.result, LiveResult::Completed, "{summary:#?}");
     let plant = summary.plant.as_ref().expect("the plant's summary");

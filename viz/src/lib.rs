@@ -3,6 +3,7 @@
 //!
 //! - [`plot`]: the small plotting toolkit (font registration, padded ranges) and the plot of an
 //!   offline run (`simulate --plot`) and of a live recording (`run.png`);
+//! - [`animate`]: the plate and the arm of a run, moving, as an animated GIF or PNG frames;
 //! - [`figures`]: the paper's Figs. 4 to 8, computed with `tilting-planner` and `tilting-sim`.
 //!
 //! This crate computes nothing of its own beyond what a figure needs to lay itself out: the
@@ -10,6 +11,7 @@
 
 #![warn(missing_docs)]
 
+pub mod animate;
 pub mod figures;
 pub mod margins;
 pub mod plot;

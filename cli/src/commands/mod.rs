@@ -1,8 +1,9 @@
 //! The subcommands of `tilting`, grouped by what a person wants to do: [`simulate`] (run),
-//! [`plan`] (plan), [`figures`] and [`topics`] (look: `echo`, `hz`); `live` is [`crate::live`]. Each is a thin shell: flags,
+//! [`plan`] (plan), [`figures`], [`animate`] and [`topics`] (look: `echo`, `hz`); `live` is [`crate::live`]. Each is a thin shell: flags,
 //! validation that names the field and its range, a progress bar, and output (a human summary,
 //! or one JSON object with `--json`); the computations live in the library crates.
 
+pub mod animate;
 pub mod figures;
 pub mod margins;
 pub mod plan;

@@ -398,6 +398,8 @@ pub struct Info {
     pub tilts: u64,
     /// Distinct faults reported by the plant's status.
     pub faults: Vec<String>,
+    /// Messages that did not decode or validate (skipped).
+    pub invalid: u64,
 }
 
 /// `tilting info`.
@@ -418,6 +420,7 @@ pub fn info(args: &InfoArgs) -> Result<(), CommandError> {
             .collect(),
         tilts: run.tilts(),
         faults: run.faults().to_vec(),
+        invalid: run.invalid().0,
     };
     let text = if args.json {
         serde_json::to_string_pretty(&info).map_err(|e| CommandError::Failed(e.into()))? + "\n"
@@ -458,6 +461,9 @@ fn info_text(info: &Info, run: &Recording) -> String {
                 .trim_start_matches("tilting/r/")
         );
         let _ = writeln!(s, "  {topic:<36} {:<14} {n:>9}{rate}", t.message_type());
+    }
+    if let (n @ 1.., Some(first)) = run.invalid() {
+        let _ = writeln!(s, "invalid:    {n} messages skipped (first: {first})");
     }
     let _ = writeln!(
         s,

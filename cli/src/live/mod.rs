@@ -10,8 +10,8 @@
 //!   Ctrl-C kills at once);
 //! - a recording in `--out DIR` (default `runs/<UTC timestamp>/`): `run.mcap` (all five
 //!   topics; with `--csv` also `state.csv`, `torque.csv`, `events.csv`, see [`crate::record`]),
-//!   `run.png`, `summary.json` ([`summary`]), and the children's output (`plant.log`,
-//!   `plant.json`, `controller.log`, `controller.json`);
+//!   `run.png`, `run.gif` (the last 8 s, moving), `summary.json` ([`summary`]), and the
+//!   children's output (`plant.log`, `plant.json`, `controller.log`, `controller.json`);
 //! - a report on stdout: tilts, peak |alpha| of the last tilts, loop latency p50/p99/p99.9,
 //!   deadline misses, faults.
 //!
@@ -437,6 +437,13 @@ async fn live(
     };
     if let Err(e) = &plot_result {
         problems.push(format!("cannot draw {}: {e:#}", png.display()));
+    }
+    // The last seconds of the run, moving, beside the figure.
+    if view.states > 0 {
+        let gif = dir.join("run.gif");
+        if let Err(e) = crate::commands::animate::live_clip(dir, &gif, &scenario.params) {
+            problems.push(format!("cannot animate {}: {e:#}", gif.display()));
+        }
     }
     let ok = problems.is_empty();
     let result = match (&end, ok) {
