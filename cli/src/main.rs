@@ -3,7 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting::commands::{animate, figures, plan, simulate, topics};
+use tilting::commands::{animate, figures, plan, recording, simulate, topics};
 use tilting::live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -26,6 +26,9 @@ Look:
   animate     The plate and the arm, moving, as an animated GIF (from a simulation or a live run)
   echo        Print a robot's topic live, decoded (one line or one JSON object per message)
   hz          Rate, largest gap and message size of a robot's topics
+  record      Record a robot's topics into an MCAP file (opens in Foxglove, PlotJuggler)
+  replay      Publish an MCAP recording back, byte for byte, at its pace or faster
+  info        Summarise an MCAP recording: span, channels, counts, tilts, faults
 
 The nodes of the design are separate binaries: tilting-plant, tilting-controller and
 tilting-planner (publishes the reference). `tilting <command> --help` tells more.
@@ -52,7 +55,7 @@ enum Command {
     Live(live::LiveArgs),
     /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
     /// default the paper's stabilised tilting orbit
-    Simulate(simulate::SimulateArgs),
+    Simulate(Box<simulate::SimulateArgs>),
     /// Plan: the paper's boundary value problems, stability and sweeps
     #[command(subcommand)]
     Plan(Plan),
@@ -60,11 +63,18 @@ enum Command {
     Figures(figures::FiguresArgs),
     /// The plate and the arm, moving, as an animated GIF (or PNG frames): from a simulated
     /// scenario (the flags of `simulate`) or a live run's directory (--from DIR)
-    Animate(animate::AnimateArgs),
+    Animate(Box<animate::AnimateArgs>),
     /// Print a robot's topic live, decoded: one line (or one JSON object) per message
     Echo(topics::EchoArgs),
     /// The rate, the largest gap and the message size of a robot's topics, every second
     Hz(topics::HzArgs),
+    /// Record a robot's five topics into an MCAP file (Foxglove, PlotJuggler), until Ctrl-C
+    Record(recording::RecordArgs),
+    /// Publish an MCAP recording back over zenoh, byte for byte: at its pace, N times faster or
+    /// as fast as possible; all topics or some (e.g. states into a controller under test)
+    Replay(recording::ReplayArgs),
+    /// Summarise an MCAP recording: plant-time span, channels, counts, tilts, faults
+    Info(recording::InfoArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -94,6 +104,9 @@ fn main() -> ExitCode {
         Command::Animate(args) => animate::run(args),
         Command::Echo(args) => topics::echo(args),
         Command::Hz(args) => topics::hz(args),
+        Command::Record(args) => recording::record(args),
+        Command::Replay(args) => recording::replay(args),
+        Command::Info(args) => recording::info(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

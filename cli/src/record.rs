@@ -1,8 +1,9 @@
-//! Recording of a live run: the plant's states, the controller's torques and the mode events,
-//! as received by a subscriber, streamed to CSV files with flat memory, and the figure drawn
-//! from those files at the end.
+//! Recording of a live run: the robot's five topics as received by a subscriber, streamed with
+//! flat memory into `run.mcap` (see `tilting_record`: JSON channels with schemas that Foxglove
+//! and PlotJuggler open, plant-time log times, wire bytes recoverable exactly), optionally also
+//! into CSV files for spreadsheets (`--csv`), and the figure drawn from the recording at the end.
 //!
-//! Files (numbers in Rust's shortest round-trip form, modes as wire bytes: 0 flat, 1 left,
+//! CSV files (numbers in Rust's shortest round-trip form, modes as wire bytes: 0 flat, 1 left,
 //! 2 right):
 //!
 //! - `state.csv`: `seq,t,mode,alpha,beta,alpha_dot,beta_dot`, one row per `PlantState`;
@@ -10,9 +11,9 @@
 //! - `events.csv`: `t,from,to,alpha_before,beta_before,alpha_dot_before,beta_dot_before,
 //!   alpha_after,beta_after,alpha_dot_after,beta_dot_after`, one row per `ModeEvent`.
 //!
-//! The files grow by whole rows only, at least every 100 ms
-//! ([`tilting_plant::node::csv::RowWriter`]): a run killed with SIGKILL leaves every row up to
-//! the last flush, and no torn row.
+//! Both grow by whole records only, at least every 100 ms (MCAP: one closed chunk;
+//! CSV: [`tilting_plant::node::csv::RowWriter`]): a run killed with SIGKILL leaves everything
+//! up to the last flush readable, and no torn row.
 //!
 //! Subscriber callbacks hand messages to a [`RecordSender`], which never blocks: a bounded
 //! channel feeds one writer thread, and a message that finds the channel full is counted as
@@ -22,16 +23,14 @@
 
 use anyhow::{anyhow, Context as _, Result};
 use std::collections::VecDeque;
-use std::fs::File;
-use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use tilting_plant::node::csv::RowWriter;
-use tilting_plant::Mode;
-use tilting_proto::{ModeEvent, PlantState, TorqueCommand};
+use tilting_proto::{encode, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
+use tilting_record::Recorder as McapRecorder;
 use tilting_sim::closed_loop::{EventRecord, Sample};
 use tilting_sim::Scenario;
 use tilting_viz::plot::{plot_trace, Trace};
@@ -44,6 +43,8 @@ pub const TORQUE_CSV: &str = "torque.csv";
 pub const EVENTS_CSV: &str = "events.csv";
 /// The figure.
 pub const RUN_PNG: &str = "run.png";
+/// The MCAP recording.
+pub const RUN_MCAP: &str = "run.mcap";
 
 /// Header of `state.csv`: the state columns of every CSV of the project.
 pub const STATE_HEADER: &str = tilting_plant::node::STATE_COLUMNS;
@@ -61,7 +62,7 @@ const PEAKS: usize = 16;
 const VIEW_INTERVAL: std::time::Duration = std::time::Duration::from_millis(20);
 
 /// A message to record.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub enum Record {
     /// A plant state.
     State(PlantState),
@@ -69,6 +70,10 @@ pub enum Record {
     Torque(TorqueCommand),
     /// A mode transition.
     Event(ModeEvent),
+    /// A plant status.
+    Status(Status),
+    /// A reference of the planner.
+    Reference(Reference),
 }
 
 enum Msg {
@@ -81,12 +86,16 @@ enum Msg {
 pub struct RecordView {
     /// The latest state written.
     pub last_state: Option<PlantState>,
-    /// Rows in `state.csv`.
+    /// States recorded.
     pub states: u64,
-    /// Rows in `torque.csv`.
+    /// Torques recorded.
     pub torques: u64,
-    /// Rows in `events.csv`.
+    /// Events recorded.
     pub events: u64,
+    /// Status messages recorded.
+    pub statuses: u64,
+    /// References recorded.
+    pub references: u64,
     /// Flat → tilted events.
     pub tilts: u64,
     /// States skipped because their `seq` was not above the last one (re-publications).
@@ -96,7 +105,8 @@ pub struct RecordView {
     /// States missing between two consecutive rows (gaps in `seq`).
     pub missing_states: u64,
     /// The last tilt peaks `(t, alpha)` seen in the sampled states (extreme `alpha` of each
-    /// completed tilt), oldest first.
+    /// completed tilt, and, once the recording ends, of a tilt in progress whose `|alpha|` has
+    /// already turned back), oldest first.
     pub peaks: VecDeque<(f64, f64)>,
 }
 
@@ -105,7 +115,7 @@ pub struct Recorder {
     tx: SyncSender<Msg>,
     dropped: Arc<AtomicU64>,
     view: Arc<Mutex<RecordView>>,
-    thread: Option<JoinHandle<std::io::Result<()>>>,
+    thread: Option<JoinHandle<Result<()>>>,
     dir: PathBuf,
 }
 
@@ -130,17 +140,27 @@ impl RecordSender {
 }
 
 impl Recorder {
-    /// Creates the three CSV files (with their headers) in `dir` and starts the writer thread.
-    pub fn create(dir: &Path) -> Result<Self> {
+    /// Creates `run.mcap` for `keys`' robot in `dir`, and with `csv` the three CSV files (with
+    /// their headers), and starts the writer thread.
+    pub fn create(dir: &Path, keys: &Keys, csv: bool) -> Result<Self> {
         let open = |name: &str, header: &str| -> Result<RowWriter> {
             let path = dir.join(name);
             RowWriter::create(&path, header, RowWriter::INTERVAL)
                 .with_context(|| format!("cannot create {}", path.display()))
         };
+        let csv = if csv {
+            Some(CsvFiles {
+                state: open(STATE_CSV, STATE_HEADER)?,
+                torque: open(TORQUE_CSV, TORQUE_HEADER)?,
+                events: open(EVENTS_CSV, EVENTS_HEADER)?,
+            })
+        } else {
+            None
+        };
         let files = Files {
-            state: open(STATE_CSV, STATE_HEADER)?,
-            torque: open(TORQUE_CSV, TORQUE_HEADER)?,
-            events: open(EVENTS_CSV, EVENTS_HEADER)?,
+            mcap: McapRecorder::create(&dir.join(RUN_MCAP), keys)
+                .context("cannot create the recording")?,
+            csv,
         };
         let (tx, rx) = sync_channel(CHANNEL);
         let view = Arc::new(Mutex::new(RecordView::default()));
@@ -204,28 +224,50 @@ impl Drop for Recorder {
     }
 }
 
-struct Files {
+struct CsvFiles {
     state: RowWriter,
     torque: RowWriter,
     events: RowWriter,
 }
 
+struct Files {
+    mcap: McapRecorder,
+    csv: Option<CsvFiles>,
+}
+
 impl Files {
-    fn flush_if_due(&mut self) -> std::io::Result<()> {
-        self.state.flush_if_due()?;
-        self.torque.flush_if_due()?;
-        self.events.flush_if_due()
+    fn flush_if_due(&mut self) -> Result<()> {
+        self.mcap.flush_if_due()?;
+        if let Some(c) = &mut self.csv {
+            c.state.flush_if_due()?;
+            c.torque.flush_if_due()?;
+            c.events.flush_if_due()?;
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Result<()> {
+        self.mcap.finish()?;
+        if let Some(mut c) = self.csv {
+            c.state.flush()?;
+            c.torque.flush()?;
+            c.events.flush()?;
+        }
+        Ok(())
     }
 }
 
 /// The current tilt, for peak tracking: its mode and extreme alpha so far.
 struct Tilt {
     mode: u8,
+    /// Time and `alpha` of the sample of largest `|alpha|` so far.
     t: f64,
     alpha: f64,
+    /// `alpha` of the latest sample of the tilt.
+    last: f64,
 }
 
-fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std::io::Result<()> {
+fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> Result<()> {
     let mut last_state: Option<u64> = None;
     let mut last_torque: Option<u64> = None;
     let mut tilt: Option<Tilt> = None;
@@ -252,12 +294,13 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
         if result.is_err() {
             continue; // keep draining so senders never see a full queue forever
         }
-        let r = match rec {
-            Record::State(s) => {
-                if last_state.is_some_and(|l| s.seq <= l) {
-                    local.repeated_states += 1;
-                    Ok(())
-                } else {
+        let r: Result<()> = (|| {
+            match rec {
+                Record::State(s) => {
+                    if last_state.is_some_and(|l| s.seq <= l) {
+                        local.repeated_states += 1;
+                        return Ok(());
+                    }
                     if let Some(l) = last_state {
                         local.missing_states += s.seq - l - 1;
                     }
@@ -265,34 +308,51 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
                     local.states += 1;
                     local.last_state = Some(s);
                     track_peak(&mut tilt, &s, &mut local.peaks);
-                    f.state.row(format_args!(
-                        "{},{},{},{},{},{},{}",
-                        s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
-                    ))
+                    f.mcap.record(Topic::State, &encode(&s))?;
+                    if let Some(c) = &mut f.csv {
+                        c.state.row(format_args!(
+                            "{},{},{},{},{},{},{}",
+                            s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                        ))?;
+                    }
                 }
-            }
-            Record::Torque(c) => {
-                if last_torque.is_some_and(|l| c.seq <= l) {
-                    local.repeated_torques += 1;
-                    Ok(())
-                } else {
-                    last_torque = Some(c.seq);
+                Record::Torque(t) => {
+                    if last_torque.is_some_and(|l| t.seq <= l) {
+                        local.repeated_torques += 1;
+                        return Ok(());
+                    }
+                    last_torque = Some(t.seq);
                     local.torques += 1;
-                    f.torque.row(format_args!("{},{}", c.seq, c.tau))
+                    f.mcap.record(Topic::Torque, &encode(&t))?;
+                    if let Some(c) = &mut f.csv {
+                        c.torque.row(format_args!("{},{}", t.seq, t.tau))?;
+                    }
+                }
+                Record::Event(e) => {
+                    local.events += 1;
+                    if e.from == 0 && e.to != 0 {
+                        local.tilts += 1;
+                    }
+                    f.mcap.record(Topic::Event, &encode(&e))?;
+                    if let Some(c) = &mut f.csv {
+                        let (b, a) = (e.x_before, e.x_after);
+                        c.events.row(format_args!(
+                            "{},{},{},{},{},{},{},{},{},{},{}",
+                            e.time, e.from, e.to, b[0], b[1], b[2], b[3], a[0], a[1], a[2], a[3]
+                        ))?;
+                    }
+                }
+                Record::Status(st) => {
+                    local.statuses += 1;
+                    f.mcap.record(Topic::Status, &encode(&st))?;
+                }
+                Record::Reference(r) => {
+                    local.references += 1;
+                    f.mcap.record(Topic::Reference, &encode(&r))?;
                 }
             }
-            Record::Event(e) => {
-                local.events += 1;
-                if e.from == 0 && e.to != 0 {
-                    local.tilts += 1;
-                }
-                let (b, a) = (e.x_before, e.x_after);
-                f.events.row(format_args!(
-                    "{},{},{},{},{},{},{},{},{},{},{}",
-                    e.time, e.from, e.to, b[0], b[1], b[2], b[3], a[0], a[1], a[2], a[3]
-                ))
-            }
-        };
+            Ok(())
+        })();
         if let Err(e) = r {
             result = Err(e);
         }
@@ -302,30 +362,35 @@ fn writer(rx: Receiver<Msg>, mut f: Files, view: Arc<Mutex<RecordView>>) -> std:
             *view.lock().unwrap_or_else(|e| e.into_inner()) = local.clone();
         }
     }
+    finish_peak(&tilt, &mut local.peaks);
     *view.lock().unwrap_or_else(|e| e.into_inner()) = local;
     result?;
-    f.state.flush()?;
-    f.torque.flush()?;
-    f.events.flush()
+    f.finish()
+}
+
+fn push_peak(peaks: &mut VecDeque<(f64, f64)>, peak: (f64, f64)) {
+    if peaks.len() == PEAKS {
+        peaks.pop_front();
+    }
+    peaks.push_back(peak);
 }
 
 fn track_peak(tilt: &mut Option<Tilt>, s: &PlantState, peaks: &mut VecDeque<(f64, f64)>) {
     let same = tilt.as_ref().is_some_and(|c| c.mode == s.mode);
     if !same {
         if let Some(done) = tilt.take() {
-            if peaks.len() == PEAKS {
-                peaks.pop_front();
-            }
-            peaks.push_back((done.t, done.alpha));
+            push_peak(peaks, (done.t, done.alpha));
         }
         if s.mode != 0 {
             *tilt = Some(Tilt {
                 mode: s.mode,
                 t: s.time,
                 alpha: s.alpha,
+                last: s.alpha,
             });
         }
     } else if let Some(c) = tilt {
+        c.last = s.alpha;
         if s.alpha.abs() > c.alpha.abs() {
             c.alpha = s.alpha;
             c.t = s.time;
@@ -333,92 +398,114 @@ fn track_peak(tilt: &mut Option<Tilt>, s: &PlantState, peaks: &mut VecDeque<(f64
     }
 }
 
+/// At the end of a recording: the tilt still in progress has reached its peak if `|alpha|` has
+/// come back down since its largest sample; that peak belongs to the run although the tilt has
+/// not landed. (A tilt whose `|alpha|` is still growing at the last sample has no peak yet.)
+fn finish_peak(tilt: &Option<Tilt>, peaks: &mut VecDeque<(f64, f64)>) {
+    if let Some(c) = tilt {
+        if c.last.abs() < c.alpha.abs() {
+            push_peak(peaks, (c.t, c.alpha));
+        }
+    }
+}
+
 /// Points kept for the figure, about.
 const PLOT_POINTS: u64 = 20_000;
 
-/// Splits a CSV line into `n` numbers.
-fn numbers<const N: usize>(line: &str) -> Option<[f64; N]> {
-    let mut out = [0.0; N];
-    let mut it = line.split(',');
-    for v in &mut out {
-        *v = it.next()?.trim().parse().ok()?;
-    }
-    it.next().is_none().then_some(out)
+/// The states and events of a recording, as a trajectory for plots and animations.
+#[derive(Debug, Clone, Default)]
+pub struct RecordedTrace {
+    /// States, decimated to about the number asked (mode changes always kept, and the last).
+    pub samples: Vec<Sample>,
+    /// Every mode transition.
+    pub events: Vec<EventRecord>,
+    /// Plant time of the last state, s.
+    pub end: f64,
+    /// The file was not closed normally (see `tilting_record::Recording::truncation`).
+    pub truncated: bool,
 }
 
-/// Draws `alpha(t)` and `beta(t)` of the recording in `dir` into `png` (via
+/// Reads the states and events of the MCAP recording at `path`, keeping about `max_points`
+/// states (every state for `None`).
+pub fn load_trace(path: &Path, max_points: Option<u64>) -> Result<RecordedTrace> {
+    let run = tilting_record::read(path)?;
+    let states = run.count(Topic::State);
+    if states == 0 {
+        return Err(anyhow!(
+            "{} holds no plant state: nothing to draw",
+            path.display()
+        ));
+    }
+    let stride = max_points.map_or(1, |m| states.div_ceil(m.max(1)).max(1));
+    let mut out = RecordedTrace {
+        samples: Vec::with_capacity((states / stride + 1024).min(1 << 22) as usize),
+        truncated: !run.complete(),
+        ..RecordedTrace::default()
+    };
+    let mut last_mode = None;
+    let mut last: Option<Sample> = None;
+    // States to skip before the next kept one.
+    let mut skip = 0u64;
+    for e in run.messages() {
+        match e.topic {
+            Topic::State => {
+                let s: PlantState = tilting_proto::decode(&e.wire)?;
+                let mode = s.mode()?;
+                let sample = Sample {
+                    t: s.time,
+                    mode,
+                    x: [s.alpha, s.beta, s.alpha_dot, s.beta_dot],
+                };
+                if skip == 0 || last_mode != Some(mode) {
+                    out.samples.push(sample);
+                }
+                skip = if skip == 0 { stride - 1 } else { skip - 1 };
+                last_mode = Some(mode);
+                last = Some(sample);
+            }
+            Topic::Event => {
+                let ev: ModeEvent = tilting_proto::decode(&e.wire)?;
+                let (from, to) = ev.modes()?;
+                out.events.push(EventRecord {
+                    t: ev.time,
+                    from,
+                    to,
+                    x_before: ev.x_before,
+                    x_after: ev.x_after,
+                });
+            }
+            _ => {}
+        }
+    }
+    if let (Some(l), Some(p)) = (last, out.samples.last()) {
+        if p.t < l.t {
+            out.samples.push(l);
+        }
+    }
+    out.end = last.map_or(0.0, |l| l.t);
+    Ok(out)
+}
+
+/// Draws `alpha(t)` and `beta(t)` of the recording `run.mcap` in `dir` into `png` (via
 /// [`plot_trace`]), decimated to about 20 000 points (mode changes are always kept).
-/// `states` is the number of rows of `state.csv` (to pick the decimation); `scenario` gives
-/// the gains and the control period for the title; `stopped_early` marks an early end.
+/// `scenario` gives the gains and the control period for the title; `stopped_early` marks an
+/// early end.
 pub fn plot_recording(
     dir: &Path,
     png: &Path,
-    states: u64,
     scenario: &Scenario,
     stopped_early: bool,
 ) -> Result<()> {
-    let stride = states.div_ceil(PLOT_POINTS).max(1);
-    let mut samples: Vec<Sample> = Vec::with_capacity((states / stride + 1024) as usize);
-    let file = File::open(dir.join(STATE_CSV)).context("cannot read state.csv")?;
-    let mut last_mode = None;
-    let mut last: Option<Sample> = None;
-    // Rows to skip before the next kept one.
-    let mut skip = 0u64;
-    for line in BufReader::new(file).lines().skip(1) {
-        let line = line?;
-        let Some([_, t, q, a, b, ad, bd]) = numbers::<7>(&line) else {
-            continue;
-        };
-        let Ok(mode) = Mode::try_from(q as u8) else {
-            continue;
-        };
-        let s = Sample {
-            t,
-            mode,
-            x: [a, b, ad, bd],
-        };
-        if skip == 0 || last_mode != Some(mode) {
-            samples.push(s);
-        }
-        skip = if skip == 0 { stride - 1 } else { skip - 1 };
-        last_mode = Some(mode);
-        last = Some(s);
-    }
-    if let (Some(l), Some(p)) = (last, samples.last()) {
-        if p.t < l.t {
-            samples.push(l);
-        }
-    }
-    let Some(end) = last else {
-        return Err(anyhow!("state.csv has no rows: nothing to plot"));
-    };
-    let mut events = Vec::new();
-    let file = File::open(dir.join(EVENTS_CSV)).context("cannot read events.csv")?;
-    for line in BufReader::new(file).lines().skip(1) {
-        let line = line?;
-        let Some(v) = numbers::<11>(&line) else {
-            continue;
-        };
-        let (Ok(from), Ok(to)) = (Mode::try_from(v[1] as u8), Mode::try_from(v[2] as u8)) else {
-            continue;
-        };
-        events.push(EventRecord {
-            t: v[0],
-            from,
-            to,
-            x_before: [v[3], v[4], v[5], v[6]],
-            x_after: [v[7], v[8], v[9], v[10]],
-        });
-    }
+    let tr = load_trace(&dir.join(RUN_MCAP), Some(PLOT_POINTS))?;
     let sc = Scenario {
-        duration: end.t.max(1e-3),
+        duration: tr.end.max(1e-3),
         ..scenario.clone()
     };
     let trace = Trace {
-        samples: &samples,
-        events: &events,
-        end: end.t,
-        stopped_early,
+        samples: &tr.samples,
+        events: &tr.events,
+        end: tr.end,
+        stopped_early: stopped_early || tr.truncated,
     };
     plot_trace(png, &sc, &trace)
 }
@@ -440,10 +527,36 @@ mod tests {
     }
 
     #[test]
+    fn a_peak_reached_in_the_unfinished_last_tilt_counts() {
+        // The truth is the samples themselves: alpha rises to its largest sample, then falls
+        // (a peak, though the tilt never lands) or only rises (no peak yet).
+        for (turned_back, want) in [(true, 1), (false, 0)] {
+            let tmp = tempfile::tempdir().unwrap();
+            let rec = Recorder::create(tmp.path(), &Keys::new("t").unwrap(), false).unwrap();
+            let tx = rec.sender();
+            let n = if turned_back { 60 } else { 20 };
+            for k in 0..n {
+                tx.send(Record::State(state(k, 1, 0.03 * (k as f64 * 0.06).sin())));
+            }
+            let v = rec.finish().unwrap();
+            assert_eq!(v.peaks.len(), want, "turned back: {turned_back}");
+            if turned_back {
+                let best = (0..n)
+                    .max_by(|&a, &b| (a as f64 * 0.06).sin().total_cmp(&(b as f64 * 0.06).sin()));
+                let k = best.unwrap();
+                assert_eq!(
+                    v.peaks[0],
+                    (k as f64 * 1e-3, 0.03 * (k as f64 * 0.06).sin())
+                );
+            }
+        }
+    }
+
+    #[test]
     fn writes_dedups_tracks_peaks_and_plots() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().to_path_buf();
-        let rec = Recorder::create(&dir).unwrap();
+        let rec = Recorder::create(&dir, &Keys::new("t").unwrap(), true).unwrap();
         let tx = rec.sender();
         tx.send(Record::State(state(0, 1, 0.0)));
         tx.send(Record::State(state(0, 1, 0.0))); // re-published
@@ -492,8 +605,22 @@ mod tests {
         assert_eq!(text.lines().count(), 102);
         let ev = std::fs::read_to_string(dir.join(EVENTS_CSV)).unwrap();
         assert_eq!(ev.lines().nth(2), Some("0.0495,0,2,0,1,0,-0.2,0,1,0,-0.2"));
+        // The MCAP recording holds the same, deduplicated.
+        let run = tilting_record::read(&dir.join(RUN_MCAP)).unwrap();
+        assert!(run.complete());
+        assert_eq!(
+            (
+                run.count(Topic::State),
+                run.count(Topic::Torque),
+                run.count(Topic::Event)
+            ),
+            (101, 100, 2)
+        );
+        let tr = load_trace(&dir.join(RUN_MCAP), None).unwrap();
+        assert_eq!((tr.samples.len(), tr.events.len()), (101, 2));
+        assert_eq!(tr.end, 0.105);
         let png = dir.join(RUN_PNG);
-        plot_recording(&dir, &png, v.states, &Scenario::default(), false).unwrap();
+        plot_recording(&dir, &png, &Scenario::default(), false).unwrap();
         assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -502,7 +629,7 @@ mod tests {
     fn a_full_queue_drops_without_blocking() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().to_path_buf();
-        let rec = Recorder::create(&dir).unwrap();
+        let rec = Recorder::create(&dir, &Keys::new("t").unwrap(), false).unwrap();
         let tx = rec.sender();
         for k in 0..(4 * CHANNEL as u64) {
             tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.0 }));

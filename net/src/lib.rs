@@ -207,14 +207,14 @@ pub fn init_tracing(default_filter: &str) {
         .try_init();
 }
 
-/// A publisher of one message type on one key.
+/// A publisher of raw payloads on one key (tools that forward bytes: `replay`, tests that
+/// send garbage). Nodes use [`TypedPublisher`].
 #[derive(Debug)]
-pub struct TypedPublisher<T: Message> {
+pub struct RawPublisher {
     publisher: Publisher<'static>,
-    _t: std::marker::PhantomData<fn(&T)>,
 }
 
-/// Quality of service of a [`TypedPublisher`].
+/// Quality of service of a publisher.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Qos {
     /// The control loop (state, torque): real-time priority, sent at once (express, no
@@ -224,7 +224,7 @@ pub enum Qos {
     Data,
 }
 
-impl<T: Message> TypedPublisher<T> {
+impl RawPublisher {
     /// Declares a publisher on `key` with the given quality of service.
     pub async fn declare(session: &Session, key: &str, qos: Qos) -> anyhow::Result<Self> {
         let (priority, express) = match qos {
@@ -240,8 +240,42 @@ impl<T: Message> TypedPublisher<T> {
             .map_err(|e| {
                 anyhow::anyhow!("cannot declare a publisher on {key}: {}", zenoh_error(&e))
             })?;
+        Ok(Self { publisher })
+    }
+
+    /// Publishes `bytes` as they are (synchronously).
+    pub fn put_raw(&self, bytes: &[u8]) -> anyhow::Result<()> {
+        self.publisher.put(bytes).wait().map_err(|e| {
+            anyhow::anyhow!("put on {}: {}", self.publisher.key_expr(), zenoh_error(&e))
+        })
+    }
+
+    /// Does a subscriber match this publisher's key now? (A put before one exists is lost.)
+    pub async fn has_subscribers(&self) -> bool {
+        self.publisher
+            .matching_status()
+            .await
+            .is_ok_and(|m| m.matching())
+    }
+
+    /// The key expression.
+    pub fn key(&self) -> &str {
+        self.publisher.key_expr().as_str()
+    }
+}
+
+/// A publisher of one message type on one key.
+#[derive(Debug)]
+pub struct TypedPublisher<T: Message> {
+    raw: RawPublisher,
+    _t: std::marker::PhantomData<fn(&T)>,
+}
+
+impl<T: Message> TypedPublisher<T> {
+    /// Declares a publisher on `key` with the given quality of service.
+    pub async fn declare(session: &Session, key: &str, qos: Qos) -> anyhow::Result<Self> {
         Ok(Self {
-            publisher,
+            raw: RawPublisher::declare(session, key, qos).await?,
             _t: std::marker::PhantomData,
         })
     }
@@ -251,19 +285,17 @@ impl<T: Message> TypedPublisher<T> {
     pub fn put(&self, msg: &T) -> anyhow::Result<()> {
         let mut buf = [0u8; 1280];
         let n = codec::encode_into(msg, &mut buf[..T::MAX_WIRE_SIZE]);
-        self.put_raw(&buf[..n])
+        self.raw.put_raw(&buf[..n])
     }
 
     /// Publishes raw bytes on this publisher's key (tests use it to send garbage).
     pub fn put_raw(&self, bytes: &[u8]) -> anyhow::Result<()> {
-        self.publisher.put(bytes).wait().map_err(|e| {
-            anyhow::anyhow!("put on {}: {}", self.publisher.key_expr(), zenoh_error(&e))
-        })
+        self.raw.put_raw(bytes)
     }
 
     /// The key expression.
     pub fn key(&self) -> &str {
-        self.publisher.key_expr().as_str()
+        self.raw.key()
     }
 }
 

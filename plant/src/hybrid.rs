@@ -46,7 +46,10 @@ pub struct Transition {
     pub x_after: State,
 }
 
-/// The extreme tilt angle of one completed tilt.
+/// The extreme tilt angle of one tilt: the largest `|alpha|` among the extremes of `alpha`
+/// (zeros of `alpha_dot`, located on the dense output) of that tilt. A completed tilt reports it
+/// at its landing ([`Observer::tilt_peak`]); a tilt still in progress when a run ends has one as
+/// soon as `alpha` has turned back ([`Plant::peak_in_progress`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TiltPeak {
     /// Time of the extreme (s).
@@ -132,7 +135,8 @@ impl Fault {
 pub trait Observer {
     /// A mode transition happened.
     fn transition(&mut self, _ev: &Transition) {}
-    /// A tilt ended (landing); this was its extreme angle.
+    /// A tilt ended (landing); this was its extreme angle. A run that ends inside a tilt gets
+    /// that tilt's peak, if it was reached, from [`Plant::peak_in_progress`].
     fn tilt_peak(&mut self, _peak: &TiltPeak) {}
     /// The state at the end of an accepted step or at an event (before the reset). Not called
     /// for the state an `advance_*` call starts from: an observer that integrates over time
@@ -347,6 +351,21 @@ impl Plant {
     /// Completed tilts (landings) so far.
     pub fn tilts(&self) -> u64 {
         self.tilts
+    }
+
+    /// The peak of the tilt in progress, if `alpha` has already passed an extreme in it: a peak
+    /// reached but not yet reported, because [`Observer::tilt_peak`] fires at the landing. A run
+    /// that ends (at its duration or by a fault) inside a tilt reports this one as its last
+    /// peak. `None` when flat, or while `|alpha|` has only grown since the tilt started.
+    pub fn peak_in_progress(&self) -> Option<TiltPeak> {
+        if self.mode == Mode::Flat {
+            return None;
+        }
+        self.extreme.map(|(t, alpha)| TiltPeak {
+            t,
+            mode: self.mode,
+            alpha,
+        })
     }
 
     /// Advances to `t_target` (s) with the torque `tau` (N m) held constant (zero-order hold).

@@ -33,8 +33,10 @@ pub mod codec;
 pub mod keys;
 pub mod mode;
 pub mod msg;
+pub mod topic;
 
 pub use codec::{decode, encode, encode_into, DecodeError, Message};
 pub use keys::{KeyError, Keys};
 pub use mode::{Mode, ModeError};
 pub use msg::{ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError};
+pub use topic::{Topic, UnknownTopic};

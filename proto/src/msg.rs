@@ -258,6 +258,18 @@ pub struct Status {
     pub latency_p50_us: f64,
     /// 99th percentile of the loop latency, µs.
     pub latency_p99_us: f64,
+    /// Torques applied after their own period (age > 0; under `--max-age`).
+    pub torques_late: u64,
+    /// States whose answer was never applied (skipped between two applied torques).
+    pub torques_lost: u64,
+    /// Valid torques that arrived after a newer one (dropped).
+    pub torques_reordered: u64,
+    /// Median age of the applied torques, periods (state answered to state in force).
+    pub age_p50: f64,
+    /// 99th percentile of the age, periods.
+    pub age_p99: f64,
+    /// Largest age since start, periods.
+    pub age_max: f64,
     /// Fault description, empty if none; at most [`Status::MAX_FAULT_LEN`] bytes of UTF-8.
     pub fault: String,
 }
@@ -276,7 +288,7 @@ impl Status {
     /// Cap on `fault`, bytes.
     pub const MAX_FAULT_LEN: usize = 1024;
     /// Wire size with an empty `fault`, bytes.
-    pub const MIN_SIZE: usize = 122;
+    pub const MIN_SIZE: usize = 170;
     /// Largest valid wire size, bytes.
     pub const MAX_SIZE: usize = Self::MIN_SIZE + Self::MAX_FAULT_LEN;
 
@@ -327,6 +339,9 @@ impl Status {
         finite(M, "max_overrun_us", self.max_overrun_us)?;
         finite(M, "latency_p50_us", self.latency_p50_us)?;
         finite(M, "latency_p99_us", self.latency_p99_us)?;
+        finite(M, "age_p50", self.age_p50)?;
+        finite(M, "age_p99", self.age_p99)?;
+        finite(M, "age_max", self.age_max)?;
         if self.fault.len() > Self::MAX_FAULT_LEN {
             return Err(ValidationError::TooLong {
                 message: M,
@@ -435,6 +450,12 @@ mod tests {
             max_overrun_us: 0.0,
             latency_p50_us: 0.0,
             latency_p99_us: 0.0,
+            torques_late: 0,
+            torques_lost: 0,
+            torques_reordered: 0,
+            age_p50: 0.0,
+            age_p99: 0.0,
+            age_max: 0.0,
             fault: String::new(),
         };
         s.set_fault("short");

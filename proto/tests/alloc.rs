@@ -63,6 +63,12 @@ fn status_bytes_with_declared_len(len: u64) -> Vec<u8> {
         max_overrun_us: 3.0,
         latency_p50_us: 4.0,
         latency_p99_us: 5.0,
+        torques_late: 0,
+        torques_lost: 0,
+        torques_reordered: 0,
+        age_p50: 0.0,
+        age_p99: 0.0,
+        age_max: 0.0,
         fault: String::new(),
     };
     let mut b = codec::encode(&s);

@@ -67,6 +67,12 @@ fn example_status() -> Status {
         max_overrun_us: 950.0,
         latency_p50_us: 21.5,
         latency_p99_us: 64.75,
+        torques_late: 7,
+        torques_lost: 8,
+        torques_reordered: 9,
+        age_p50: 1.0,
+        age_p99: 2.5,
+        age_max: 3.0,
         fault: "watchdog: no torque for 20 ms (ü)".to_owned(),
     }
 }
@@ -102,8 +108,8 @@ fn wire_sizes() {
     assert_eq!(TorqueCommand::SIZE, 16);
     assert_eq!(ModeEvent::SIZE, 82);
     assert_eq!(Reference::SIZE, 57);
-    assert_eq!(Status::MIN_SIZE, 122);
-    assert_eq!(Status::MAX_SIZE, 122 + 1024);
+    assert_eq!(Status::MIN_SIZE, 170);
+    assert_eq!(Status::MAX_SIZE, 170 + 1024);
     assert_eq!(<PlantState as Message>::WIRE_SIZE, Some(49));
     assert_eq!(<TorqueCommand as Message>::WIRE_SIZE, Some(16));
     assert_eq!(<ModeEvent as Message>::WIRE_SIZE, Some(82));
@@ -236,6 +242,12 @@ fn status_layout_is_hand_built() {
         s.latency_p50_us,
         s.latency_p99_us,
     ] {
+        want.extend_from_slice(&f.to_le_bytes());
+    }
+    for n in [s.torques_late, s.torques_lost, s.torques_reordered] {
+        want.extend_from_slice(&n.to_le_bytes());
+    }
+    for f in [s.age_p50, s.age_p99, s.age_max] {
         want.extend_from_slice(&f.to_le_bytes());
     }
     assert_eq!(want.len(), Status::MIN_SIZE - 8);
@@ -387,7 +399,7 @@ fn status_truncated_or_extended_is_rejected() {
         }
     );
     let too_big = vec![0u8; Status::MAX_SIZE + 1];
-    let err = expect_err::<Status>(&too_big, &["Status", "at most 1146", "got 1147"]);
+    let err = expect_err::<Status>(&too_big, &["Status", "at most 1194", "got 1195"]);
     assert!(matches!(err, DecodeError::TooLarge { .. }));
     // A 1025-byte fault encodes (encode does not validate) but cannot be received.
     let mut s = example_status();
@@ -500,6 +512,12 @@ fn non_finite_fields_of_other_messages_are_named() {
             "latency_p99_us",
             Status {
                 latency_p99_us: f64::NAN,
+                torques_late: 0,
+                torques_lost: 0,
+                torques_reordered: 0,
+                age_p50: 0.0,
+                age_p99: 0.0,
+                age_max: 0.0,
                 ..example_status()
             },
         ),
@@ -780,12 +798,12 @@ fn random_bytes_never_panic_and_accepted_status_round_trips() {
             // Make the fixed part plausible and the length prefix consistent half the time.
             b[16] %= 5;
             b[17] %= 3;
-            for off in [8, 74, 82, 90, 98, 106] {
+            for off in [8, 74, 82, 90, 98, 106, 138, 146, 154] {
                 b[off..off + 8].copy_from_slice(&1.0f64.to_le_bytes());
             }
             let n = (len - Status::MIN_SIZE) as u64;
-            b[114..122].copy_from_slice(&n.to_le_bytes());
-            for c in &mut b[122..] {
+            b[162..170].copy_from_slice(&n.to_le_bytes());
+            for c in &mut b[170..] {
                 *c = b'a' + *c % 26;
             }
         }

@@ -8,6 +8,7 @@
 //! - sampled (`control_period = T > 0`): the controller runs at `t_k = k T` on the state at that
 //!   instant and its torque is held until `t_{k+1}` ([`Plant::advance_held`]), as over a network.
 
+use crate::network::{run_sampled_over, Impairment, NetStats};
 use crate::scenario::{Scenario, ScenarioError};
 use serde::Serialize;
 use std::time::Instant;
@@ -20,6 +21,9 @@ pub struct SimOptions {
     pub record_samples: bool,
     /// Show a progress bar on stderr.
     pub progress: bool,
+    /// Run the sampled loop over these impaired links ([`crate::network`]); needs a control
+    /// period.
+    pub network: Option<Impairment>,
 }
 
 /// A mode transition as reported.
@@ -37,7 +41,8 @@ pub struct EventRecord {
     pub x_after: [f64; 4],
 }
 
-/// The extreme tilt angle of one completed tilt.
+/// The extreme tilt angle of one tilt: every completed tilt, and the last tilt of the run if
+/// it reached its peak before the end.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PeakRecord {
     /// Time of the extreme (s).
@@ -102,7 +107,8 @@ pub struct Sample {
 pub struct SimulationReport {
     /// Mode transitions in time order.
     pub events: Vec<EventRecord>,
-    /// Extreme angle of each completed tilt.
+    /// Extreme angle of each tilt, in time order: every completed tilt, then the tilt in
+    /// progress at the end if its peak was reached before the end.
     pub tilt_peaks: Vec<PeakRecord>,
     /// Hybrid state at the end.
     #[serde(rename = "final")]
@@ -112,6 +118,9 @@ pub struct SimulationReport {
     pub fault: Option<Fault>,
     /// Work counters.
     pub stats: RunStats,
+    /// What the network did, for a run over impaired links.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub network: Option<NetStats>,
     /// The trajectory, if recorded (not serialised).
     #[serde(skip)]
     pub samples: Vec<Sample>,
@@ -280,7 +289,32 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
             set_progress(b, t, t_end);
         }
     };
-    let (result, controller_samples) = if sc.is_sampled() {
+    let network = opts.network.filter(|n| !n.is_perfect());
+    if let (Some(n), false) = (&network, sc.is_sampled()) {
+        let _ = n;
+        return Err(ScenarioError::OutOfRange {
+            field: "control_period".into(),
+            flag: "--control-period".into(),
+            value: sc.control_period.to_string(),
+            allowed: "> 0 for a run over an impaired network (--delay, --jitter, --loss, \
+                      --loss-burst): the network carries samples"
+                .into(),
+        });
+    }
+    let mut net_stats = None;
+    let (result, controller_samples) = if let Some(imp) = &network {
+        let (r, n, st) = run_sampled_over(
+            &mut plant,
+            &ctrl,
+            sc.control_period,
+            t_end,
+            imp,
+            &mut rec,
+            &mut tick,
+        );
+        net_stats = Some(st);
+        (r, n)
+    } else if sc.is_sampled() {
         run_sampled(
             &mut plant,
             &ctrl,
@@ -298,6 +332,11 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
     if let Some(b) = bar {
         b.finish_and_clear();
     }
+    // A peak reached in the last tilt, which has not landed (yet, or ever: the run ended in
+    // it, at its duration or by a fault), is a peak of the run too.
+    if let Some(p) = plant.peak_in_progress() {
+        rec.tilt_peak(&p);
+    }
     rec.push(plant.time(), plant.mode(), &plant.state(), true);
     let st = plant.stats();
     Ok(SimulationReport {
@@ -309,6 +348,7 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
             x: plant.state().into(),
         },
         fault: result.err(),
+        network: net_stats,
         stats: RunStats {
             coupling: if sc.is_sampled() {
                 "sampled"
@@ -398,6 +438,23 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
             .as_ref()
             .map_or_else(|| "none (ran to the end)".to_owned(), Fault::to_string)
     );
+    if let Some(n) = &r.network {
+        let max_age = n.age_histogram.len().saturating_sub(1);
+        let _ = writeln!(
+            s,
+            "network: {} states and {} torques lost on the links; {} torques applied ({} late, \
+             oldest {max_age} periods), {} reordered, {} superseded, {} too old; zero torque for \
+             the first {} periods",
+            n.states_lost,
+            n.torques_lost_on_link,
+            n.torques_applied,
+            n.torques_late,
+            n.torques_reordered,
+            n.torques_superseded,
+            n.torques_too_old,
+            n.periods_before_first_torque
+        );
+    }
     let _ = writeln!(
         s,
         "RHS evaluations: {} ({:.0} per simulated s), {} steps, {} rejected; wall time {:.3} s",

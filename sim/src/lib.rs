@@ -26,7 +26,9 @@
 #![warn(missing_docs)]
 
 pub mod closed_loop;
+pub mod network;
 pub mod scenario;
 
 pub use closed_loop::{run_continuous, run_sampled, simulate, SimOptions, SimulationReport};
+pub use network::{run_sampled_over, Impairment, NetStats, NetworkArgs};
 pub use scenario::{Scenario, ScenarioArgs, ScenarioError, ScenarioFile};

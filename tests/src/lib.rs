@@ -19,6 +19,7 @@ use std::process::{Command, ExitStatus};
 use std::sync::{Mutex, MutexGuard, Once};
 use std::time::{Duration, Instant};
 
+pub mod proxy;
 pub mod recording;
 
 pub use tilting::supervise::endpoint;

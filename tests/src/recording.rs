@@ -1,7 +1,7 @@
 //! The plant's `--record` CSV and the offline closed loop it must reproduce.
 
 use tilting_controller::{ComputedTorque, ControlConfig};
-use tilting_plant::{paper, Plant, SimConfig, Tolerance};
+use tilting_plant::{paper, Observer, Plant, SimConfig, Tolerance, Transition};
 
 /// One CSV row of `--record`: seq, t, mode, alpha, beta, alpha_dot, beta_dot, tau (empty on the
 /// last row).
@@ -45,6 +45,21 @@ pub fn parse_csv(text: &str) -> Vec<Row> {
 /// The offline closed loop: `tau_k = c(t_k, q_k, x_k)` held over `[t_k, t_{k+1}]`, with the
 /// plant's settings (`atol = rtol / 100`, as `simulate` and `tilting-plant` use).
 pub fn offline(duration: f64, period: f64) -> Vec<Row> {
+    offline_with_events(duration, period).0
+}
+
+/// Collects the mode transitions of a run.
+#[derive(Default)]
+struct Transitions(Vec<Transition>);
+
+impl Observer for Transitions {
+    fn transition(&mut self, ev: &Transition) {
+        self.0.push(*ev);
+    }
+}
+
+/// [`offline`], and the mode transitions of that run in time order.
+pub fn offline_with_events(duration: f64, period: f64) -> (Vec<Row>, Vec<Transition>) {
     let rtol = Tolerance::default().rtol;
     let cfg = SimConfig {
         tol: Tolerance {
@@ -62,6 +77,7 @@ pub fn offline(duration: f64, period: f64) -> Vec<Row> {
     .unwrap();
     let n = (duration / period).round() as u64;
     let mut rows = Vec::new();
+    let mut events = Transitions::default();
     for k in 0..=n {
         let x = plant.state();
         let row = |tau| Row {
@@ -78,8 +94,8 @@ pub fn offline(duration: f64, period: f64) -> Vec<Row> {
         let tau = c.torque(plant.time(), plant.mode(), &x);
         rows.push(row(Some(tau)));
         plant
-            .advance_held(tau, (k + 1) as f64 * period, &mut ())
+            .advance_held(tau, (k + 1) as f64 * period, &mut events)
             .unwrap();
     }
-    rows
+    (rows, events.0)
 }

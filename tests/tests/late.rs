@@ -14,8 +14,9 @@ use tilting_plant::{paper, State};
 use tilting_proto::{codec, PlantState, TorqueCommand};
 use tilting_tests::*;
 
-/// Runs a 3 s real-time plant against a controller answering `delay` late; its summary.
-async fn run(max_age: u64, delay: Duration) -> PlantSummary {
+/// Runs a 3 s real-time plant against a controller answering `delay` late; its summary and
+/// the last status it published.
+async fn run(max_age: u64, delay: Duration) -> (PlantSummary, Option<tilting_proto::Status>) {
     let dir = Scratch::new(&format!("late-{max_age}"));
     let port = free_port();
     let robot = robot(&format!("late_{max_age}"));
@@ -30,6 +31,7 @@ async fn run(max_age: u64, delay: Duration) -> PlantSummary {
         dir.path(),
     );
     let client = Client::open(&robot, None, Some(port)).await;
+    let status = StatusWatch::new(&client).await;
     let law = Arc::new(
         ComputedTorque::new(ControlConfig {
             k: paper::ORBIT_K,
@@ -67,14 +69,17 @@ async fn run(max_age: u64, delay: Duration) -> PlantSummary {
     // The plant starts its clock when state 0 is answered (this controller has no token).
     let exit = plant.expect_exit(Duration::from_secs(30));
     assert!(exit.success(), "{}", plant.logs());
+    // The final status (state stopped) leaves just before the plant exits.
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let last = status.latest();
     let _ = client.session.close().await;
-    plant.plant_summary()
+    (plant.plant_summary(), last)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_controller_2_ms_late_keeps_the_plant_running() {
     let delay = Duration::from_millis(2);
-    let s = run(10, delay).await;
+    let (s, st) = run(10, delay).await;
     eprintln!("max-age 10: {s:?}");
     assert_eq!(s.result, RunResult::Completed);
     assert_eq!(s.watchdog_trips, 0, "no safe mode with late torques: {s:?}");
@@ -89,9 +94,21 @@ async fn a_controller_2_ms_late_keeps_the_plant_running() {
         age.p50
     );
     assert!(s.torques_lost < 300, "{s:?}");
+    // The plant's last status carries the same counters and ages as its summary (the status is
+    // how a remote observer sees them).
+    let st = st.expect("a status");
+    assert_eq!(st.state, tilting_proto::Status::STOPPED, "{st:?}");
+    assert_eq!(
+        (st.torques_late, st.torques_lost, st.torques_reordered),
+        (s.torques_late, s.torques_lost, s.torques_reordered)
+    );
+    assert_eq!(
+        (st.age_p50, st.age_p99, st.age_max),
+        (age.p50, age.p99, age.max)
+    );
 
     // The strict rule (answer the current state or nothing) cannot use any of them.
-    let s = run(0, delay).await;
+    let (s, _) = run(0, delay).await;
     eprintln!("max-age 0: {s:?}");
     assert!(s.watchdog_trips >= 1, "{s:?}");
     assert!(s.safe_periods > 2000, "{s:?}");

@@ -1,7 +1,9 @@
 //! Runs the built `tilting live` (and the planner node) with the real node binaries:
 //!
-//! - `live --duration 5 --out DIR` exits 0 and writes the three CSV files with plausible content
-//!   (about 5000 states, alternating left/right tilts, finite numbers), the PNG and the summary;
+//! - `live --duration 5 --csv --out DIR` exits 0 and writes the three CSV files with plausible
+//!   content (about 5000 states, alternating left/right tilts, finite numbers), run.mcap with
+//!   the same messages, the PNG and the summary;
+//! - after SIGKILL of `live`, CSV files hold whole rows and run.mcap reads up to its last chunk;
 //! - a controller killed during a `live` run is reported (which one, how), the plant is stopped,
 //!   the recording is kept, and `live` exits with code 1;
 //! - a controller started after the planner node gets the published law from its queryable;
@@ -14,6 +16,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 use tilting::live::summary::{LiveResult, LiveSummary};
+use tilting_proto::{ModeEvent, PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 
 fn csv(path: &Path) -> (String, Vec<Vec<f64>>) {
@@ -47,7 +50,15 @@ fn live_runs_the_orbit_for_5_s_and_records_it() {
     let out = dir.path().join("out");
     let robot = robot("live");
     let o = Command::new(tilting)
-        .args(["live", "--duration", "5", "--robot", &robot, "--out"])
+        .args([
+            "live",
+            "--duration",
+            "5",
+            "--csv",
+            "--robot",
+            &robot,
+            "--out",
+        ])
         .arg(&out)
         .output()
         .expect("cannot run tilting live");
@@ -116,6 +127,55 @@ fn live_runs_the_orbit_for_5_s_and_records_it() {
     }
     let landings = events.iter().filter(|e| e[1] != 0.0 && e[2] == 0.0).count();
     assert!(landings.abs_diff(tilts.len()) <= 1, "{events:?}");
+
+    // run.mcap, closed normally, holds the same messages as the CSV files, number for number
+    // (both written from the same decoded messages; the MCAP side goes through JSON and back),
+    // plus the plant's status (10 Hz) and the planner's reference.
+    let run = tilting_record::read(&out.join("run.mcap")).expect("run.mcap opens");
+    assert!(run.complete(), "{:?}", run.truncation());
+    assert_eq!(run.count(Topic::State), states.len() as u64);
+    assert_eq!(run.count(Topic::Torque), torques.len() as u64);
+    assert_eq!(run.count(Topic::Event), events.len() as u64);
+    assert!(
+        run.count(Topic::Status) >= 40,
+        "{} status",
+        run.count(Topic::Status)
+    );
+    assert!(run.count(Topic::Reference) >= 1);
+    let (mut si, mut ti, mut ei) = (0, 0, 0);
+    for e in run.messages() {
+        match e.topic {
+            Topic::State => {
+                let s: PlantState = tilting_proto::decode(&e.wire).unwrap();
+                let r = &states[si];
+                let row = [
+                    s.seq as f64,
+                    s.time,
+                    f64::from(s.mode),
+                    s.alpha,
+                    s.beta,
+                    s.alpha_dot,
+                    s.beta_dot,
+                ];
+                assert_eq!(&row[..], &r[..], "state {si}");
+                si += 1;
+            }
+            Topic::Torque => {
+                let c: TorqueCommand = tilting_proto::decode(&e.wire).unwrap();
+                assert_eq!([c.seq as f64, c.tau], [torques[ti][0], torques[ti][1]]);
+                ti += 1;
+            }
+            Topic::Event => {
+                let v: ModeEvent = tilting_proto::decode(&e.wire).unwrap();
+                assert_eq!(v.time, events[ei][0]);
+                assert_eq!(v.x_after[3], events[ei][10]);
+                ei += 1;
+            }
+            _ => {}
+        }
+    }
+    assert_eq!((si, ti, ei), (states.len(), torques.len(), events.len()));
+    assert_eq!(run.tilts(), tilts.len() as u64);
 
     // The figure and the summary.
     let png = std::fs::read(out.join("run.png")).expect("run.png");
@@ -257,11 +317,19 @@ fn a_controller_dying_mid_run_is_reported_and_the_recording_kept() {
     let dir = Scratch::new("death");
     let out = dir.path().join("out");
     let robot = robot("death");
-    let args: Vec<String> = ["live", "--duration", "30", "--robot", &robot, "--out"]
-        .map(String::from)
-        .into_iter()
-        .chain([out.display().to_string()])
-        .collect();
+    let args: Vec<String> = [
+        "live",
+        "--duration",
+        "30",
+        "--csv",
+        "--robot",
+        &robot,
+        "--out",
+    ]
+    .map(String::from)
+    .into_iter()
+    .chain([out.display().to_string()])
+    .collect();
     let mut live = Proc::spawn("live", &tilting, &args, dir.path());
     // Wait until the loop runs (states are being recorded), then kill the controller.
     let end = Instant::now() + Duration::from_secs(20);
@@ -359,11 +427,19 @@ fn a_recording_survives_sigkill_of_live_with_whole_rows() {
     let dir = Scratch::new("sigkill");
     let out = dir.path().join("out");
     let robot = robot("sigkill");
-    let args: Vec<String> = ["live", "--duration", "30", "--robot", &robot, "--out"]
-        .map(String::from)
-        .into_iter()
-        .chain([out.display().to_string()])
-        .collect();
+    let args: Vec<String> = [
+        "live",
+        "--duration",
+        "30",
+        "--csv",
+        "--robot",
+        &robot,
+        "--out",
+    ]
+    .map(String::from)
+    .into_iter()
+    .chain([out.display().to_string()])
+    .collect();
     let mut live = Proc::spawn("live", &tilting, &args, dir.path());
     // Let the loop run for about 3 s of recorded states, then kill `live` without warning.
     let end = Instant::now() + Duration::from_secs(30);
@@ -415,4 +491,24 @@ fn a_recording_survives_sigkill_of_live_with_whole_rows() {
     );
     // A tilt starts every 0.435 s on the orbit: the events of the first 3 s are there.
     assert!(events.len() >= 10, "{} events", events.len());
+    // run.mcap has no summary section but reads up to its last chunk, flushed by the same
+    // writer at the same interval as the CSV files: consecutive states from 0, as many as
+    // state.csv within a few flush intervals.
+    let run = tilting_record::read(&out.join("run.mcap")).expect("run.mcap opens");
+    assert!(!run.complete() && run.truncation().is_some());
+    for (seq, e) in run
+        .messages()
+        .filter(|e| e.topic == Topic::State)
+        .enumerate()
+    {
+        let s: PlantState = tilting_proto::decode(&e.wire).expect("a valid state");
+        assert_eq!(s.seq, seq as u64);
+        assert_eq!(e.log_time, (s.time * 1e9).round() as u64);
+    }
+    let n = run.count(Topic::State);
+    assert!(
+        n > 3000 && n + 300 >= states.len() as u64 && states.len() as u64 + 300 >= n,
+        "{n} states in run.mcap, {} in state.csv",
+        states.len()
+    );
 }

@@ -105,3 +105,155 @@ fn lockstep_run_equals_offline_simulation() {
     assert_eq!(report["final"]["t"].as_f64().unwrap(), DURATION);
     assert_eq!(sim_x, x, "simulate --control-period vs the lockstep run");
 }
+
+/// Issue 8 part 6 for the plant node: its summary's `tilt_peaks` include the peak of the last
+/// tilt, reached before the end but not landed. The truth is the recorded samples: a peak is a
+/// sign change of `alpha_dot` (from the tilt's direction to the other) between two samples of
+/// the same tilted mode.
+#[test]
+fn plant_summary_reports_the_peak_of_the_unfinished_last_tilt() {
+    let dir = Scratch::new("lockstep-peak");
+    let port = free_port();
+    let robot = robot("lockstep_peak");
+    let csv = dir.path().join("plant.csv");
+    // 2.1 s: the last tilt starts at 1.768 s and peaks at about 2.03 s.
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(
+            &robot,
+            port,
+            &[
+                "--clock",
+                "lockstep",
+                "--duration",
+                "2.1",
+                "--record",
+                csv.to_str().unwrap(),
+            ],
+        ),
+        dir.path(),
+    );
+    let mut ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &peer_args(&robot, port, &[]),
+        dir.path(),
+    );
+    let status = plant.expect_exit(Duration::from_secs(60));
+    assert!(status.success(), "plant: {status}\n{}", plant.logs());
+    let summary = plant.plant_summary();
+    assert!(ctl.interrupt(Duration::from_secs(10)).success());
+
+    let rows = parse_csv(&std::fs::read_to_string(&csv).unwrap());
+    let truth: Vec<(f64, f64)> = rows
+        .windows(2)
+        .filter(|w| {
+            let s = match w[0].mode {
+                1 => 1.0,
+                2 => -1.0,
+                _ => return false,
+            };
+            w[1].mode == w[0].mode && s * w[0].x[2] > 0.0 && s * w[1].x[2] <= 0.0
+        })
+        .map(|w| (w[0].t, w[1].t))
+        .collect();
+    let last = rows.last().unwrap();
+    assert_ne!(last.mode, 0, "the run must end inside a tilt");
+    let tilt_start = rows.iter().rev().find(|r| r.mode != last.mode).unwrap().t;
+    assert!(
+        truth.iter().any(|b| b.0 >= tilt_start),
+        "no peak in the last tilt: {truth:?}"
+    );
+    assert_eq!(
+        summary.tilt_peaks.len(),
+        truth.len(),
+        "peaks {:?}\nsign changes {truth:?}",
+        summary.tilt_peaks
+    );
+    for (p, b) in summary.tilt_peaks.iter().zip(&truth) {
+        assert!(p[0] >= b.0 && p[0] <= b.1, "peak {p:?} outside {b:?}");
+    }
+}
+
+/// The plant in lockstep emulating an impaired network (delay, jitter, loss; seeded) equals the
+/// offline `simulate` with the same flags, bit for bit: both run the same impaired hold
+/// (`tilting_link::ImpairedHold`) on the same answers, and the controller's law is the same
+/// code.
+#[test]
+fn lockstep_over_an_emulated_link_equals_simulate_with_the_same_flags() {
+    let net = [
+        "--state-delay",
+        "0.0005",
+        "--torque-delay",
+        "0.001",
+        "--jitter",
+        "exp:0.0007",
+        "--loss",
+        "0.03",
+        "--seed",
+        "11",
+    ];
+    let dir = Scratch::new("lockstep-net");
+    let port = free_port();
+    let robot = robot("locknet");
+    let mut extra = vec!["--clock", "lockstep", "--duration", "2"];
+    extra.extend(net);
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(&robot, port, &extra),
+        dir.path(),
+    );
+    let mut ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &peer_args(&robot, port, &[]),
+        dir.path(),
+    );
+    let status = plant.expect_exit(Duration::from_secs(60));
+    assert!(status.success(), "plant: {status}\n{}", plant.logs());
+    ctl.interrupt(Duration::from_secs(10));
+    let summary = plant.plant_summary();
+    let got_net = summary
+        .network
+        .clone()
+        .expect("the plant's network counters");
+
+    let out = std::process::Command::new(bin("tilting"))
+        .args([
+            "simulate",
+            "--json",
+            "--control-period",
+            "0.001",
+            "--duration",
+            "2",
+        ])
+        .args(net)
+        .output()
+        .expect("run simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let want_x: Vec<f64> = v["final"]["x"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    eprintln!("network: {got_net:?}");
+    assert!(
+        got_net.states_lost > 0 && got_net.torques_late > 0,
+        "{got_net:?}"
+    );
+    assert_eq!(summary.time, 2.0);
+    for (i, (g, w)) in summary.x.iter().zip(&want_x).enumerate() {
+        assert_eq!(g.to_bits(), w.to_bits(), "component {i}: {g} vs {w}");
+    }
+    let want_net: tilting_link::NetStats =
+        serde_json::from_value(v["network"].clone()).expect("simulate's network counters");
+    assert_eq!(got_net, want_net);
+}

@@ -1,10 +1,11 @@
 //! `tilting animate`: the plate and the arm, moving, as an animated GIF (or PNG frames for a
-//! video), from a `simulate` scenario (the same flags) or from a live run's directory
-//! (`--from DIR`: its `state.csv` and `events.csv`). The drawing is [`tilting_viz::animate`];
-//! this module reads the inputs into a [`Trace`] and checks the flags.
+//! video), from a `simulate` scenario (the same flags) or from a recording (`--from`: an MCAP
+//! file, a live run's directory with its `run.mcap`, or its `state.csv` and `events.csv`). The
+//! drawing is [`tilting_viz::animate`]; this module reads the inputs into a [`Trace`] and checks
+//! the flags.
 
 use super::{bar, check, emit, usage};
-use crate::record::{EVENTS_CSV, EVENTS_HEADER, STATE_CSV, STATE_HEADER};
+use crate::record::{load_trace, EVENTS_CSV, EVENTS_HEADER, RUN_MCAP, STATE_CSV, STATE_HEADER};
 use anyhow::{anyhow, bail, Context as _, Result};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -25,8 +26,9 @@ pub struct AnimateArgs {
     /// The scenario to simulate (ignored with `--from`, except `--params` for the geometry).
     #[command(flatten)]
     pub scenario: ScenarioArgs,
-    /// Animate a live run's directory (its state.csv and events.csv) instead of a simulation
-    #[arg(long, value_name = "DIR")]
+    /// Animate a recording instead of a simulation: an MCAP file, or a live run's directory
+    /// (its run.mcap, or without one its state.csv and events.csv)
+    #[arg(long, value_name = "FILE.mcap|DIR")]
     pub from: Option<PathBuf>,
     /// The animated GIF to write [default: robot.gif]
     #[arg(long, value_name = "FILE.gif")]
@@ -168,9 +170,9 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
         .map_err(|e| CommandError::Usage(e.into()))?;
     // The trajectory: a live run's files, or a simulation.
     let (samples, events, end, early) = match &args.from {
-        Some(dir) => {
-            let run = read_run_dir(dir, args.start, args.end, None).map_err(CommandError::Usage)?;
-            (run.samples, run.events, run.end, false)
+        Some(from) => {
+            let run = read_recording(from, args.start, args.end).map_err(CommandError::Usage)?;
+            (run.samples, run.events, run.end, run.truncated)
         }
         None => {
             let r = tilting_sim::simulate(
@@ -178,6 +180,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
                 SimOptions {
                     record_samples: true,
                     progress: !args.json && std::io::stderr().is_terminal(),
+                    network: None,
                 },
             )
             .map_err(|e| CommandError::Usage(e.into()))?;
@@ -239,15 +242,58 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
     })
 }
 
-/// The trajectory of a live run's directory, as read by [`read_run_dir`].
+/// States kept from an MCAP recording, at most about (a 1 kHz run up to 200 s at full rate;
+/// longer ones decimated evenly, mode changes kept).
+const MCAP_POINTS: u64 = 200_000;
+
+/// The trajectory of `from`: an MCAP file, or a run directory with `run.mcap` (read with
+/// [`load_trace`]) or else with `state.csv` and `events.csv` ([`read_run_dir`]); states outside
+/// `[start, end]` (s) are dropped.
+pub fn read_recording(from: &Path, start: Option<f64>, end: Option<f64>) -> Result<RunTrace> {
+    let mcap = if from.is_dir() {
+        Some(from.join(RUN_MCAP)).filter(|p| p.is_file())
+    } else {
+        Some(from.to_path_buf())
+    };
+    let Some(mcap) = mcap else {
+        return read_run_dir(from, start, end, None);
+    };
+    if !mcap.is_file() {
+        bail!("the recording {} does not exist", mcap.display());
+    }
+    let tr = load_trace(&mcap, Some(MCAP_POINTS))
+        .with_context(|| format!("cannot read {}", mcap.display()))?;
+    let samples: Vec<Sample> = tr
+        .samples
+        .into_iter()
+        .filter(|s| !(start.is_some_and(|a| s.t < a) || end.is_some_and(|b| s.t > b)))
+        .collect();
+    if samples.is_empty() {
+        bail!(
+            "{} has no states in the window of --start/--end (it ends at {} s)",
+            mcap.display(),
+            tr.end
+        );
+    }
+    Ok(RunTrace {
+        samples,
+        events: tr.events,
+        end: tr.end,
+        truncated: tr.truncated,
+    })
+}
+
+/// The trajectory of a recording, as read by [`read_recording`] or [`read_run_dir`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunTrace {
     /// The states of `state.csv` in the window, in time order.
     pub samples: Vec<Sample>,
     /// The events of `events.csv`.
     pub events: Vec<EventRecord>,
-    /// Plant time of the last row of `state.csv` (s).
+    /// Plant time of the last state (s).
     pub end: f64,
+    /// The MCAP file was not closed normally (a killed run); `false` for CSV files.
+    pub truncated: bool,
 }
 
 /// Reads `state.csv` and `events.csv` of a live run's directory (the formats of
@@ -320,6 +366,7 @@ pub fn read_run_dir(
         samples: samples.into(),
         events,
         end: last_t,
+        truncated: false,
     })
 }
 
@@ -400,18 +447,19 @@ fn for_rows<const N: usize>(
 pub const LIVE_CLIP: f64 = 8.0;
 
 /// The short animation of a live run beside `run.png`: the last [`LIVE_CLIP`] s of the
-/// recording in `dir`, real time at 20 fps, 480 x 360 px, into `gif`.
+/// recording `run.mcap` in `dir`, real time at 20 fps, 480 x 360 px, into `gif`.
 pub fn live_clip(dir: &Path, gif: &Path, params: &Params) -> Result<Rendered> {
-    let run = read_run_dir(dir, None, None, Some(LIVE_CLIP))?;
+    let run = read_recording(dir, None, None)?;
     let trace = Trace {
         samples: &run.samples,
         events: &run.events,
         end: run.end,
-        stopped_early: false,
+        stopped_early: run.truncated,
     };
     let opts = Options {
         fps: 20.0,
         size: (480, 360),
+        start: Some(run.end - LIVE_CLIP),
         ..Options::default()
     };
     animate(

@@ -6,6 +6,7 @@
 pub mod animate;
 pub mod figures;
 pub mod plan;
+pub mod recording;
 pub mod simulate;
 pub mod topics;
 

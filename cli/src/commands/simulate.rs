@@ -6,7 +6,7 @@ use anyhow::Context as _;
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use tilting_planner::CommandError;
-use tilting_sim::{ScenarioArgs, SimOptions};
+use tilting_sim::{NetworkArgs, ScenarioArgs, SimOptions};
 use tilting_viz::plot::plot_run;
 
 /// Flags of `tilting simulate`.
@@ -15,6 +15,13 @@ pub struct SimulateArgs {
     /// The scenario.
     #[command(flatten)]
     pub scenario: ScenarioArgs,
+    /// An impaired network between plant and controller (sampled loop only).
+    #[command(flatten)]
+    pub network: NetworkArgs,
+    /// With an impaired network: the oldest torque the plant applies (periods between the state
+    /// it answers and the current one), as the plant's --max-age
+    #[arg(long, default_value_t = 10, value_name = "PERIODS")]
+    pub max_age: u64,
     /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
     /// summary
     #[arg(long)]
@@ -48,9 +55,14 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
             }
         }
     }
+    let network = args
+        .network
+        .impairment(args.max_age)
+        .map_err(|e| CommandError::Usage(e.into()))?;
     let opts = SimOptions {
         record_samples: args.plot.is_some(),
         progress: !args.json && std::io::stderr().is_terminal(),
+        network,
     };
     let report = tilting_sim::simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
     if args.json {

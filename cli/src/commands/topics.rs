@@ -5,149 +5,99 @@
 
 use super::print_stdout;
 use anyhow::anyhow;
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::sync::mpsc::{sync_channel, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_net::{Role, ZenohArgs};
 use tilting_planner::CommandError;
-use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
+use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
 
-/// A topic of a robot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Topic {
-    /// `plant/state`: `PlantState`, once per control period.
-    State,
-    /// `controller/torque`: `TorqueCommand`, one per state.
-    Torque,
-    /// `plant/event`: `ModeEvent`, at every mode transition.
-    Event,
-    /// `plant/status`: `Status`, at 10 Hz.
-    Status,
-    /// `planner/reference`: `Reference`, on change and repeated.
-    Reference,
+/// Parses a topic name for clap (`state`, `torque`, `event`, `status`, `reference`).
+pub fn parse_topic(s: &str) -> Result<Topic, String> {
+    s.parse::<Topic>().map_err(|e| e.to_string())
 }
 
-impl Topic {
-    /// Every topic, in the order of the tables.
-    pub const ALL: [Topic; 5] = [
-        Topic::State,
-        Topic::Torque,
-        Topic::Event,
-        Topic::Status,
-        Topic::Reference,
-    ];
-
-    /// The lowercase name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Topic::State => "state",
-            Topic::Torque => "torque",
-            Topic::Event => "event",
-            Topic::Status => "status",
-            Topic::Reference => "reference",
+/// One payload decoded: a human line, or a JSON object (`--json`); `Err` with the codec's
+/// message (naming the message type and the field) for a payload that does not decode.
+pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String> {
+    fn out<T: serde::Serialize>(m: &T, json: bool, human: String) -> String {
+        if json {
+            serde_json::to_string(m).unwrap_or_default()
+        } else {
+            human
         }
     }
-
-    /// The key expression of this topic for `keys`' robot.
-    pub fn key(self, keys: &Keys) -> String {
-        match self {
-            Topic::State => keys.plant_state(),
-            Topic::Torque => keys.controller_torque(),
-            Topic::Event => keys.plant_event(),
-            Topic::Status => keys.plant_status(),
-            Topic::Reference => keys.planner_reference(),
+    let mode = |q: u8| tilting_proto::Mode::try_from(q).map_or("?", |m| m.as_str());
+    Ok(match topic {
+        Topic::State => {
+            let s: PlantState = codec::decode(bytes).map_err(|e| e.to_string())?;
+            let h = format!(
+                "seq {:>8}  t {:10.4} s  {:<5}  alpha {:+.6} rad  beta {:.6} rad  alpha_dot {:+.5} rad/s  beta_dot {:+.5} rad/s",
+                s.seq, s.time, mode(s.mode), s.alpha, s.beta, s.alpha_dot, s.beta_dot
+            );
+            out(&s, json, h)
         }
-        .to_owned()
-    }
-
-    /// Decodes and validates one payload without formatting it (the check `hz` runs on every
-    /// message).
-    pub fn check(self, bytes: &[u8]) -> Result<(), tilting_proto::DecodeError> {
-        match self {
-            Topic::State => codec::decode::<PlantState>(bytes).map(drop),
-            Topic::Torque => codec::decode::<TorqueCommand>(bytes).map(drop),
-            Topic::Event => codec::decode::<ModeEvent>(bytes).map(drop),
-            Topic::Status => codec::decode::<Status>(bytes).map(drop),
-            Topic::Reference => codec::decode::<Reference>(bytes).map(drop),
+        Topic::Torque => {
+            let c: TorqueCommand = codec::decode(bytes).map_err(|e| e.to_string())?;
+            out(&c, json, format!("seq {:>8}  tau {:+.6} N m", c.seq, c.tau))
         }
-    }
-
-    /// One payload decoded: a human line, or a JSON object (`--json`); `Err` with the codec's
-    /// message (naming the message type and the field) for a payload that does not decode.
-    pub fn describe(self, bytes: &[u8], json: bool) -> Result<String, String> {
-        fn out<T: serde::Serialize>(m: &T, json: bool, human: String) -> String {
-            if json {
-                serde_json::to_string(m).unwrap_or_default()
-            } else {
-                human
-            }
+        Topic::Event => {
+            let e: ModeEvent = codec::decode(bytes).map_err(|e| e.to_string())?;
+            let h = format!(
+                "t {:.6} s  {} -> {}  alpha_dot {:+.5} -> {:+.5} rad/s  beta_dot {:+.5} -> {:+.5} rad/s",
+                e.time,
+                mode(e.from),
+                mode(e.to),
+                e.x_before[2],
+                e.x_after[2],
+                e.x_before[3],
+                e.x_after[3]
+            );
+            out(&e, json, h)
         }
-        let mode = |q: u8| tilting_proto::Mode::try_from(q).map_or("?", |m| m.as_str());
-        Ok(match self {
-            Topic::State => {
-                let s: PlantState = codec::decode(bytes).map_err(|e| e.to_string())?;
-                let h = format!(
-                    "seq {:>8}  t {:10.4} s  {:<5}  alpha {:+.6} rad  beta {:.6} rad  alpha_dot {:+.5} rad/s  beta_dot {:+.5} rad/s",
-                    s.seq, s.time, mode(s.mode), s.alpha, s.beta, s.alpha_dot, s.beta_dot
-                );
-                out(&s, json, h)
-            }
-            Topic::Torque => {
-                let c: TorqueCommand = codec::decode(bytes).map_err(|e| e.to_string())?;
-                out(&c, json, format!("seq {:>8}  tau {:+.6} N m", c.seq, c.tau))
-            }
-            Topic::Event => {
-                let e: ModeEvent = codec::decode(bytes).map_err(|e| e.to_string())?;
-                let h = format!(
-                    "t {:.6} s  {} -> {}  alpha_dot {:+.5} -> {:+.5} rad/s  beta_dot {:+.5} -> {:+.5} rad/s",
-                    e.time,
-                    mode(e.from),
-                    mode(e.to),
-                    e.x_before[2],
-                    e.x_after[2],
-                    e.x_before[3],
-                    e.x_after[3]
-                );
-                out(&e, json, h)
-            }
-            Topic::Status => {
-                let s: Status = codec::decode(bytes).map_err(|e| e.to_string())?;
-                let h = format!(
-                    "t {:.3} s  {}  {}  tilts {}  misses {}  dropped {}  stale {}  latency p50 {:.0} us p99 {:.0} us{}",
-                    s.time,
-                    s.state_name(),
-                    mode(s.mode),
-                    s.tilts,
-                    s.deadline_misses,
-                    s.torques_dropped,
-                    s.torques_stale,
-                    s.latency_p50_us,
-                    s.latency_p99_us,
-                    if s.fault.is_empty() {
-                        String::new()
-                    } else {
-                        format!("  fault: {}", s.fault)
-                    }
-                );
-                out(&s, json, h)
-            }
-            Topic::Reference => {
-                let r: Reference = codec::decode(bytes).map_err(|e| e.to_string())?;
-                out(&r, json, tilting_planner::node::describe(&r))
-            }
-        })
-    }
+        Topic::Status => {
+            let s: Status = codec::decode(bytes).map_err(|e| e.to_string())?;
+            let h = format!(
+                "t {:.3} s  {}  {}  tilts {}  misses {}  dropped {}  stale {}  latency p50 {:.0} us p99 {:.0} us  age p50 {} p99 {} max {} periods  late {}  lost {}  reordered {}{}",
+                s.time,
+                s.state_name(),
+                mode(s.mode),
+                s.tilts,
+                s.deadline_misses,
+                s.torques_dropped,
+                s.torques_stale,
+                s.latency_p50_us,
+                s.latency_p99_us,
+                s.age_p50,
+                s.age_p99,
+                s.age_max,
+                s.torques_late,
+                s.torques_lost,
+                s.torques_reordered,
+                if s.fault.is_empty() {
+                    String::new()
+                } else {
+                    format!("  fault: {}", s.fault)
+                }
+            );
+            out(&s, json, h)
+        }
+        Topic::Reference => {
+            let r: Reference = codec::decode(bytes).map_err(|e| e.to_string())?;
+            out(&r, json, tilting_planner::node::describe(&r))
+        }
+    })
 }
 
 /// The session flags of `echo` and `hz`.
-fn session_args(z: &ZenohArgs) -> Result<Keys, CommandError> {
+pub(crate) fn session_args(z: &ZenohArgs) -> Result<Keys, CommandError> {
     let keys = z.keys().map_err(CommandError::Usage)?;
     z.config(Role::Peer).map_err(CommandError::Usage)?;
     Ok(keys)
 }
 
-fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
+pub(crate) fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
     match v {
         Some(s) if !(s.is_finite() && s > 0.0 && s <= 1e7) => Err(CommandError::Usage(anyhow!(
             "invalid `{flag}` = {s}: allowed a positive number of seconds up to 1e7"
@@ -160,7 +110,7 @@ fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
 #[derive(Debug, Clone, Args)]
 pub struct EchoArgs {
     /// The topic to print
-    #[arg(value_enum)]
+    #[arg(value_parser = parse_topic, value_name = "state|torque|event|status|reference")]
     pub topic: Topic,
     /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
     #[command(flatten)]
@@ -189,7 +139,7 @@ pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
         let (tx, rx) = sync_channel::<Vec<u8>>(4096);
         let skipped = Arc::new(Mutex::new(0u64));
         let sk = skipped.clone();
-        let key = args.topic.key(&keys);
+        let key = args.topic.key(&keys).to_owned();
         let _sub = tilting_net::subscribe_bytes(&session, &key, move |bytes| {
             if let Err(TrySendError::Full(_)) = tx.try_send(bytes.to_vec()) {
                 *sk.lock().unwrap_or_else(|e| e.into_inner()) += 1;
@@ -216,7 +166,7 @@ pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
                 }
             };
             n += 1;
-            let line = match args.topic.describe(&bytes, args.json) {
+            let line = match describe(args.topic, &bytes, args.json) {
                 Ok(l) => l,
                 Err(e) if args.json => serde_json::json!({ "invalid": e }).to_string(),
                 Err(e) => format!("invalid payload ({} bytes): {e}", bytes.len()),
@@ -240,7 +190,7 @@ pub struct HzArgs {
     #[command(flatten)]
     pub zenoh: ZenohArgs,
     /// Only these topics [default: all]
-    #[arg(long, value_enum, value_delimiter = ',')]
+    #[arg(long, value_parser = parse_topic, value_delimiter = ',', value_name = "TOPIC,...")]
     pub topics: Vec<Topic>,
     /// Seconds between two reports
     #[arg(
@@ -296,7 +246,7 @@ pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
         let mut subs = Vec::new();
         for (i, &topic) in topics.iter().enumerate() {
             let st = stats.clone();
-            let key = topic.key(&keys);
+            let key = topic.key(&keys).to_owned();
             let sub = tilting_net::subscribe_bytes(&session, &key, move |bytes| {
                 let ok = topic.check(bytes).is_ok();
                 let now = Instant::now();

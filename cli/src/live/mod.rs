@@ -8,10 +8,10 @@
 //! - a clean stop after `--duration` (the plant ends its run itself) or at Ctrl-C/SIGTERM: the
 //!   children get SIGINT, then SIGTERM, then SIGKILL if they do not exit in time (a second
 //!   Ctrl-C kills at once);
-//! - a recording in `--out DIR` (default `runs/<UTC timestamp>/`): `state.csv`, `torque.csv`,
-//!   `events.csv` (see [`crate::record`]), `run.png`, `run.gif` (the last 8 s, moving),
-//!   `summary.json` ([`summary`]), and the children's output (`plant.log`, `plant.json`,
-//!   `controller.log`, `controller.json`);
+//! - a recording in `--out DIR` (default `runs/<UTC timestamp>/`): `run.mcap` (all five
+//!   topics; with `--csv` also `state.csv`, `torque.csv`, `events.csv`, see [`crate::record`]),
+//!   `run.png`, `run.gif` (the last 8 s, moving), `summary.json` ([`summary`]), and the
+//!   children's output (`plant.log`, `plant.json`, `controller.log`, `controller.json`);
 //! - a report on stdout: tilts, peak |alpha| of the last tilts, loop latency p50/p99/p99.9,
 //!   deadline misses, faults.
 //!
@@ -58,6 +58,9 @@ pub struct LiveArgs {
     /// Output directory [default: runs/<UTC timestamp>/]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Also write state.csv, torque.csv and events.csv (for spreadsheets) beside run.mcap
+    #[arg(long)]
+    pub csv: bool,
     /// Control rate of the plant (Hz)
     #[arg(
         long,
@@ -174,7 +177,7 @@ async fn live(
         None => free_port()?,
     };
     let (ctl_port, my_port) = (free_port()?, free_port()?);
-    let recorder = Recorder::create(dir)?;
+    let recorder = Recorder::create(dir, &keys, args.csv)?;
     let period = 1.0 / args.rate;
     eprintln!(
         "live: {} s at {} Hz in real time, robot {}; law: {}",
@@ -215,6 +218,7 @@ async fn live(
         keys.controller_torque(),
         keys.plant_event(),
         keys.plant_status(),
+        keys.planner_reference(),
     ]
     .map(|k| Arc::new(DropCounter::new(k)));
     let tx = recorder.sender();
@@ -233,8 +237,15 @@ async fn live(
     })
     .await?;
     let l = latest.clone();
+    let tx = recorder.sender();
     let status_sub = subscribe_decoded(&session, counters[3].clone(), move |m: Status| {
+        tx.send(Record::Status(m.clone()));
         *l.lock().unwrap_or_else(|e| e.into_inner()) = Some(m)
+    })
+    .await?;
+    let tx = recorder.sender();
+    let reference_sub = subscribe_decoded(&session, counters[4].clone(), move |m: Reference| {
+        tx.send(Record::Reference(m))
     })
     .await?;
     let publisher = ReferencePublisher::start(&session, &keys, reference).await?;
@@ -371,7 +382,14 @@ async fn live(
     // 6. Let the last messages arrive, then close the recording.
     tokio::time::sleep(Duration::from_millis(150)).await;
     let (puts, queries) = (publisher.puts(), publisher.queries_answered());
-    drop((state_sub, torque_sub, event_sub, status_sub, publisher));
+    drop((
+        state_sub,
+        torque_sub,
+        event_sub,
+        status_sub,
+        reference_sub,
+        publisher,
+    ));
     let _ = session.close().await;
     let dropped = recorder.dropped();
     let view = recorder.finish()?;
@@ -413,7 +431,7 @@ async fn live(
     };
     let early = fault.is_some() || !problems.is_empty();
     let plot_result = if view.states > 0 {
-        record::plot_recording(dir, &png, view.states, &scenario, early)
+        record::plot_recording(dir, &png, &scenario, early)
     } else {
         Err(anyhow!("no state was recorded"))
     };
@@ -450,6 +468,9 @@ async fn live(
             states: view.states,
             torques: view.torques,
             events: view.events,
+            statuses: view.statuses,
+            references: view.references,
+            csv: args.csv,
             tilts: view.tilts,
             dropped,
             missing_states: view.missing_states,

@@ -21,7 +21,8 @@ fn mode_name(q: u8) -> &'static str {
 }
 
 /// The status line: plant time, run state, mode, alpha, tilts and last peaks, loop latency,
-/// deadline misses, and the watchdog and recording counters when they are not zero.
+/// deadline misses, and the torque ages (late, lost, reordered), the watchdog and recording
+/// counters when they are not zero.
 pub(super) fn status_line(st: Option<&Status>, v: &RecordView, dropped: u64) -> String {
     let Some(st) = st else {
         return format!(
@@ -50,6 +51,12 @@ pub(super) fn status_line(st: Option<&Status>, v: &RecordView, dropped: u64) -> 
         st.latency_p99_us,
         st.deadline_misses,
     );
+    if st.age_max > 0.0 || st.torques_lost > 0 || st.torques_reordered > 0 {
+        line.push_str(&format!(
+            " | age p99 {:.0} max {:.0} periods, late {}, lost {}, reordered {}",
+            st.age_p99, st.age_max, st.torques_late, st.torques_lost, st.torques_reordered
+        ));
+    }
     if st.watchdog_trips > 0 {
         line.push_str(&format!(" | watchdog trips {}", st.watchdog_trips));
     }
@@ -85,6 +92,12 @@ mod tests {
             max_overrun_us: 0.0,
             latency_p50_us: 40.0,
             latency_p99_us: 90.0,
+            torques_late: 0,
+            torques_lost: 0,
+            torques_reordered: 0,
+            age_p50: 0.0,
+            age_p99: 0.0,
+            age_max: 0.0,
             fault: String::new(),
         };
         let v = RecordView {

@@ -75,12 +75,21 @@ pub struct Endpoints {
 /// What the recording holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordCounts {
-    /// Rows of `state.csv`.
+    /// States recorded (`run.mcap`, and rows of `state.csv`).
     pub states: u64,
-    /// Rows of `torque.csv`.
+    /// Torques recorded (and rows of `torque.csv`).
     pub torques: u64,
-    /// Rows of `events.csv`.
+    /// Events recorded (and rows of `events.csv`).
     pub events: u64,
+    /// Status messages recorded.
+    #[serde(default)]
+    pub statuses: u64,
+    /// References recorded.
+    #[serde(default)]
+    pub references: u64,
+    /// The CSV files were written too (`--csv`).
+    #[serde(default)]
+    pub csv: bool,
     /// Tilts seen in the events.
     pub tilts: u64,
     /// Messages the recorder had to drop (its queue was full).
@@ -226,11 +235,14 @@ impl LiveSummary {
         let r = &self.record;
         let _ = writeln!(
             out,
-            "recorded in {}: state.csv {} rows, torque.csv {} rows, events.csv {} rows, {}summary.json (dropped {}, missing states {})",
+            "recorded in {}: run.mcap ({} states, {} torques, {} events, {} status, {} references), {}{}summary.json (dropped {}, missing states {})",
             self.out.display(),
             r.states,
             r.torques,
             r.events,
+            r.statuses,
+            r.references,
+            if r.csv { "state.csv, torque.csv, events.csv, " } else { "" },
             if self.png { "run.png, " } else { "" },
             r.dropped,
             r.missing_states,

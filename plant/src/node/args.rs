@@ -38,6 +38,11 @@ pub struct PlantArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    /// Network impairments emulated by the plant (lockstep only): states and torques cross
+    /// links with these delays and losses, deterministically from --seed, exactly as in
+    /// `tilting simulate` with the same flags.
+    #[command(flatten)]
+    pub network: tilting_link::NetworkArgs,
     /// Pace plant time by the wall clock (realtime) or by the controller's answers (lockstep)
     #[arg(long, value_enum, default_value_t = ClockMode::Realtime)]
     pub clock: ClockMode,
@@ -92,9 +97,10 @@ pub struct PlantArgs {
     /// Hard torque limit (N m) applied by the plant; 0 = none
     #[arg(long, default_value_t = 0.0, value_name = "NM")]
     pub torque_limit: f64,
-    /// Write every sample to this CSV file: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau (the
-    /// state columns in the order of `tilting live`'s state.csv, then the torque applied)
-    #[arg(long, value_name = "FILE.csv")]
+    /// Record the run into this file: MCAP (states, applied torques, events, status; JSON for
+    /// Foxglove and PlotJuggler plus the wire bytes), or for a name ending in `.csv` one row per
+    /// period: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau (the torque applied)
+    #[arg(long, value_name = "FILE.mcap|FILE.csv")]
     pub record: Option<PathBuf>,
     /// Start at once instead of waiting for a controller (its liveliness token or an answer)
     #[arg(long)]
@@ -173,6 +179,13 @@ impl PlantArgs {
                 "invalid --duration = {d}: allowed a positive number of seconds, at most \
                  {MAX_PERIODS:e} periods ({} s at this rate)",
                 MAX_PERIODS * h
+            );
+        }
+        if self.network.impairment(self.max_age)?.is_some() {
+            anyhow::ensure!(
+                self.clock == ClockMode::Lockstep,
+                "--delay, --jitter, --loss and --loss-burst are emulated in lockstep only \
+                 (--clock lockstep); in real time, put a real or proxied link between the nodes"
             );
         }
         anyhow::ensure!(

@@ -52,7 +52,11 @@ pub(super) struct Loop {
     pub(super) shared: Arc<Shared>,
     pub(super) pubs: Arc<Publishers>,
     pub(super) obs: Obs,
-    pub(super) record: Option<csv::RowWriter>,
+    pub(super) record: Option<Recording>,
+    /// Torque commands taken into force.
+    pub(super) torques_applied: u64,
+    /// Lockstep over emulated links (`--delay` ...): the hold that picks the torque.
+    pub(super) hold: Option<tilting_link::ImpairedHold>,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
     /// When it was published (ns).
@@ -105,11 +109,23 @@ impl Loop {
         if let Err(e) = self.pubs.state.put(&msg) {
             tracing::warn!("cannot publish the state: {e}");
         }
+        self.rec(|r| r.state(&msg));
+    }
+
+    /// Runs `f` on the `--record` file; a write error is logged once and stops the recording.
+    fn rec(&mut self, f: impl FnOnce(&mut Recording) -> anyhow::Result<()>) {
+        if let Some(r) = &mut self.record {
+            if let Err(e) = f(r) {
+                tracing::warn!("--record: write failed, recording stops: {e:#}");
+                self.record = None;
+            }
+        }
     }
 
     pub(super) fn status(&mut self) -> Status {
         let p = self.jitter.percentiles();
         let l = self.latency.percentiles();
+        let a = self.age.percentiles();
         let mut s = Status {
             seq: self.seq,
             time: self.plant.time(),
@@ -127,6 +143,12 @@ impl Loop {
             max_overrun_us: self.max_overrun_us(),
             latency_p50_us: l.p50,
             latency_p99_us: l.p99,
+            torques_late: self.torques_late,
+            torques_lost: self.torques_lost,
+            torques_reordered: self.shared.reordered.load(Ordering::Relaxed),
+            age_p50: a.p50,
+            age_p99: a.p99,
+            age_max: self.age.max(),
             fault: String::new(),
         };
         s.set_fault(&self.fault);
@@ -142,10 +164,12 @@ impl Loop {
         if let Err(e) = self.pubs.status.put(&s) {
             tracing::warn!("cannot publish the status: {e}");
         }
+        self.rec(|r| r.status(&s));
         self.next_status = Instant::now() + self.status_interval;
     }
 
     pub(super) fn maybe_status(&mut self) {
+        self.rec(|r| r.flush_if_due());
         let now = Instant::now();
         if now >= self.next_status {
             self.publish_status();
@@ -227,6 +251,8 @@ impl Loop {
                     self.torques_lost += cmd.seq.saturating_sub(a + 1);
                 }
                 self.applied_seq = Some(cmd.seq);
+                self.torques_applied += 1;
+                self.rec(|r| r.torque(&cmd));
                 self.age.push(age as f64);
                 self.missed = 0;
                 self.tau = cmd.tau;
@@ -364,25 +390,10 @@ impl Loop {
     }
 
     pub(super) fn write_record(&mut self, tau: Option<f64>) {
-        if let Some(w) = &mut self.record {
-            let x = self.plant.state();
-            let tau = tau.map(|t| t.to_string()).unwrap_or_default();
-            let r = w.row(format_args!(
-                "{},{},{},{},{},{},{},{}",
-                self.seq,
-                self.plant.time(),
-                self.plant.mode().as_u8(),
-                x[0],
-                x[1],
-                x[2],
-                x[3],
-                tau,
-            ));
-            if let Err(e) = r {
-                tracing::warn!("--record: write failed, recording stops: {e}");
-                self.record = None;
-            }
-        }
+        let (seq, t, mode) = (self.seq, self.plant.time(), self.plant.mode().as_u8());
+        let x = self.plant.state();
+        let x = [x[0], x[1], x[2], x[3]];
+        self.rec(|r| r.row(seq, t, mode, x, tau));
     }
 
     /// Integrates one period with `tau` and publishes the events and the next state.
@@ -415,6 +426,12 @@ impl Loop {
             };
             if let Err(e) = self.pubs.event.put(&msg) {
                 tracing::warn!("cannot publish an event: {e}");
+            }
+            if let Some(r) = &mut self.record {
+                if let Err(e) = r.event(&msg) {
+                    tracing::warn!("--record: write failed, recording stops: {e:#}");
+                    self.record = None;
+                }
             }
             tracing::debug!(t = ev.t, from = %ev.from, to = %ev.to, "transition");
         }
@@ -484,7 +501,16 @@ impl Loop {
             if self.shared.stop.load(Ordering::Acquire) {
                 return Outcome::Stopped;
             }
-            let tau = self.choose_torque(fresh, true);
+            let fresh_tau = fresh.map(|(c, _)| c.tau);
+            let mut tau = self.choose_torque(fresh, true);
+            if let (Some(answer), Some(hold)) = (fresh_tau, self.hold.as_mut()) {
+                // The answer crosses the emulated links; the hold picks the torque in force,
+                // as `simulate` does with the same flags.
+                tau = hold.step(self.seq, self.plant.time(), || answer);
+                if self.args.torque_limit > 0.0 {
+                    tau = tau.clamp(-self.args.torque_limit, self.args.torque_limit);
+                }
+            }
             match self.step(tau) {
                 Ok(true) => return Outcome::Completed,
                 Ok(false) => {}
@@ -535,9 +561,9 @@ impl Loop {
                 self.set_state(Status::STOPPED);
             }
         }
-        if let Some(w) = &mut self.record {
-            if let Err(e) = w.flush() {
-                tracing::warn!("--record: flush failed: {e}");
+        if let Some(r) = self.record.take() {
+            if let Err(e) = r.finish() {
+                tracing::warn!("--record: cannot finish the file: {e:#}");
             }
         }
         outcome
@@ -572,6 +598,8 @@ impl Loop {
             torques_reordered: self.shared.reordered.load(Ordering::Relaxed),
             torques_late: self.torques_late,
             torques_lost: self.torques_lost,
+            torques_applied: self.torques_applied,
+            network: self.hold.as_ref().map(|h| h.stats().clone()),
             age_periods: Some(Window {
                 p50: a.p50,
                 p99: a.p99,
@@ -609,7 +637,18 @@ impl Loop {
                 count: None,
                 window: None,
             },
-            tilt_peaks: self.obs.peaks.iter().map(|p| [p.t, p.alpha]).collect(),
+            // The completed tilts, then the peak of a tilt still in progress (reached before
+            // the end of the run but not landed).
+            tilt_peaks: {
+                let mut peaks = self.obs.peaks.clone();
+                if let Some(p) = self.plant.peak_in_progress() {
+                    if peaks.len() == MAX_PEAKS {
+                        peaks.pop_front();
+                    }
+                    peaks.push_back(p);
+                }
+                peaks.iter().map(|p| [p.t, p.alpha]).collect()
+            },
         }
     }
 }

@@ -43,6 +43,7 @@ pub mod clock;
 mod control_loop;
 pub mod csv;
 mod inbox;
+mod recording;
 pub mod stats;
 pub mod summary;
 
@@ -67,6 +68,7 @@ pub use args::{
 };
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
+use recording::Recording;
 use stats::Ring;
 pub use summary::{PlantSummary, RunResult, Window};
 
@@ -86,14 +88,7 @@ pub fn run(args: PlantArgs) -> anyhow::Result<ExitCode> {
     let x0 = State::from(args.x0.unwrap_or_else(paper::orbit_x0));
     let plant = Plant::new(cfg, 0.0, args.mode, x0).context("initial state")?;
     let record = match &args.record {
-        Some(path) => Some(
-            csv::RowWriter::create(
-                path,
-                &format!("{STATE_COLUMNS},tau"),
-                csv::RowWriter::INTERVAL,
-            )
-            .with_context(|| format!("--record {}", path.display()))?,
-        ),
+        Some(path) => Some(recording::Recording::create(path, &keys)?),
         None => None,
     };
     let rt = tilting_net::runtime()?;
@@ -104,7 +99,7 @@ async fn run_async(
     args: PlantArgs,
     keys: Keys,
     plant: Plant,
-    record: Option<csv::RowWriter>,
+    record: Option<Recording>,
 ) -> anyhow::Result<ExitCode> {
     let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
     let shared = Arc::new(Shared {
@@ -142,6 +137,10 @@ async fn run_async(
 
     let h = args.period();
     let safe_pd = (args.safe_kp, args.safe_kd);
+    let hold = args
+        .network
+        .impairment(args.max_age)?
+        .map(|imp| imp.hold(args.period()));
     let mut lp = Loop {
         args,
         h,
@@ -160,6 +159,8 @@ async fn run_async(
         applied_seq: None,
         torques_late: 0,
         torques_lost: 0,
+        torques_applied: 0,
+        hold,
         age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,

@@ -80,6 +80,12 @@ pub struct PlantSummary {
     /// States whose answer was never applied (between two applied torques).
     #[serde(default)]
     pub torques_lost: u64,
+    /// Torque commands taken into force (the torque channel of an MCAP `--record`).
+    #[serde(default)]
+    pub torques_applied: u64,
+    /// What the emulated links did, in lockstep with `--delay` ...
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub network: Option<tilting_link::NetStats>,
     /// Age of the applied torques (periods between the state a torque answers and the state
     /// it was applied at): percentiles over the last 4096 applied torques.
     #[serde(default)]

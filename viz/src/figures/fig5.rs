@@ -39,6 +39,10 @@ pub(super) fn simulate(
     tr.sample(0.0, mode, &x0);
     let fault =
         tilting_sim::run_continuous(&mut plant, law, duration, 1, &mut tr, &mut |_| {}).err();
+    // The peak of the last tilt, reached before the end but not landed, is a peak too.
+    if let Some(p) = plant.peak_in_progress() {
+        tr.tilt_peak(&p);
+    }
     Ok((tr, fault))
 }
 

@@ -1,0 +1,473 @@
+//! `tilting record`, `tilting replay` and `tilting info`: MCAP recordings of a robot's topics
+//! (the format is `tilting_record`'s), made from any robot on the network, played back into
+//! nodes under test, and summarised.
+
+use super::print_stdout;
+use super::topics::{check_seconds, parse_topic, session_args};
+use anyhow::anyhow;
+use clap::Args;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, RecvTimeoutError, TrySendError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tilting_net::{Qos, RawPublisher, Role, ZenohArgs};
+use tilting_planner::CommandError;
+use tilting_proto::{Keys, Topic};
+use tilting_record::{Recorder, Recording};
+
+/// Capacity of the queue between the subscribers and the file (messages): 30 s at 1 kHz.
+const QUEUE: usize = 1 << 15;
+
+/// Flags of `tilting record`.
+#[derive(Debug, Clone, Args)]
+pub struct RecordArgs {
+    /// The MCAP file to write
+    #[arg(long, value_name = "FILE.mcap")]
+    pub out: PathBuf,
+    /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Stop after this many seconds [default: until Ctrl-C]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+    /// Fail if no message arrives within this many seconds
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
+    pub wait: f64,
+}
+
+/// `tilting record`: subscribes to the five topics of a robot and writes every message that
+/// decodes and validates into an MCAP file, until Ctrl-C or `--seconds`.
+pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    check_seconds("--seconds", args.seconds)?;
+    check_seconds("--wait", Some(args.wait))?;
+    let keys = session_args(&args.zenoh)?;
+    let mut rec = Recorder::create(&args.out, &keys)
+        .map_err(|e| CommandError::Failed(anyhow!("--out {e}")))?;
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(async {
+        let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+        let (tx, rx) = sync_channel::<(Topic, Vec<u8>)>(QUEUE);
+        let dropped = Arc::new(AtomicU64::new(0));
+        let mut subs = Vec::new();
+        for topic in Topic::ALL {
+            let tx = tx.clone();
+            let d = dropped.clone();
+            let key = topic.key(&keys).to_owned();
+            subs.push(
+                tilting_net::subscribe_bytes(&session, &key, move |bytes| {
+                    if let Err(TrySendError::Full(_)) = tx.try_send((topic, bytes.to_vec())) {
+                        d.fetch_add(1, Ordering::Relaxed);
+                    }
+                })
+                .await?,
+            );
+        }
+        drop(tx);
+        eprintln!(
+            "record: tilting/{}/** into {} (Ctrl-C stops)",
+            keys.robot(),
+            args.out.display()
+        );
+        let start = Instant::now();
+        let end = args.seconds.map(|s| start + Duration::from_secs_f64(s));
+        let wait = Duration::from_secs_f64(args.wait);
+        let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
+        let mut total = 0u64;
+        let mut last_report = Instant::now();
+        loop {
+            if end.is_some_and(|e| Instant::now() >= e) {
+                break;
+            }
+            match rx.recv_timeout(Duration::ZERO) {
+                Ok((topic, bytes)) => {
+                    rec.record(topic, &bytes)?;
+                    total += 1;
+                    continue;
+                }
+                Err(RecvTimeoutError::Disconnected) => break,
+                Err(RecvTimeoutError::Timeout) => {}
+            }
+            rec.flush_if_due()?;
+            if total == 0 && start.elapsed() >= wait {
+                drop(subs);
+                let _ = session.close().await;
+                let _ = rec.finish();
+                let _ = std::fs::remove_file(&args.out);
+                return Err(anyhow!(
+                    "no message from robot `{}` within {} s (is it running, and reachable at {}?); \
+                     nothing recorded",
+                    keys.robot(),
+                    args.wait,
+                    endpoints(&args.zenoh)
+                ));
+            }
+            if last_report.elapsed() >= Duration::from_secs(1) {
+                last_report = Instant::now();
+                eprint!(
+                    "\rrecord: {total} messages, {:.0} s",
+                    start.elapsed().as_secs_f64()
+                );
+            }
+            tokio::select! {
+                _ = &mut stop => break,
+                _ = tokio::time::sleep(Duration::from_millis(2)) => {}
+            }
+        }
+        drop(subs);
+        // What was queued before the subscribers went away.
+        while let Ok((topic, bytes)) = rx.try_recv() {
+            rec.record(topic, &bytes)?;
+        }
+        let _ = session.close().await;
+        let counts: Vec<String> = Topic::ALL
+            .iter()
+            .map(|&t| format!("{} {}", rec.count(t), t))
+            .collect();
+        let invalid = rec.invalid();
+        rec.finish()?;
+        eprintln!();
+        print_stdout(&format!(
+            "recorded {} into {}: {}; invalid {invalid}, dropped {}\n",
+            keys.robot(),
+            args.out.display(),
+            counts.join(", "),
+            dropped.load(Ordering::Relaxed)
+        ))
+        .map_err(|e| anyhow!("{e}"))?;
+        anyhow::Ok(())
+    })
+    .map_err(CommandError::Failed)
+}
+
+fn endpoints(z: &ZenohArgs) -> String {
+    if z.connect.is_empty() {
+        "tcp/127.0.0.1:7447".into()
+    } else {
+        z.connect.join(", ")
+    }
+}
+
+/// Flags of `tilting replay`.
+#[derive(Debug, Clone, Args)]
+pub struct ReplayArgs {
+    /// The MCAP file (written by `live`, `record` or the plant's `--record`)
+    #[arg(value_name = "FILE.mcap")]
+    pub file: PathBuf,
+    /// Robot name (the keys published) and zenoh endpoints (default: connect to
+    /// tcp/127.0.0.1:7447).
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Only these topics [default: all recorded]
+    #[arg(long, value_parser = parse_topic, value_delimiter = ',', value_name = "TOPIC,...")]
+    pub topics: Vec<Topic>,
+    /// Playback speed: 1 is the original pace, 10 ten times faster
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "FACTOR",
+        allow_negative_numbers = true
+    )]
+    pub speed: f64,
+    /// As fast as possible (ignores --speed)
+    #[arg(long)]
+    pub fast: bool,
+    /// Seconds to wait for a subscriber on every replayed topic before starting
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
+    pub wait: f64,
+}
+
+/// `tilting replay`: publishes the recorded payloads, byte for byte, on the keys of `--robot`,
+/// paced by their log times. While replaying a node's topics it holds that node's liveliness
+/// token (the plant's for state/event/status, the controller's for torque, the planner's for
+/// reference), as the node did.
+pub fn replay(args: &ReplayArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    if !(args.speed.is_finite() && args.speed > 0.0 && args.speed <= 1e6) {
+        return Err(CommandError::Usage(anyhow!(
+            "invalid `--speed` = {}: allowed a factor in (0, 1e6] (use --fast for no pacing)",
+            args.speed
+        )));
+    }
+    check_seconds("--wait", Some(args.wait))?;
+    let keys = session_args(&args.zenoh)?;
+    let run = tilting_record::read(&args.file).map_err(|e| CommandError::Failed(e.into()))?;
+    let topics: Vec<Topic> = if args.topics.is_empty() {
+        Topic::ALL
+            .into_iter()
+            .filter(|&t| run.count(t) > 0)
+            .collect()
+    } else {
+        args.topics.clone()
+    };
+    if topics.is_empty() {
+        return Err(CommandError::Failed(anyhow!(
+            "{} holds no message to replay",
+            args.file.display()
+        )));
+    }
+    for &t in &topics {
+        if run.count(t) == 0 {
+            return Err(CommandError::Usage(anyhow!(
+                "`--topics`: {} holds no {t} message (it holds: {})",
+                args.file.display(),
+                held(&run)
+            )));
+        }
+    }
+    if let Some(r) = run.robot().filter(|&r| r != keys.robot()) {
+        eprintln!(
+            "replay: recorded from robot `{r}`, replaying as `{}`",
+            keys.robot()
+        );
+    }
+    if let Some(why) = run.truncation() {
+        eprintln!(
+            "replay: {} is truncated ({why}): replaying what it holds",
+            args.file.display()
+        );
+    }
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(replay_async(args, &keys, &run, &topics))
+        .map_err(CommandError::Failed)
+}
+
+fn held(run: &Recording) -> String {
+    Topic::ALL
+        .iter()
+        .filter(|&&t| run.count(t) > 0)
+        .map(|t| t.name())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+async fn replay_async(
+    args: &ReplayArgs,
+    keys: &Keys,
+    run: &Recording,
+    topics: &[Topic],
+) -> anyhow::Result<()> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+    let mut pubs: Vec<Option<RawPublisher>> = (0..5).map(|_| None).collect();
+    for &t in topics {
+        let qos = match t {
+            Topic::State | Topic::Torque => Qos::Control,
+            _ => Qos::Data,
+        };
+        pubs[t.index()] = Some(RawPublisher::declare(&session, t.key(keys), qos).await?);
+    }
+    let mut tokens = Vec::new();
+    let roles = [
+        (
+            [Topic::State, Topic::Event, Topic::Status].as_slice(),
+            keys.alive_plant(),
+        ),
+        ([Topic::Torque].as_slice(), keys.alive_controller()),
+        ([Topic::Reference].as_slice(), keys.alive_planner()),
+    ];
+    for (ts, key) in roles {
+        if ts.iter().any(|t| topics.contains(t)) {
+            tokens.push(
+                session
+                    .liveliness()
+                    .declare_token(key.to_owned())
+                    .await
+                    .map_err(|e| {
+                        anyhow!("cannot declare {key}: {}", tilting_net::zenoh_error(&e))
+                    })?,
+            );
+        }
+    }
+    // A put before a subscriber's route exists is lost: wait for one on every topic.
+    let deadline = Instant::now() + Duration::from_secs_f64(args.wait);
+    for p in pubs.iter().flatten() {
+        while !p.has_subscribers().await {
+            if Instant::now() >= deadline {
+                return Err(anyhow!(
+                    "nobody subscribes to {} after {} s: start the node under test first (with \
+                     --robot {}), or pass --wait",
+                    p.key(),
+                    args.wait,
+                    keys.robot()
+                ));
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+    // Routes exist; give the remote subscriber's declaration a moment to settle.
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let total: u64 = topics.iter().map(|&t| run.count(t)).sum();
+    let bar = super::bar(total, "messages", false);
+    let started = Instant::now();
+    let mut first: Option<u64> = None;
+    let mut sent = [0u64; 5];
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        tokio::spawn(async move {
+            tilting_net::shutdown_signal().await;
+            stop.store(true, Ordering::Relaxed);
+        });
+    }
+    let speed = args.speed;
+    let fast = args.fast;
+    tokio::task::block_in_place(|| -> anyhow::Result<()> {
+        for e in run.messages() {
+            let Some(p) = &pubs[e.topic.index()] else {
+                continue;
+            };
+            if stop.load(Ordering::Relaxed) {
+                break;
+            }
+            if !fast {
+                let t0 = *first.get_or_insert(e.log_time);
+                let due = started
+                    + Duration::from_secs_f64((e.log_time.saturating_sub(t0)) as f64 / 1e9 / speed);
+                let now = Instant::now();
+                if due > now {
+                    std::thread::sleep(due - now);
+                }
+            }
+            p.put_raw(&e.wire)?;
+            sent[e.topic.index()] += 1;
+            bar.inc(1);
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    // Let the last puts leave before the session closes.
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    drop(tokens);
+    let _ = session.close().await;
+    let counts: Vec<String> = topics
+        .iter()
+        .map(|&t| format!("{} {}", sent[t.index()], t))
+        .collect();
+    print_stdout(&format!(
+        "replayed {} as robot {}: {} in {:.2} s\n",
+        run.path().display(),
+        keys.robot(),
+        counts.join(", "),
+        started.elapsed().as_secs_f64()
+    ))
+    .map_err(|e| anyhow!("{e}"))
+}
+
+/// Flags of `tilting info`.
+#[derive(Debug, Clone, Args)]
+pub struct InfoArgs {
+    /// The MCAP file
+    #[arg(value_name = "FILE.mcap")]
+    pub file: PathBuf,
+    /// One JSON object instead of text
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What `tilting info` reports.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Info {
+    /// The file.
+    pub file: PathBuf,
+    /// Its size, bytes.
+    pub bytes: u64,
+    /// The robot of the channels.
+    pub robot: Option<String>,
+    /// Closed normally (summary section present).
+    pub complete: bool,
+    /// Why reading stopped early, for a file that is not complete.
+    pub truncation: Option<String>,
+    /// Plant time of the first and the last message, s.
+    pub start: Option<f64>,
+    /// See `start`.
+    pub end: Option<f64>,
+    /// Messages per topic.
+    pub counts: std::collections::BTreeMap<String, u64>,
+    /// Tilts (flat to left or right).
+    pub tilts: u64,
+    /// Distinct faults reported by the plant's status.
+    pub faults: Vec<String>,
+}
+
+/// `tilting info`.
+pub fn info(args: &InfoArgs) -> Result<(), CommandError> {
+    let run = tilting_record::read(&args.file).map_err(|e| CommandError::Failed(e.into()))?;
+    let span = run.span();
+    let info = Info {
+        file: args.file.clone(),
+        bytes: run.size(),
+        robot: run.robot().map(str::to_owned),
+        complete: run.complete(),
+        truncation: run.truncation().map(str::to_owned),
+        start: span.map(|s| s.0),
+        end: span.map(|s| s.1),
+        counts: Topic::ALL
+            .iter()
+            .map(|&t| (t.name().to_owned(), run.count(t)))
+            .collect(),
+        tilts: run.tilts(),
+        faults: run.faults().to_vec(),
+    };
+    let text = if args.json {
+        serde_json::to_string_pretty(&info).map_err(|e| CommandError::Failed(e.into()))? + "\n"
+    } else {
+        info_text(&info, &run)
+    };
+    print_stdout(&text)
+}
+
+fn info_text(info: &Info, run: &Recording) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let robot = info.robot.as_deref().unwrap_or("?");
+    let _ = writeln!(
+        s,
+        "file:       {} ({:.1} kB)\nrobot:      {robot}",
+        info.file.display(),
+        info.bytes as f64 / 1e3
+    );
+    let _ = match &info.truncation {
+        None => writeln!(s, "closed:     yes (summary section present)"),
+        Some(w) => writeln!(s, "closed:     NO, read up to the last whole chunk ({w})"),
+    };
+    let span = run.span();
+    if let Some((a, b)) = span {
+        let _ = writeln!(s, "plant time: {a:.3} s to {b:.3} s ({:.3} s)", b - a);
+    }
+    let _ = writeln!(s, "channels:");
+    for t in Topic::ALL {
+        let n = run.count(t);
+        let rate = span
+            .filter(|(a, b)| b > a)
+            .map(|(a, b)| format!("  {:.1} Hz", n as f64 / (b - a)))
+            .unwrap_or_default();
+        let topic = format!(
+            "/tilting/{robot}/{}",
+            t.key(&Keys::new("r").expect("a valid name"))
+                .trim_start_matches("tilting/r/")
+        );
+        let _ = writeln!(s, "  {topic:<36} {:<14} {n:>9}{rate}", t.message_type());
+    }
+    let _ = writeln!(
+        s,
+        "tilts:      {}\nfaults:     {}",
+        info.tilts,
+        if info.faults.is_empty() {
+            "none".to_owned()
+        } else {
+            info.faults.join("; ")
+        }
+    );
+    s
+}

@@ -1,0 +1,439 @@
+//! Reading a recording back: [`read`] checks the file and counts what it holds;
+//! [`Recording::messages`] streams the wire payloads in file order.
+
+use crate::{schema, JSON_ENCODING};
+use mcap::read::{MessageStream, Options};
+use std::path::{Path, PathBuf};
+use tilting_proto::{codec, ModeEvent, Status, Topic};
+
+/// Why a file cannot be read as a recording.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The file cannot be opened or read.
+    #[error("cannot read {path}: {cause}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        cause: std::io::Error,
+    },
+    /// It does not start with the MCAP magic bytes.
+    #[error("{path} is not an MCAP file (it does not start with the MCAP magic bytes)")]
+    NotMcap {
+        /// The file.
+        path: PathBuf,
+    },
+    /// It is MCAP, but holds none of the channels this project writes.
+    #[error(
+        "{path} is an MCAP file but has no tilting channels (JSON with schemas `tilting.PlantState`, \
+         `tilting.TorqueCommand`, ...): it was not recorded by tilting"
+    )]
+    Foreign {
+        /// The file.
+        path: PathBuf,
+    },
+    /// It ends (torn) before its first message of ours.
+    #[error("{path} ends before its first message ({why}): nothing to read")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+        /// Where reading stopped.
+        why: String,
+    },
+    /// It is MCAP, but broken before its first message.
+    #[error("{path}: {cause}")]
+    Broken {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        cause: mcap::McapError,
+    },
+}
+
+/// One recorded message: its topic, its log time (plant time, ns) and its wire payload.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Entry {
+    /// The topic.
+    pub topic: Topic,
+    /// Log time: plant time, ns.
+    pub log_time: u64,
+    /// The payload exactly as it crossed the wire (recovered from the JSON; decode with
+    /// `tilting_proto::codec`).
+    pub wire: Vec<u8>,
+}
+
+impl Entry {
+    /// Log time in plant seconds.
+    pub fn time(&self) -> f64 {
+        self.log_time as f64 / 1e9
+    }
+}
+
+/// A recording opened by [`read`]: the file's bytes (compressed: a 20 s run at 1 kHz is a few
+/// hundred kB) and what a first pass counted.
+pub struct Recording {
+    path: PathBuf,
+    bytes: Vec<u8>,
+    robot: Option<String>,
+    counts: [u64; 5],
+    first: Option<u64>,
+    last: Option<u64>,
+    complete: bool,
+    truncation: Option<String>,
+    tilts: u64,
+    faults: Vec<String>,
+}
+
+/// Opens `path`, checks it is a tilting recording and counts its messages per topic, its tilts
+/// and the faults its status messages report. A file whose writer was killed (no summary
+/// section, a torn last chunk) opens: [`Recording::complete`] is then false and
+/// [`Recording::truncation`] says where reading stopped.
+pub fn read(path: &Path) -> Result<Recording, ReadError> {
+    let bytes = std::fs::read(path).map_err(|cause| ReadError::Io {
+        path: path.to_owned(),
+        cause,
+    })?;
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(ReadError::NotMcap {
+            path: path.to_owned(),
+        });
+    }
+    let complete = bytes.ends_with(mcap::MAGIC)
+        && bytes.len() > 2 * mcap::MAGIC.len()
+        && mcap::read::footer(&bytes).is_ok();
+    let mut rec = Recording {
+        path: path.to_owned(),
+        bytes: Vec::new(),
+        robot: None,
+        counts: [0; 5],
+        first: None,
+        last: None,
+        complete,
+        truncation: None,
+        tilts: 0,
+        faults: Vec::new(),
+    };
+    let mut wire_channels = 0usize;
+    let mut it = stream(&bytes).map_err(|cause| ReadError::Broken {
+        path: path.to_owned(),
+        cause,
+    })?;
+    for item in &mut it.inner {
+        let m = match item {
+            Ok(m) => m,
+            Err(e) => {
+                it.error = Some(e.to_string());
+                break;
+            }
+        };
+        let Some(topic) = topic_of(&m.channel) else {
+            continue;
+        };
+        wire_channels += 1;
+        if rec.robot.is_none() {
+            rec.robot = m.channel.topic.split('/').nth(2).map(str::to_owned);
+        }
+        let data = match schema::from_json(topic, &m.data) {
+            Ok(d) => d,
+            Err(e) => {
+                it.error = Some(format!(
+                    "a {topic} message at log time {} ns: {e}",
+                    m.log_time
+                ));
+                break;
+            }
+        };
+        rec.counts[topic.index()] += 1;
+        rec.first = Some(rec.first.map_or(m.log_time, |f| f.min(m.log_time)));
+        rec.last = Some(rec.last.map_or(m.log_time, |l| l.max(m.log_time)));
+        match topic {
+            Topic::Event => {
+                if let Ok(e) = codec::decode::<ModeEvent>(&data) {
+                    rec.tilts += u64::from(e.from == 0 && e.to != 0);
+                }
+            }
+            Topic::Status => {
+                if let Ok(s) = codec::decode::<Status>(&data) {
+                    if !s.fault.is_empty() && !rec.faults.contains(&s.fault) {
+                        rec.faults.push(s.fault);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    rec.truncation = it.error.take();
+    drop(it);
+    rec.bytes = bytes;
+    if wire_channels == 0 {
+        return Err(match rec.truncation {
+            None => ReadError::Foreign {
+                path: path.to_owned(),
+            },
+            Some(why) => ReadError::Empty {
+                path: path.to_owned(),
+                why,
+            },
+        });
+    }
+    if rec.complete && rec.truncation.is_some() {
+        rec.complete = false;
+    }
+    if !rec.complete && rec.truncation.is_none() {
+        rec.truncation = Some("the file has no summary section (its writer did not finish)".into());
+    }
+    Ok(rec)
+}
+
+/// The topic of a channel of ours (JSON with a `tilting.*` schema), `None` for any other.
+fn topic_of(c: &mcap::Channel<'_>) -> Option<Topic> {
+    if c.message_encoding != JSON_ENCODING {
+        return None;
+    }
+    schema::topic_of_schema(&c.schema.as_ref()?.name)
+}
+
+/// The messages of a recording in file order (log time order for one writer).
+pub struct Messages<'a> {
+    inner: MessageStream<'a>,
+    error: Option<String>,
+}
+
+impl Iterator for Messages<'_> {
+    type Item = Entry;
+    fn next(&mut self) -> Option<Entry> {
+        if self.error.is_some() {
+            return None;
+        }
+        loop {
+            match self.inner.next()? {
+                Ok(m) => {
+                    if let Some(topic) = topic_of(&m.channel) {
+                        match schema::from_json(topic, &m.data) {
+                            Ok(wire) => {
+                                return Some(Entry {
+                                    topic,
+                                    log_time: m.log_time,
+                                    wire,
+                                })
+                            }
+                            Err(e) => {
+                                self.error = Some(format!(
+                                    "a {topic} message at log time {} ns: {e}",
+                                    m.log_time
+                                ));
+                                return None;
+                            }
+                        }
+                    }
+                }
+                Err(e) => {
+                    self.error = Some(e.to_string());
+                    return None;
+                }
+            }
+        }
+    }
+}
+
+impl Messages<'_> {
+    /// Why the stream ended early (a torn chunk), if it did.
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
+}
+
+fn stream(bytes: &[u8]) -> Result<Messages<'_>, mcap::McapError> {
+    Ok(Messages {
+        inner: MessageStream::new_with_options(bytes, Options::IgnoreEndMagic.into())?,
+        error: None,
+    })
+}
+
+impl Recording {
+    /// Streams the wire messages, decompressing one chunk at a time.
+    pub fn messages(&self) -> Messages<'_> {
+        // `read` already opened this stream once.
+        stream(&self.bytes).unwrap_or(Messages {
+            inner: MessageStream::new_with_options(&[], Options::IgnoreEndMagic.into())
+                .expect("an empty stream"),
+            error: Some("cannot reopen the file".into()),
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Size of the file, bytes.
+    pub fn size(&self) -> u64 {
+        self.bytes.len() as u64
+    }
+
+    /// The robot name in the channel topics.
+    pub fn robot(&self) -> Option<&str> {
+        self.robot.as_deref()
+    }
+
+    /// Messages on `topic`.
+    pub fn count(&self, topic: Topic) -> u64 {
+        self.counts[topic.index()]
+    }
+
+    /// Log time of the first and of the last message (plant time, s).
+    pub fn span(&self) -> Option<(f64, f64)> {
+        Some((self.first? as f64 / 1e9, self.last? as f64 / 1e9))
+    }
+
+    /// The file was closed normally (summary section and footer present, every chunk read).
+    pub fn complete(&self) -> bool {
+        self.complete
+    }
+
+    /// Why reading stopped before a footer, for a file that is not complete.
+    pub fn truncation(&self) -> Option<&str> {
+        self.truncation.as_deref()
+    }
+
+    /// Tilts (flat to left or right events).
+    pub fn tilts(&self) -> u64 {
+        self.tilts
+    }
+
+    /// Distinct faults reported by status messages, in order of first appearance.
+    pub fn faults(&self) -> &[String] {
+        &self.faults
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Recorder;
+    use tilting_proto::{encode, Keys, PlantState, TorqueCommand};
+
+    fn state(seq: u64) -> PlantState {
+        PlantState {
+            seq,
+            time: seq as f64 * 1e-3,
+            alpha: 0.0,
+            beta: 1.5 + seq as f64 * 1e-6,
+            alpha_dot: 0.0,
+            beta_dot: 0.0,
+            mode: 0,
+        }
+    }
+
+    /// Writes `n` states and torques, flushing after `flushed` of them; returns the file and its
+    /// length at that flush.
+    fn write(dir: &Path, n: u64, flushed: u64) -> (PathBuf, usize) {
+        let path = dir.join("run.mcap");
+        let mut rec = Recorder::create(&path, &Keys::new("bot").unwrap()).unwrap();
+        let mut at_flush = 0;
+        for k in 0..n {
+            rec.record(Topic::State, &encode(&state(k))).unwrap();
+            rec.record(
+                Topic::Torque,
+                &encode(&TorqueCommand {
+                    seq: k,
+                    tau: k as f64,
+                }),
+            )
+            .unwrap();
+            if k + 1 == flushed {
+                rec.flush().unwrap();
+                at_flush = std::fs::metadata(&path).unwrap().len() as usize;
+            }
+        }
+        rec.finish().unwrap();
+        (path, at_flush)
+    }
+
+    #[test]
+    fn a_finished_file_reads_back_byte_exact_with_plant_times() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, _) = write(dir.path(), 500, 0);
+        let run = read(&path).unwrap();
+        assert!(run.complete() && run.truncation().is_none());
+        assert_eq!(run.robot(), Some("bot"));
+        assert_eq!(
+            (run.count(Topic::State), run.count(Topic::Torque)),
+            (500, 500)
+        );
+        assert_eq!(run.span(), Some((0.0, 0.499)));
+        let mut k = 0;
+        for e in run.messages().filter(|e| e.topic == Topic::Torque) {
+            assert_eq!(
+                e.wire,
+                encode(&TorqueCommand {
+                    seq: k,
+                    tau: k as f64
+                })
+            );
+            // A torque is logged at the plant time of the state it answers.
+            assert_eq!(e.log_time, k * 1_000_000);
+            k += 1;
+        }
+        assert_eq!(k, 500);
+    }
+
+    /// A writer killed after a flush and in the middle of the next chunk: everything up to the
+    /// flush reads back, and the file says it is truncated.
+    #[test]
+    fn a_torn_file_reads_up_to_its_last_chunk() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, at_flush) = write(dir.path(), 400, 300);
+        let full = std::fs::read(&path).unwrap();
+        // Cut inside the next chunk: the flushed part plus some bytes of what followed.
+        let torn = dir.path().join("torn.mcap");
+        std::fs::write(&torn, &full[..at_flush + 37]).unwrap();
+        let run = read(&torn).unwrap();
+        assert!(!run.complete());
+        assert!(run.truncation().is_some());
+        assert_eq!(run.count(Topic::State), 300);
+        assert_eq!(run.count(Topic::Torque), 300);
+        // And cut exactly at the flush.
+        std::fs::write(&torn, &full[..at_flush]).unwrap();
+        let run = read(&torn).unwrap();
+        assert!(!run.complete());
+        assert_eq!(run.count(Topic::State), 300);
+    }
+
+    #[test]
+    fn wrong_files_get_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = read(&dir.path().join("nope.mcap"))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(missing.contains("nope.mcap"), "{missing}");
+        let csv = dir.path().join("state.csv");
+        std::fs::write(&csv, "seq,t\n0,0\n").unwrap();
+        let e = read(&csv).err().unwrap().to_string();
+        assert!(e.contains("not an MCAP file"), "{e}");
+        // A valid MCAP file from another tool.
+        let other = dir.path().join("other.mcap");
+        let mut w = mcap::Writer::new(std::io::BufWriter::new(
+            std::fs::File::create(&other).unwrap(),
+        ))
+        .unwrap();
+        let ch = w
+            .add_channel(0, "/imu", "json", &Default::default())
+            .unwrap();
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: 0,
+                log_time: 0,
+                publish_time: 0,
+            },
+            b"{}",
+        )
+        .unwrap();
+        w.finish().unwrap();
+        drop(w);
+        let e = read(&other).err().unwrap().to_string();
+        assert!(e.contains("not recorded by tilting"), "{e}");
+    }
+}
