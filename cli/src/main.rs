@@ -63,7 +63,7 @@ enum Command {
     Figures(figures::FiguresArgs),
     /// The plate and the arm, moving, as an animated GIF (or PNG frames): from a simulated
     /// scenario (the flags of `simulate`) or a live run's directory (--from DIR)
-    Animate(animate::AnimateArgs),
+    Animate(Box<animate::AnimateArgs>),
     /// Print a robot's topic live, decoded: one line (or one JSON object) per message
     Echo(topics::EchoArgs),
     /// The rate, the largest gap and the message size of a robot's topics, every second
