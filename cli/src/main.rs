@@ -26,6 +26,10 @@ Look:
   echo        Print a robot's topic live, decoded (one line or one JSON object per message)
   hz          Rate, largest gap and message size of a robot's topics
 
+Secure:
+  certs       A development CA, one certificate per node and the zenoh TLS + access-control
+              configurations for a robot (then `live --secure`, or tilting-router + the nodes)
+
 The nodes of the design are separate binaries: tilting-plant, tilting-controller and
 tilting-planner (publishes the reference). `tilting <command> --help` tells more.
 
@@ -61,6 +65,9 @@ enum Command {
     Echo(topics::EchoArgs),
     /// The rate, the largest gap and the message size of a robot's topics, every second
     Hz(topics::HzArgs),
+    /// A development certificate authority, one certificate per node (plant, controller,
+    /// planner, logger, router) and the zenoh configurations with TLS and access control
+    Certs(tilting::security::CertsArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -89,6 +96,7 @@ fn main() -> ExitCode {
         Command::Figures(args) => figures::figures(args),
         Command::Echo(args) => topics::echo(args),
         Command::Hz(args) => topics::hz(args),
+        Command::Certs(args) => tilting::security::certs(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
