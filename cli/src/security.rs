@@ -96,7 +96,7 @@ pub fn certs(args: &CertsArgs) -> Result<(), CommandError> {
         }
     }
     for h in &args.router_hosts {
-        if h.is_empty() || h.contains(['/', ' ', ':']) && h.parse::<std::net::IpAddr>().is_err() {
+        if h.is_empty() || (h.contains(['/', ' ', ':']) && h.parse::<std::net::IpAddr>().is_err()) {
             return Err(CommandError::Usage(anyhow!(
                 "invalid `--router-host` = {h:?}: a host name or an IP address"
             )));

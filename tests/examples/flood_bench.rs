@@ -77,7 +77,7 @@ async fn flood(c: Client, stop: Arc<AtomicBool>, sent: Arc<AtomicU64>) {
         let _ = torque_pub.put(vec![1u8, 2, 3]).await;
         let _ = state_pub.put(vec![4u8; 7]).await;
         sent.fetch_add(5, Ordering::Relaxed);
-        if i % 64 == 0 {
+        if i.is_multiple_of(64) {
             tokio::task::yield_now().await;
         }
     }

@@ -116,7 +116,6 @@ async fn three_namespaces_through_a_secure_router() {
     .expect("certificates");
     let cfg = |node: &str| certs.join(format!("{node}.json5")).display().to_string();
     let ep = |i: usize| format!("tls/10.77.{i}.2:7447");
-    let _turn = realtime_turn();
     let mut router = start_router_with(
         dir.path(),
         &certs,

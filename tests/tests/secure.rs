@@ -43,7 +43,6 @@ async fn a_wrong_identity_cannot_move_the_robot() {
     tilting::security::generate(&keys, &certs, &[], "tls/127.0.0.1:7447", &["rogue".into()])
         .expect("certificates");
     let ep = format!("tls/127.0.0.1:{}", free_port());
-    let _turn = realtime_turn();
     let mut router = start_router(dir.path(), &certs, &ep);
     let cfg = |node: &str| certs.join(format!("{node}.json5")).display().to_string();
 
