@@ -17,7 +17,12 @@
 //! If a child dies during the run, the command says which one and how, stops the other, still
 //! writes what was recorded, and exits with code 1.
 //!
-//! The topology: the plant listens on its port; the in-process planner session listens on its
+//! With `--secure` (and optionally `--certs DIR` of `tilting certs`; by default certificates are
+//! made in `OUT/certs`), a `tilting-router` child enforces mutual TLS and the robot's access
+//! control, and the plant, the controller and the in-process planner (with the planner's
+//! identity) are its clients ([`crate::security`]).
+//!
+//! The topology without `--secure`: the plant listens on its port; the in-process planner session listens on its
 //! own port and connects to the plant; the controller listens on a third port and connects to
 //! both. The children are started and stopped by [`crate::supervise`].
 
@@ -141,6 +146,10 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
         )));
     }
     let keys = Keys::new(&args.robot).map_err(|e| CommandError::Usage(anyhow!("--robot: {e}")))?;
+    if let Some(c) = &args.certs {
+        security::read_manifest(c, keys.robot())
+            .map_err(|e| CommandError::Usage(e.context(format!("--certs {}", c.display()))))?;
+    }
     let bins = NodeBinaries::next_to_current_exe().map_err(CommandError::Failed)?;
     let reference = args.law.resolve()?;
     let dir = args
@@ -549,7 +558,7 @@ async fn start_router(
 ) -> anyhow::Result<Secure> {
     let certs = match &args.certs {
         Some(c) => {
-            security::read_manifest(c, keys.robot()).context("--certs")?;
+            // Checked by `run` already.
             c.canonicalize()
                 .with_context(|| format!("--certs {}", c.display()))?
         }
