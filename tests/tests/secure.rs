@@ -11,6 +11,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tilting_proto::{codec, Keys, Reference, TorqueCommand};
 use tilting_tests::*;
+use zenoh::qos::CongestionControl;
 
 /// Payloads that never decode: a delivered one is counted as dropped by its receiver.
 const GARBAGE: &[u8] = &[1, 2, 3];
@@ -138,13 +139,15 @@ async fn a_wrong_identity_cannot_move_the_robot() {
             .await;
     }
 
-    // The same garbage with the right identity (a stolen key) is delivered: 5 torques, 7 states.
+    // The same garbage with the right identity (a stolen key) is delivered: 5 torques, 7 states
+    // (blocking, so that none is dropped on a congested queue).
     let stolen_ctl = Client::open_config(&robot, &certs.join("controller.json5"), &ep).await;
     let stolen_plant = Client::open_config(&robot, &certs.join("plant.json5"), &ep).await;
     for _ in 0..5 {
         stolen_ctl
             .session
             .put(keys.controller_torque().to_owned(), GARBAGE.to_vec())
+            .congestion_control(CongestionControl::Block)
             .await
             .unwrap();
     }
@@ -152,6 +155,7 @@ async fn a_wrong_identity_cannot_move_the_robot() {
         stolen_plant
             .session
             .put(keys.plant_state().to_owned(), GARBAGE.to_vec())
+            .congestion_control(CongestionControl::Block)
             .await
             .unwrap();
     }
