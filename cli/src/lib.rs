@@ -5,6 +5,8 @@
 //! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
 //!   and a report;
 //! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);
+//! - [`security`]: `certs` (a development CA and per-node certificates, the zenoh TLS and
+//!   access-control configurations) and the `tilting-router` binary;
 //! - [`supervise`]: child processes (node binaries, free ports, orderly stops), shared with the
 //!   process-level tests.
 //!
@@ -17,6 +19,7 @@
 pub mod commands;
 pub mod live;
 pub mod record;
+pub mod security;
 pub mod supervise;
 
 pub use tilting_planner::CommandError;

@@ -30,6 +30,10 @@ Look:
   replay      Publish an MCAP recording back, byte for byte, at its pace or faster
   info        Summarise an MCAP recording: span, channels, counts, tilts, faults
 
+Secure:
+  certs       A development CA, one certificate per node and the zenoh TLS + access-control
+              configurations for a robot (then `live --secure`, or tilting-router + the nodes)
+
 The nodes of the design are separate binaries: tilting-plant, tilting-controller and
 tilting-planner (publishes the reference). `tilting <command> --help` tells more.
 
@@ -75,6 +79,9 @@ enum Command {
     Replay(recording::ReplayArgs),
     /// Summarise an MCAP recording: plant-time span, channels, counts, tilts, faults
     Info(recording::InfoArgs),
+    /// A development certificate authority, one certificate per node (plant, controller,
+    /// planner, logger, router) and the zenoh configurations with TLS and access control
+    Certs(tilting::security::CertsArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -110,6 +117,7 @@ fn main() -> ExitCode {
         Command::Record(args) => recording::record(args),
         Command::Replay(args) => recording::replay(args),
         Command::Info(args) => recording::info(args),
+        Command::Certs(args) => tilting::security::certs(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -27,6 +27,8 @@ pub const CONTROLLER_BIN: &str = "tilting-controller";
 pub const PLANNER_BIN: &str = "tilting-planner";
 /// File name of the front door.
 pub const FRONT_BIN: &str = "tilting";
+/// File name of the zenoh router of a secure deployment.
+pub const ROUTER_BIN: &str = "tilting-router";
 
 /// The paths of the node binaries.
 #[derive(Debug, Clone)]
@@ -35,10 +37,13 @@ pub struct NodeBinaries {
     pub plant: PathBuf,
     /// `tilting-controller`.
     pub controller: PathBuf,
+    /// `tilting-router` (the zenoh router of `live --secure`).
+    pub router: PathBuf,
 }
 
 impl NodeBinaries {
-    /// `tilting-plant` and `tilting-controller` in `dir`, which must hold both.
+    /// `tilting-plant`, `tilting-controller` and `tilting-router` in `dir`, which must hold
+    /// all three.
     pub fn in_dir(dir: &Path) -> anyhow::Result<Self> {
         let find = |name: &str| {
             let p = dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
@@ -56,6 +61,7 @@ impl NodeBinaries {
         Ok(Self {
             plant: find(PLANT_BIN)?,
             controller: find(CONTROLLER_BIN)?,
+            router: find(ROUTER_BIN)?,
         })
     }
 

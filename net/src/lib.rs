@@ -23,7 +23,10 @@
 //! - timestamping off.
 //!
 //! With `--zenoh-config FILE` the file is the whole configuration (zenoh's JSON5 format); only
-//! explicit `--listen`/`--connect` flags are applied on top of it.
+//! explicit `--listen`/`--connect` flags are applied on top of it. The secure deployment works
+//! this way: `tilting certs` writes one file per node that makes the session a TLS client (with
+//! the node's own certificate) of a `tilting-router` that enforces the access control (see the
+//! `tilting` crate's `security` module and docs/protocol.md).
 
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]

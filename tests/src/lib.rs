@@ -275,6 +275,68 @@ impl Client {
     }
 }
 
+impl Client {
+    /// A session opened from a zenoh configuration file (e.g. a node's `{node}.json5` of
+    /// `tilting certs`), connecting to `connect`.
+    pub async fn open_config(robot: &str, config: &Path, connect: &str) -> Self {
+        let args = tilting_net::ZenohArgs {
+            zenoh_config: Some(config.to_path_buf()),
+            ..tilting_net::ZenohArgs::new(robot, &[], &[connect])
+        };
+        let session = tilting_net::open_session(&args, tilting_net::Role::Peer)
+            .await
+            .unwrap_or_else(|e| panic!("test session from {}: {e:#}", config.display()));
+        Self {
+            session,
+            keys: args.keys().expect("keys"),
+        }
+    }
+}
+
+/// Starts `tilting-router --config {certs}/router.json5 --listen {endpoint}` and waits until it
+/// listens (it prints `"ready"`); panics with its logs after 10 s.
+pub fn start_router(dir: &Path, certs: &Path, endpoint: &str) -> Proc {
+    start_router_with(dir, certs, endpoint, &[])
+}
+
+/// [`start_router`] with a command prefix (e.g. `ip netns exec NAME`).
+pub fn start_router_with(dir: &Path, certs: &Path, endpoint: &str, prefix: &[&str]) -> Proc {
+    let router = bin("tilting-router");
+    let mut args: Vec<String> = prefix
+        .get(1..)
+        .unwrap_or(&[])
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    if !prefix.is_empty() {
+        args.push(router.display().to_string());
+    }
+    args.extend([
+        "--config".into(),
+        certs.join("router.json5").display().to_string(),
+        "--listen".into(),
+        endpoint.into(),
+    ]);
+    let program = match prefix.first() {
+        Some(p) => PathBuf::from(p),
+        None => router,
+    };
+    let mut p = Proc::spawn("router", &program, &args, dir);
+    let t0 = Instant::now();
+    while !p.stdout().contains("\"ready\"") {
+        if let Some(s) = p.try_wait() {
+            panic!("the router exited with {s}\n{}", p.logs());
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the router did not start\n{}",
+            p.logs()
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    p
+}
+
 /// Polls `f` every 5 ms until it returns `Some` or `timeout` passes.
 pub async fn poll_until<T>(timeout: Duration, mut f: impl FnMut() -> Option<T>) -> Option<T> {
     let end = Instant::now() + timeout;

@@ -18,7 +18,12 @@
 //! If a child dies during the run, the command says which one and how, stops the other, still
 //! writes what was recorded, and exits with code 1.
 //!
-//! The topology: the plant listens on its port; the in-process planner session listens on its
+//! With `--secure` (and optionally `--certs DIR` of `tilting certs`; by default certificates are
+//! made in `OUT/certs`), a `tilting-router` child enforces mutual TLS and the robot's access
+//! control, and the plant, the controller and the in-process planner (with the planner's
+//! identity) are its clients ([`crate::security`]).
+//!
+//! The topology without `--secure`: the plant listens on its port; the in-process planner session listens on its
 //! own port and connects to the plant; the controller listens on a third port and connects to
 //! both. The children are started and stopped by [`crate::supervise`].
 
@@ -26,6 +31,7 @@ pub mod status;
 pub mod summary;
 
 use crate::record::{self, Record, Recorder};
+use crate::security;
 use crate::supervise::{endpoint, free_port, utc_timestamp, Child, NodeBinaries};
 use anyhow::{anyhow, Context as _};
 use status::{status_line, LatestStatus};
@@ -75,6 +81,15 @@ pub struct LiveArgs {
     /// The plant's port on 127.0.0.1 [default: a free port]
     #[arg(long, value_name = "PORT")]
     pub port: Option<u16>,
+    /// Mutual TLS and access control: a `tilting-router` child enforces which identity may
+    /// publish which key, and every node connects to it as a client with its own certificate
+    /// (from --certs, or created in OUT/certs)
+    #[arg(long)]
+    pub secure: bool,
+    /// With --secure: the directory of `tilting certs --robot NAME --out DIR` [default: new
+    /// certificates in OUT/certs]
+    #[arg(long, value_name = "DIR", requires = "secure")]
+    pub certs: Option<PathBuf>,
     /// The controller's law (also published as the planner's reference).
     #[command(flatten)]
     pub law: LawArgs,
@@ -135,6 +150,10 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
         )));
     }
     let keys = Keys::new(&args.robot).map_err(|e| CommandError::Usage(anyhow!("--robot: {e}")))?;
+    if let Some(c) = &args.certs {
+        security::read_manifest(c, keys.robot())
+            .map_err(|e| CommandError::Usage(e.context(format!("--certs {}", c.display()))))?;
+    }
     let bins = NodeBinaries::next_to_current_exe().map_err(CommandError::Failed)?;
     let reference = args.law.resolve()?;
     let dir = args
@@ -188,17 +207,41 @@ async fn live(
     );
     eprintln!("live: recording to {}", dir.display());
 
+    // 0. With --secure: the certificates and the router every node connects to.
+    let mut secure = match args.secure {
+        false => None,
+        true => Some(start_router(args, &keys, bins, dir).await?),
+    };
+    // The session flags of `node`: its certificate and the router, or loopback peers.
+    let session_flags = |node: &str, listen: u16, connect: &[u16]| -> Vec<String> {
+        match &secure {
+            Some(s) => vec![
+                "--zenoh-config".into(),
+                s.certs.join(format!("{node}.json5")).display().to_string(),
+                "--connect".into(),
+                s.endpoint.clone(),
+            ],
+            None => {
+                let mut v = vec!["--listen".into(), endpoint(listen)];
+                for c in connect {
+                    v.extend(["--connect".into(), endpoint(*c)]);
+                }
+                v
+            }
+        }
+    };
+
+    let router_endpoint = secure.as_ref().map(|s| s.endpoint.clone());
+
     // 1. The plant; it publishes state 0 until a controller shows up.
-    let mut plant_args: Vec<String> = vec![
-        "--robot".into(),
-        keys.robot().into(),
-        "--listen".into(),
-        endpoint(plant_port),
+    let mut plant_args: Vec<String> = vec!["--robot".into(), keys.robot().into()];
+    plant_args.extend(session_flags("plant", plant_port, &[]));
+    plant_args.extend([
         "--rate".into(),
         args.rate.to_string(),
         "--duration".into(),
         args.duration.to_string(),
-    ];
+    ]);
     if let Some(l) = (reference.torque_limit > 0.0).then_some(reference.torque_limit) {
         // The controller saturates already; the plant's hard limit is the same.
         plant_args.extend(["--torque-limit".into(), l.to_string()]);
@@ -206,11 +249,17 @@ async fn live(
     let mut plant = Child::spawn("plant", &bins.plant, &plant_args, dir)?;
 
     // 2. The planner's session: subscribers first, then the reference publisher.
-    let zargs = ZenohArgs::new(
-        keys.robot(),
-        &[&endpoint(my_port)],
-        &[&endpoint(plant_port)],
-    );
+    let zargs = match &secure {
+        Some(s) => ZenohArgs {
+            zenoh_config: Some(s.certs.join("planner.json5")),
+            ..ZenohArgs::new(keys.robot(), &[], &[&s.endpoint])
+        },
+        None => ZenohArgs::new(
+            keys.robot(),
+            &[&endpoint(my_port)],
+            &[&endpoint(plant_port)],
+        ),
+    };
     let session = tilting_net::open_session(&zargs, Role::Peer).await?;
     let latest: LatestStatus = Arc::default();
     let counters = [
@@ -271,16 +320,12 @@ async fn live(
     }
     let mut controller = None;
     if end.is_none() {
-        let mut ctl_args: Vec<String> = vec![
-            "--robot".into(),
-            keys.robot().into(),
-            "--listen".into(),
-            endpoint(ctl_port),
-            "--connect".into(),
-            endpoint(plant_port),
-            "--connect".into(),
-            endpoint(my_port),
-        ];
+        let mut ctl_args: Vec<String> = vec!["--robot".into(), keys.robot().into()];
+        ctl_args.extend(session_flags(
+            "controller",
+            ctl_port,
+            &[plant_port, my_port],
+        ));
         ctl_args.extend(LawArgs::controller_flags(&reference));
         controller = Some(Child::spawn(
             "controller",
@@ -379,7 +424,7 @@ async fn live(
         _ => {}
     }
 
-    // 6. Let the last messages arrive, then close the recording.
+    // 6. Let the last messages arrive, then close the recording (and stop the router).
     tokio::time::sleep(Duration::from_millis(150)).await;
     let (puts, queries) = (publisher.puts(), publisher.queries_answered());
     drop((
@@ -391,6 +436,15 @@ async fn live(
         publisher,
     ));
     let _ = session.close().await;
+    if let Some(mut s) = secure.take() {
+        let (status, killed) = tokio::task::block_in_place(|| s.router.stop(&force));
+        if killed || !status.success() {
+            problems.push(format!(
+                "the router exited with {status} (see {})",
+                s.router.stderr_path().display()
+            ));
+        }
+    }
     let dropped = recorder.dropped();
     let view = recorder.finish()?;
     let last_status = latest.lock().unwrap_or_else(|e| e.into_inner()).clone();
@@ -459,10 +513,19 @@ async fn live(
         robot: keys.robot().to_owned(),
         out: dir.to_path_buf(),
         reference: LawRecord::from(&reference),
-        endpoints: Endpoints {
-            plant: endpoint(plant_port),
-            controller: endpoint(ctl_port),
-            planner: endpoint(my_port),
+        endpoints: match &router_endpoint {
+            Some(ep) => Endpoints {
+                plant: String::new(),
+                controller: String::new(),
+                planner: String::new(),
+                router: Some(ep.clone()),
+            },
+            None => Endpoints {
+                plant: endpoint(plant_port),
+                controller: endpoint(ctl_port),
+                planner: endpoint(my_port),
+                router: None,
+            },
         },
         record: RecordCounts {
             states: view.states,
@@ -502,4 +565,73 @@ async fn live(
         eprintln!("live: error: {p}");
     }
     Ok(ok)
+}
+
+/// The router of a `--secure` run.
+struct Secure {
+    /// The certificate directory (its `{node}.json5` files).
+    certs: PathBuf,
+    /// The router's endpoint, `tls/127.0.0.1:{port}`.
+    endpoint: String,
+    /// The `tilting-router` child.
+    router: Child,
+}
+
+/// Finds or creates the certificates, starts `tilting-router` on a free loopback port and
+/// waits until it listens (the nodes, clients, give up at once when no router answers).
+async fn start_router(
+    args: &LiveArgs,
+    keys: &Keys,
+    bins: &NodeBinaries,
+    dir: &Path,
+) -> anyhow::Result<Secure> {
+    let certs = match &args.certs {
+        Some(c) => {
+            // Checked by `run` already.
+            c.canonicalize()
+                .with_context(|| format!("--certs {}", c.display()))?
+        }
+        None => {
+            let c = dir.join("certs");
+            security::generate(keys, &c, &[], security::DEFAULT_ROUTER_ENDPOINT, &[])?;
+            c.canonicalize()?
+        }
+    };
+    let endpoint = format!("tls/127.0.0.1:{}", free_port()?);
+    let mut router = Child::spawn(
+        "router",
+        &bins.router,
+        &[
+            "--config".into(),
+            certs.join("router.json5").display().to_string(),
+            "--listen".into(),
+            endpoint.clone(),
+        ],
+        dir,
+    )?;
+    let t0 = Instant::now();
+    while !router.stdout().contains("\"ready\"") {
+        if let Some(s) = router.try_wait() {
+            anyhow::bail!(
+                "the router exited at start with {s}:\n{}",
+                router.log_tail(15)
+            );
+        }
+        if t0.elapsed() > Duration::from_secs(10) {
+            anyhow::bail!(
+                "the router did not start within 10 s (see {})",
+                router.stderr_path().display()
+            );
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    eprintln!(
+        "live: secure: router on {endpoint}, certificates in {}",
+        certs.display()
+    );
+    Ok(Secure {
+        certs,
+        endpoint,
+        router,
+    })
 }

@@ -70,6 +70,10 @@ pub struct Endpoints {
     pub controller: String,
     /// Where the in-process planner listens.
     pub planner: String,
+    /// `--secure`: the router every node connects to (the nodes listen nowhere; the three
+    /// fields above are empty).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub router: Option<String>,
 }
 
 /// What the recording holds.

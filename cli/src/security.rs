@@ -1,0 +1,536 @@
+//! Secure deployment: a development certificate authority, one certificate per node, and the
+//! zenoh configuration files that turn on mutual TLS and access control (`tilting certs`,
+//! `tilting live --secure`, `tilting-router`).
+//!
+//! Everything here is zenoh's own machinery, configured: the `tls` link with `enable_mtls`
+//! authenticates both ends of every link with a certificate signed by the robot's CA, and the
+//! router's `access_control` block (default deny) matches each link's certificate common name
+//! against the identities below and lets each identity publish only its own keys:
+//!
+//! | identity (CN `{robot}-{node}`) | may put | may declare a liveliness token |
+//! |---|---|---|
+//! | `plant` | `plant/state`, `plant/event`, `plant/status` | `alive/plant` |
+//! | `controller` | `controller/torque` | `alive/controller` |
+//! | `planner` | `planner/reference` (and reply to queries on it) | `alive/planner` |
+//! | `logger` | nothing | nothing |
+//!
+//! All four may subscribe to, query and watch the liveliness of `tilting/{robot}/**`; a
+//! certificate with any other common name (signed by the same CA or not) may do nothing.
+//!
+//! Zenoh applies ACL in the session that holds the configuration, on the messages crossing
+//! its own links. Peers that find each other by gossip talk directly and never cross the
+//! ACL of a third peer, so the rules are enforced at a **router**, and the nodes connect to it
+//! as **clients** (which only ever talk to their router) with scouting off.
+
+use anyhow::{anyhow, Context as _};
+use rcgen::{
+    BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer, KeyPair,
+    KeyUsagePurpose,
+};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use tilting_planner::CommandError;
+use tilting_proto::Keys;
+
+/// The identities `tilting certs` always creates, in this order.
+pub const NODES: [&str; 5] = ["plant", "controller", "planner", "logger", "router"];
+
+/// The file listing what a certificate directory holds (robot, identities).
+pub const MANIFEST: &str = "certs.json";
+
+/// Default endpoint of the router, in the generated configuration files.
+pub const DEFAULT_ROUTER_ENDPOINT: &str = "tls/127.0.0.1:7447";
+
+/// Flags of `tilting certs`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CertsArgs {
+    /// Robot name: the identities are `{robot}-plant`, `{robot}-controller`, ...
+    #[arg(long, default_value = tilting_proto::keys::DEFAULT_ROBOT, value_name = "NAME")]
+    pub robot: String,
+    /// Directory to write the CA, the certificates, the keys and the zenoh configuration files
+    /// into (created; existing files of the same names are replaced)
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Host name or IP address the nodes use to reach the router (repeatable; always adds
+    /// localhost and 127.0.0.1): the router's certificate is valid for these names
+    #[arg(long = "router-host", value_name = "HOST")]
+    pub router_hosts: Vec<String>,
+    /// The router's endpoint written into the nodes' configuration files
+    #[arg(long, default_value = DEFAULT_ROUTER_ENDPOINT, value_name = "ENDPOINT")]
+    pub router_endpoint: String,
+    /// Another identity to certify, with no rights beyond a logger's if named `logger*`, none
+    /// otherwise (repeatable; only [A-Za-z0-9_-])
+    #[arg(long = "extra", value_name = "NODE")]
+    pub extra: Vec<String>,
+}
+
+/// What a certificate directory holds.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Manifest {
+    /// The robot these certificates and rules are for.
+    pub robot: String,
+    /// The node names with a certificate (`{node}.pem`, `{node}.key`, `{node}.json5`).
+    pub nodes: Vec<String>,
+}
+
+/// The common name of `node`'s certificate for `robot`: the identity the ACL matches.
+pub fn common_name(robot: &str, node: &str) -> String {
+    format!("{robot}-{node}")
+}
+
+fn valid_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 64
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// `tilting certs`.
+pub fn certs(args: &CertsArgs) -> Result<(), CommandError> {
+    let keys = Keys::new(&args.robot).map_err(|e| CommandError::Usage(anyhow!("--robot: {e}")))?;
+    for e in &args.extra {
+        if !valid_name(e) || NODES.contains(&e.as_str()) {
+            return Err(CommandError::Usage(anyhow!(
+                "invalid `--extra` = {e:?}: 1 to 64 of [A-Za-z0-9_-], not one of {NODES:?}"
+            )));
+        }
+    }
+    for h in &args.router_hosts {
+        if h.is_empty() || (h.contains(['/', ' ', ':']) && h.parse::<std::net::IpAddr>().is_err()) {
+            return Err(CommandError::Usage(anyhow!(
+                "invalid `--router-host` = {h:?}: a host name or an IP address"
+            )));
+        }
+    }
+    if !args.router_endpoint.starts_with("tls/") {
+        return Err(CommandError::Usage(anyhow!(
+            "invalid `--router-endpoint` = {:?}: must be a tls/HOST:PORT endpoint",
+            args.router_endpoint
+        )));
+    }
+    let m = generate(
+        &keys,
+        &args.out,
+        &args.router_hosts,
+        &args.router_endpoint,
+        &args.extra,
+    )
+    .map_err(CommandError::Failed)?;
+    let dir = args.out.display();
+    println!(
+        "certificates for robot {} in {dir}: {}",
+        m.robot,
+        m.nodes
+            .iter()
+            .map(|n| common_name(&m.robot, n))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!("start the router:  tilting-router --config {dir}/router.json5");
+    println!(
+        "start a node:      tilting-plant --robot {} --zenoh-config {dir}/plant.json5",
+        m.robot
+    );
+    Ok(())
+}
+
+/// Creates `out` and writes into it: `ca.pem` (the CA certificate; its key is not kept),
+/// `{node}.pem` and `{node}.key` for each of [`NODES`] and `extra`, a client configuration
+/// `{node}.json5` for each node (mode client, scouting off, TLS with its certificate, connect to
+/// `router_endpoint`), `router.json5` (mode router, TLS with mTLS, the ACL of the module
+/// documentation) and [`MANIFEST`]. File paths inside the configurations are absolute.
+pub fn generate(
+    keys: &Keys,
+    out: &Path,
+    router_hosts: &[String],
+    router_endpoint: &str,
+    extra: &[String],
+) -> anyhow::Result<Manifest> {
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("cannot create the directory {}", out.display()))?;
+    let out = out
+        .canonicalize()
+        .with_context(|| format!("cannot resolve {}", out.display()))?;
+    let robot = keys.robot();
+    let year: i32 = crate::supervise::utc_timestamp()[..4]
+        .parse()
+        .unwrap_or(2026);
+    let validity = |p: &mut CertificateParams| {
+        p.not_before = rcgen::date_time_ymd(year - 1, 1, 1);
+        p.not_after = rcgen::date_time_ymd(year + 2, 1, 1);
+    };
+
+    let ca_key = KeyPair::generate().context("cannot generate the CA key")?;
+    let mut ca = CertificateParams::new(Vec::<String>::new())?;
+    ca.distinguished_name.push(
+        DnType::CommonName,
+        format!("tilting {robot} development CA"),
+    );
+    ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
+    ca.key_usages = vec![KeyUsagePurpose::KeyCertSign, KeyUsagePurpose::CrlSign];
+    validity(&mut ca);
+    let ca_cert = ca.self_signed(&ca_key).context("cannot sign the CA")?;
+    write(&out.join("ca.pem"), &ca_cert.pem(), false)?;
+    let issuer = Issuer::new(ca, ca_key);
+
+    let mut nodes: Vec<String> = NODES.iter().map(|s| s.to_string()).collect();
+    nodes.extend(extra.iter().cloned());
+    for node in &nodes {
+        let mut sans: Vec<String> = Vec::new();
+        if node == "router" {
+            sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
+            for h in router_hosts {
+                if !sans.contains(h) {
+                    sans.push(h.clone());
+                }
+            }
+        }
+        let mut p = CertificateParams::new(sans)?;
+        p.distinguished_name
+            .push(DnType::CommonName, common_name(robot, node));
+        p.key_usages = vec![
+            KeyUsagePurpose::DigitalSignature,
+            KeyUsagePurpose::KeyEncipherment,
+        ];
+        p.extended_key_usages = vec![
+            ExtendedKeyUsagePurpose::ClientAuth,
+            ExtendedKeyUsagePurpose::ServerAuth,
+        ];
+        validity(&mut p);
+        let key = KeyPair::generate().with_context(|| format!("cannot generate {node}'s key"))?;
+        let cert = p
+            .signed_by(&key, &issuer)
+            .with_context(|| format!("cannot sign {node}'s certificate"))?;
+        write(&out.join(format!("{node}.pem")), &cert.pem(), false)?;
+        write(&out.join(format!("{node}.key")), &key.serialize_pem(), true)?;
+        let cfg = if node == "router" {
+            router_config(keys, &out, &nodes)
+        } else {
+            client_config(&out, node, router_endpoint)
+        };
+        write(
+            &out.join(format!("{node}.json5")),
+            &serde_json::to_string_pretty(&cfg)?,
+            false,
+        )?;
+    }
+    let manifest = Manifest {
+        robot: robot.to_owned(),
+        nodes,
+    };
+    write(
+        &out.join(MANIFEST),
+        &serde_json::to_string_pretty(&manifest)?,
+        false,
+    )?;
+    Ok(manifest)
+}
+
+/// Reads the [`MANIFEST`] of a certificate directory and checks that it is for `robot`.
+pub fn read_manifest(dir: &Path, robot: &str) -> anyhow::Result<Manifest> {
+    let path = dir.join(MANIFEST);
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!(
+            "cannot read {} (create the directory with `tilting certs --robot {robot} --out {}`)",
+            path.display(),
+            dir.display()
+        )
+    })?;
+    let m: Manifest =
+        serde_json::from_str(&text).with_context(|| format!("{} is invalid", path.display()))?;
+    if m.robot != robot {
+        anyhow::bail!(
+            "the certificates in {} are for robot {:?}, not {robot:?}",
+            dir.display(),
+            m.robot
+        );
+    }
+    Ok(m)
+}
+
+fn write(path: &Path, text: &str, secret: bool) -> anyhow::Result<()> {
+    #[cfg(unix)]
+    if secret {
+        use std::io::Write as _;
+        use std::os::unix::fs::OpenOptionsExt as _;
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .mode(0o600)
+            .open(path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        return f
+            .write_all(text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()));
+    }
+    let _ = secret;
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn file(dir: &Path, name: &str) -> String {
+    dir.join(name).display().to_string()
+}
+
+/// The zenoh configuration of a node: a client of the router at `router_endpoint`, TLS only,
+/// with `node`'s certificate, no scouting, no listener.
+pub fn client_config(dir: &Path, node: &str, router_endpoint: &str) -> Value {
+    json!({
+        "mode": "client",
+        "connect": {
+            "endpoints": [router_endpoint],
+            "retry": { "period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2 },
+        },
+        "listen": { "endpoints": [] },
+        "scouting": {
+            "multicast": { "enabled": false },
+            "gossip": { "enabled": false },
+            "delay": tilting_net::OPEN_WAIT_MS,
+        },
+        "timestamping": { "enabled": false },
+        "transport": { "link": {
+            "protocols": ["tls"],
+            "tls": {
+                "root_ca_certificate": file(dir, "ca.pem"),
+                "connect_certificate": file(dir, &format!("{node}.pem")),
+                "connect_private_key": file(dir, &format!("{node}.key")),
+                "enable_mtls": true,
+                "verify_name_on_connect": true,
+            },
+        }},
+    })
+}
+
+/// The zenoh configuration of the router: listens on [`DEFAULT_ROUTER_ENDPOINT`] (replace it
+/// with `tilting-router --listen`), TLS only with mutual authentication, scouting off, and the
+/// access control of the module documentation for the identities in `nodes`.
+pub fn router_config(keys: &Keys, dir: &Path, nodes: &[String]) -> Value {
+    json!({
+        "mode": "router",
+        "listen": { "endpoints": [DEFAULT_ROUTER_ENDPOINT] },
+        "connect": { "endpoints": [] },
+        "scouting": {
+            "multicast": { "enabled": false },
+            "gossip": { "enabled": false },
+        },
+        "timestamping": { "enabled": false },
+        "transport": { "link": {
+            "protocols": ["tls"],
+            "tls": {
+                "root_ca_certificate": file(dir, "ca.pem"),
+                "listen_certificate": file(dir, "router.pem"),
+                "listen_private_key": file(dir, "router.key"),
+                "enable_mtls": true,
+            },
+        }},
+        "access_control": acl(keys, nodes),
+    })
+}
+
+/// The `access_control` block for `keys`' robot (see the module documentation).
+pub fn acl(keys: &Keys, nodes: &[String]) -> Value {
+    let robot = keys.robot();
+    let all = format!("tilting/{robot}/**");
+    let rule = |id: &str, flows: &[&str], messages: &[&str], key_exprs: Vec<&str>| {
+        json!({ "id": id, "permission": "allow", "flows": flows, "messages": messages,
+                "key_exprs": key_exprs })
+    };
+    let rules = vec![
+        // Everyone authenticated may listen: subscribe, query, watch tokens (ingress), and
+        // receive what it listens to (egress).
+        rule(
+            "listen",
+            &["ingress"],
+            &[
+                "declare_subscriber",
+                "query",
+                "liveliness_query",
+                "declare_liveliness_subscriber",
+            ],
+            vec![&all],
+        ),
+        rule(
+            "receive",
+            &["egress"],
+            &[
+                "put",
+                "delete",
+                "declare_subscriber",
+                "query",
+                "reply",
+                "declare_queryable",
+                "liveliness_token",
+                "liveliness_query",
+                "declare_liveliness_subscriber",
+            ],
+            vec![&all],
+        ),
+        rule(
+            "plant publishes",
+            &["ingress"],
+            &["put"],
+            vec![keys.plant_state(), keys.plant_event(), keys.plant_status()],
+        ),
+        rule(
+            "plant token",
+            &["ingress"],
+            &["liveliness_token"],
+            vec![keys.alive_plant()],
+        ),
+        rule(
+            "controller publishes",
+            &["ingress"],
+            &["put"],
+            vec![keys.controller_torque()],
+        ),
+        rule(
+            "controller token",
+            &["ingress"],
+            &["liveliness_token"],
+            vec![keys.alive_controller()],
+        ),
+        rule(
+            "planner publishes",
+            &["ingress"],
+            &["put", "declare_queryable", "reply"],
+            vec![keys.planner_reference()],
+        ),
+        rule(
+            "planner token",
+            &["ingress"],
+            &["liveliness_token"],
+            vec![keys.alive_planner()],
+        ),
+    ];
+    let listeners: Vec<String> = nodes
+        .iter()
+        .filter(|n| {
+            n.as_str() != "router" && (NODES.contains(&n.as_str()) || n.starts_with("logger"))
+        })
+        .map(|n| common_name(robot, n))
+        .collect();
+    let subject = |id: &str, cns: Vec<String>| json!({ "id": id, "cert_common_names": cns });
+    let subjects = vec![
+        subject("nodes", listeners),
+        subject("plant", vec![common_name(robot, "plant")]),
+        subject("controller", vec![common_name(robot, "controller")]),
+        subject("planner", vec![common_name(robot, "planner")]),
+    ];
+    let policy = |id: &str, rules: &[&str], subjects: &[&str]| json!({ "id": id, "rules": rules, "subjects": subjects });
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": [
+            policy("everyone listens", &["listen", "receive"], &["nodes"]),
+            policy("plant", &["plant publishes", "plant token"], &["plant"]),
+            policy("controller", &["controller publishes", "controller token"], &["controller"]),
+            policy("planner", &["planner publishes", "planner token"], &["planner"]),
+        ],
+    })
+}
+
+/// Flags of `tilting-router`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    name = "tilting-router",
+    version,
+    about = "A zenoh router for a secure tilting deployment: TLS with mutual authentication and \
+             the robot's access control, from a configuration written by `tilting certs`"
+)]
+pub struct RouterArgs {
+    /// The router's zenoh configuration (JSON5), e.g. router.json5 of `tilting certs`
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// Endpoint to listen on instead of the configuration's (repeatable), e.g.
+    /// tls/0.0.0.0:7447
+    #[arg(long = "listen", value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+}
+
+/// `tilting-router`: opens a zenoh router session from `--config` (which must say `mode:
+/// "router"`), prints `ready` with its zenoh id on stdout, and runs until Ctrl-C or SIGTERM.
+pub fn router(args: &RouterArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    let mut cfg = zenoh::Config::from_file(&args.config).map_err(|e| {
+        CommandError::Usage(anyhow!(
+            "--config {}: {}",
+            args.config.display(),
+            tilting_net::zenoh_error(&e)
+        ))
+    })?;
+    let mode = cfg.get_json("mode").unwrap_or_default();
+    if mode != "\"router\"" {
+        return Err(CommandError::Usage(anyhow!(
+            "--config {}: mode is {mode}, must be \"router\"",
+            args.config.display()
+        )));
+    }
+    if !args.listen.is_empty() {
+        let json = serde_json::to_string(&args.listen).expect("strings serialize");
+        cfg.insert_json5("listen/endpoints", &json).map_err(|e| {
+            CommandError::Usage(anyhow!(
+                "--listen {:?}: {}",
+                args.listen,
+                tilting_net::zenoh_error(&e)
+            ))
+        })?;
+    }
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(async {
+        let session = zenoh::open(cfg).await.map_err(|e| {
+            anyhow!(
+                "cannot open the router session: {}",
+                tilting_net::zenoh_error(&e)
+            )
+        })?;
+        println!(
+            "{}",
+            json!({ "ready": true, "zid": session.zid().to_string() })
+        );
+        tilting_net::shutdown_signal().await;
+        let _ = session.close().await;
+        println!("{}", json!({ "stopped": true }));
+        Ok::<_, anyhow::Error>(())
+    })
+    .map_err(CommandError::Failed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generates_certs_and_configs_zenoh_accepts() {
+        let dir = tempfile::tempdir().unwrap();
+        let keys = Keys::new("unit").unwrap();
+        let m = generate(
+            &keys,
+            dir.path(),
+            &["10.1.2.3".into()],
+            DEFAULT_ROUTER_ENDPOINT,
+            &["rogue".into()],
+        )
+        .unwrap();
+        assert_eq!(m.nodes.len(), 6);
+        for n in &m.nodes {
+            let cfg = zenoh::Config::from_file(dir.path().join(format!("{n}.json5")))
+                .unwrap_or_else(|e| panic!("{n}: {e}"));
+            let want = if n == "router" {
+                "\"router\""
+            } else {
+                "\"client\""
+            };
+            assert_eq!(cfg.get_json("mode").unwrap(), want);
+        }
+        let router = zenoh::Config::from_file(dir.path().join("router.json5")).unwrap();
+        let acl = router.get_json("access_control").unwrap();
+        assert!(
+            acl.contains("unit-controller") && !acl.contains("unit-rogue"),
+            "{acl}"
+        );
+        assert!(read_manifest(dir.path(), "unit").is_ok());
+        assert!(read_manifest(dir.path(), "other").is_err());
+    }
+}

@@ -1,0 +1,213 @@
+//! The plant's deadline misses under a flood of spoofed messages, before and after access
+//! control (a benchmark, not a test):
+//!
+//! ```sh
+//! cargo run --release -p tilting-tests --example flood_bench -- --seconds 5
+//! ```
+//!
+//! Four real-time runs at 1 kHz of `tilting-plant` and `tilting-controller` as processes, each
+//! `--seconds` long:
+//!
+//! 1. **open, quiet**: the default topology (loopback peers, no authentication);
+//! 2. **open, flood**: the same, with a flooder peer that publishes, as fast as zenoh takes
+//!    them, spoofed plausible states, torques answering future states, absurd torques (1e9 N m)
+//!    and undecodable payloads on the state and torque keys: before the fix, all of it reaches
+//!    the plant and the controller;
+//! 3. **secure, quiet**: `--secure`'s topology (a `tilting-router` with mutual TLS and access
+//!    control, the nodes its clients);
+//! 4. **secure, flood**: the same flooder, holding a valid certificate of the wrong identity
+//!    (the logger's): the router drops its puts at ingress.
+//!
+//! For each run it prints the deadline-miss rate of the plant (misses / periods), what the
+//! plant and the controller received, and how many messages the flooder sent.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use tilting_proto::{codec, Keys, PlantState, TorqueCommand};
+use tilting_tests::*;
+
+struct Outcome {
+    steps: u64,
+    misses: u64,
+    plant_torques: u64,
+    plant_dropped: u64,
+    plant_stale: u64,
+    ctl_states: u64,
+    flood_sent: u64,
+}
+
+/// Publishes spoofed and invalid states and torques until `stop`; returns the count.
+async fn flood(c: Client, stop: Arc<AtomicBool>, sent: Arc<AtomicU64>) {
+    let k = c.keys.clone();
+    let state_pub = c
+        .session
+        .declare_publisher(k.plant_state().to_owned())
+        .await
+        .unwrap();
+    let torque_pub = c
+        .session
+        .declare_publisher(k.controller_torque().to_owned())
+        .await
+        .unwrap();
+    let mut i: u64 = 0;
+    while !stop.load(Ordering::Relaxed) {
+        i += 1;
+        let state = codec::encode(&PlantState {
+            seq: i % 5000,
+            time: 0.1,
+            alpha: 0.0,
+            beta: 1.5,
+            alpha_dot: 0.0,
+            beta_dot: 0.3,
+            mode: 0,
+        });
+        let future = codec::encode(&TorqueCommand {
+            seq: 1_000_000 + i,
+            tau: 12.345,
+        });
+        let absurd = codec::encode(&TorqueCommand {
+            seq: i % 5000,
+            tau: 1e9,
+        });
+        let _ = state_pub.put(state).await;
+        let _ = torque_pub.put(future).await;
+        let _ = torque_pub.put(absurd).await;
+        let _ = torque_pub.put(vec![1u8, 2, 3]).await;
+        let _ = state_pub.put(vec![4u8; 7]).await;
+        sent.fetch_add(5, Ordering::Relaxed);
+        if i.is_multiple_of(64) {
+            tokio::task::yield_now().await;
+        }
+    }
+    let _ = c.session.close().await;
+}
+
+async fn run(secure: bool, flooding: bool, seconds: f64, tag: &str) -> Outcome {
+    let dir = Scratch::new(tag);
+    let robot = robot(tag);
+    let keys = Keys::new(&robot).unwrap();
+    let (plant_bin, ctl_bin) = (bin("tilting-plant"), bin("tilting-controller"));
+    let duration = seconds.to_string();
+    let certs = dir.path().join("certs");
+    let mut router = None;
+    let (plant_flags, ctl_flags, ep) = if secure {
+        tilting::security::generate(&keys, &certs, &[], "tls/127.0.0.1:7447", &[]).unwrap();
+        let ep = format!("tls/127.0.0.1:{}", free_port());
+        router = Some(start_router(dir.path(), &certs, &ep));
+        let flags = |node: &str| -> Vec<String> {
+            vec![
+                "--robot".into(),
+                robot.clone(),
+                "--zenoh-config".into(),
+                certs.join(format!("{node}.json5")).display().to_string(),
+                "--connect".into(),
+                ep.clone(),
+            ]
+        };
+        (flags("plant"), flags("controller"), ep)
+    } else {
+        let port = free_port();
+        (
+            plant_args(&robot, port, &[]),
+            peer_args(&robot, port, &[]),
+            endpoint(port),
+        )
+    };
+    let mut plant_flags = plant_flags;
+    plant_flags.extend(["--duration".into(), duration]);
+    let mut plant = Proc::spawn("plant", &plant_bin, &plant_flags, dir.path());
+    let mut ctl = Proc::spawn("controller", &ctl_bin, &ctl_flags, dir.path());
+    let stop = Arc::new(AtomicBool::new(false));
+    let sent = Arc::new(AtomicU64::new(0));
+    let flooder = if flooding {
+        let c = if secure {
+            Client::open_config(&robot, &certs.join("logger.json5"), &ep).await
+        } else {
+            let port: u16 = ep.rsplit(':').next().unwrap().parse().unwrap();
+            Client::open(&robot, None, Some(port)).await
+        };
+        Some(tokio::spawn(flood(c, stop.clone(), sent.clone())))
+    } else {
+        None
+    };
+    let status =
+        tokio::task::block_in_place(|| plant.expect_exit(Duration::from_secs_f64(seconds + 60.0)));
+    stop.store(true, Ordering::Relaxed);
+    if let Some(f) = flooder {
+        let _ = f.await;
+    }
+    let _ = tokio::task::block_in_place(|| ctl.interrupt(Duration::from_secs(10)));
+    if let Some(r) = router.as_mut() {
+        r.signal(libc::SIGINT);
+        let _ = tokio::task::block_in_place(|| r.wait_timeout(Duration::from_secs(10)));
+    }
+    assert!(
+        status.success() || status.code() == Some(3),
+        "{}",
+        plant.logs()
+    );
+    let p = plant.plant_summary();
+    let c = ctl.controller_summary();
+    Outcome {
+        steps: p.steps,
+        misses: p.deadline_misses,
+        plant_torques: p.torques_received,
+        plant_dropped: p.torques_dropped,
+        plant_stale: p.torques_stale,
+        ctl_states: c.states_received,
+        flood_sent: sent.load(Ordering::Relaxed),
+    }
+}
+
+#[tokio::main(flavor = "multi_thread", worker_threads = 2)]
+async fn main() {
+    let mut seconds = 5.0;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--seconds" => {
+                seconds = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|s: &f64| (1.0..=600.0).contains(s))
+                    .expect("--seconds: 1 to 600")
+            }
+            other => panic!("unknown flag {other}; usage: flood_bench [--seconds S]"),
+        }
+    }
+    println!(
+        "{:<16} {:>8} {:>8} {:>8} {:>12} {:>10} {:>10} {:>12} {:>12}",
+        "run",
+        "periods",
+        "misses",
+        "miss %",
+        "plant torq",
+        "dropped",
+        "stale",
+        "ctl states",
+        "flood sent"
+    );
+    for (secure, flooding, name) in [
+        (false, false, "open, quiet"),
+        (false, true, "open, flood"),
+        (true, false, "secure, quiet"),
+        (true, true, "secure, flood"),
+    ] {
+        let tag = format!("flood{}{}", u8::from(secure), u8::from(flooding));
+        let o = run(secure, flooding, seconds, &tag).await;
+        println!(
+            "{:<16} {:>8} {:>8} {:>8.2} {:>12} {:>10} {:>10} {:>12} {:>12}",
+            name,
+            o.steps,
+            o.misses,
+            100.0 * o.misses as f64 / o.steps.max(1) as f64,
+            o.plant_torques,
+            o.plant_dropped,
+            o.plant_stale,
+            o.ctl_states,
+            o.flood_sent
+        );
+    }
+}

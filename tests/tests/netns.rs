@@ -1,0 +1,235 @@
+//! The deployment topology on one machine: plant, controller and planner each in its own
+//! network namespace (a network stack of its own), joined by veth pairs to a fourth namespace
+//! that runs the `tilting-router` with TLS and access control. A fifth namespace holds a rogue
+//! with valid certificates of the wrong identities: a controller with the logger's certificate
+//! and a planner with a `rogue` certificate signed by the same CA.
+//!
+//! The test proves that the loop runs across the namespaces, and that the rogue's torques and
+//! reference are not delivered: the plant received no more torques than the real controller
+//! published, and the controller applied the real planner's law only.
+//!
+//! It needs root and iproute2's `ip`; otherwise it prints `SKIP` and passes. It creates its
+//! namespaces (`tlt{pid}{r,p,c,n,x}`) and removes them, also when it fails.
+
+use std::process::Command;
+use std::time::Duration;
+use tilting_proto::Keys;
+use tilting_tests::*;
+
+/// The namespaces of one test; deleted on drop.
+struct Namespaces(Vec<String>);
+
+impl Drop for Namespaces {
+    fn drop(&mut self) {
+        for ns in &self.0 {
+            let _ = Command::new("ip").args(["netns", "del", ns]).status();
+        }
+    }
+}
+
+fn ip(args: &[&str]) {
+    let out = Command::new("ip").args(args).output().expect("run ip");
+    assert!(
+        out.status.success(),
+        "ip {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn skip_reason() -> Option<String> {
+    // SAFETY: geteuid(2) has no preconditions.
+    if unsafe { libc::geteuid() } != 0 {
+        return Some("not root".into());
+    }
+    match Command::new("ip").arg("-V").output() {
+        Ok(o) if o.status.success() => None,
+        _ => Some("iproute2's `ip` is missing".into()),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn three_namespaces_through_a_secure_router() {
+    if let Some(why) = skip_reason() {
+        eprintln!("SKIP three_namespaces_through_a_secure_router: {why}");
+        return;
+    }
+    let (plant_bin, ctl_bin, planner_bin) = (
+        bin("tilting-plant"),
+        bin("tilting-controller"),
+        bin("tilting-planner"),
+    );
+    let dir = Scratch::new("netns");
+    let robot = robot("netns");
+    let keys = Keys::new(&robot).unwrap();
+    let pid = std::process::id();
+    let name = |s: &str| format!("tlt{pid}{s}");
+    let router_ns = name("r");
+    let nodes = ["p", "c", "n", "x"]; // plant, controller, planner, rogue
+    let all: Vec<String> = std::iter::once(router_ns.clone())
+        .chain(nodes.iter().map(|s| name(s)))
+        .collect();
+    let _guard = Namespaces(all.clone());
+    for ns in &all {
+        ip(&["netns", "add", ns]);
+        ip(&["-n", ns, "link", "set", "lo", "up"]);
+    }
+    // Link i: 10.77.i.1 in the node's namespace, 10.77.i.2 on the router's side.
+    let mut router_ips = Vec::new();
+    for (i, n) in nodes.iter().enumerate() {
+        let i = i + 1;
+        let (r_if, n_if, ns) = (format!("r{i}"), format!("n{i}"), name(n));
+        ip(&[
+            "-n", &router_ns, "link", "add", &r_if, "type", "veth", "peer", "name", &n_if, "netns",
+            &ns,
+        ]);
+        ip(&[
+            "-n",
+            &router_ns,
+            "addr",
+            "add",
+            &format!("10.77.{i}.2/24"),
+            "dev",
+            &r_if,
+        ]);
+        ip(&["-n", &router_ns, "link", "set", &r_if, "up"]);
+        ip(&[
+            "-n",
+            &ns,
+            "addr",
+            "add",
+            &format!("10.77.{i}.1/24"),
+            "dev",
+            &n_if,
+        ]);
+        ip(&["-n", &ns, "link", "set", &n_if, "up"]);
+        router_ips.push(format!("10.77.{i}.2"));
+    }
+    let certs = dir.path().join("certs");
+    tilting::security::generate(
+        &keys,
+        &certs,
+        &router_ips,
+        "tls/10.77.1.2:7447",
+        &["rogue".into()],
+    )
+    .expect("certificates");
+    let cfg = |node: &str| certs.join(format!("{node}.json5")).display().to_string();
+    let ep = |i: usize| format!("tls/10.77.{i}.2:7447");
+    let mut router = start_router_with(
+        dir.path(),
+        &certs,
+        "tls/0.0.0.0:7447",
+        &["ip", "netns", "exec", &router_ns],
+    );
+    let exec = |tag: &str, ns: &str, bin: &std::path::Path, args: &[&str]| {
+        let mut v: Vec<String> = vec!["netns".into(), "exec".into(), ns.into()];
+        v.push(bin.display().to_string());
+        v.extend(["--robot".into(), robot.clone()]);
+        v.extend(args.iter().map(|s| s.to_string()));
+        Proc::spawn(tag, std::path::Path::new("ip"), &v, dir.path())
+    };
+    let mut plant = exec(
+        "plant",
+        &name("p"),
+        &plant_bin,
+        &[
+            "--zenoh-config",
+            &cfg("plant"),
+            "--connect",
+            &ep(1),
+            "--duration",
+            "3",
+        ],
+    );
+    let mut planner = exec(
+        "planner",
+        &name("n"),
+        &planner_bin,
+        &[
+            "--zenoh-config",
+            &cfg("planner"),
+            "--connect",
+            &ep(3),
+            "--torque-limit",
+            "60",
+        ],
+    );
+    let mut ctl = exec(
+        "controller",
+        &name("c"),
+        &ctl_bin,
+        &["--zenoh-config", &cfg("controller"), "--connect", &ep(2)],
+    );
+    // The rogue: a controller with the logger's certificate (it may listen, so it answers
+    // every state it sees) and a planner with a `rogue` certificate and another law.
+    let mut rogue_ctl = exec(
+        "rogue-controller",
+        &name("x"),
+        &ctl_bin,
+        &[
+            "--zenoh-config",
+            &cfg("logger"),
+            "--connect",
+            &ep(4),
+            "--torque-limit",
+            "1",
+        ],
+    );
+    let mut rogue_planner = exec(
+        "rogue-planner",
+        &name("x"),
+        &planner_bin,
+        &[
+            "--zenoh-config",
+            &cfg("rogue"),
+            "--connect",
+            &ep(4),
+            "--torque-limit",
+            "2",
+        ],
+    );
+
+    let s = plant.expect_exit(Duration::from_secs(30));
+    assert!(
+        s.success(),
+        "plant: {s}\n{}\n{}",
+        plant.logs(),
+        router.logs()
+    );
+    for p in [&mut ctl, &mut rogue_ctl, &mut planner, &mut rogue_planner] {
+        let s = p.interrupt(Duration::from_secs(10));
+        assert!(s.success(), "{s}\n{}", p.logs());
+    }
+    let p = plant.plant_summary();
+    let c = ctl.controller_summary();
+    let r = rogue_ctl.controller_summary();
+    eprintln!("plant: {p:?}\ncontroller: {c:?}\nrogue controller: {r:?}");
+    // The loop ran across the namespaces, under the real planner's law.
+    assert!(p.steps >= 2900 && p.torques_received > 1000, "{p:?}");
+    assert!(p.fault.is_none(), "{p:?}");
+    assert!(c.references_applied >= 1, "{c:?}");
+    assert_eq!(
+        c.law.torque_limit,
+        Some(60.0),
+        "the real planner's law: {c:?}"
+    );
+    // The rogue controller was connected and active (the logger's identity may listen)...
+    assert!(r.states_received > 1000, "{r:?}");
+    assert!(r.torques_published > 1000, "{r:?}");
+    // ...but none of its torques reached the plant, and the rogue planner's law never reached
+    // the controller.
+    assert!(
+        p.torques_received <= c.torques_published,
+        "plant received {} torques, the real controller published {}",
+        p.torques_received,
+        c.torques_published
+    );
+    assert_eq!(c.references_rejected, 0, "{c:?}");
+    router.signal(libc::SIGINT);
+    assert!(
+        router.expect_exit(Duration::from_secs(10)).success(),
+        "{}",
+        router.logs()
+    );
+}
