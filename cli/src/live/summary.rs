@@ -247,7 +247,12 @@ impl LiveSummary {
             r.statuses,
             r.references,
             if r.csv { "state.csv, torque.csv, events.csv, " } else { "" },
-            if self.png { "run.png, " } else { "" },
+            match (self.png, self.out.join("run.gif").is_file()) {
+                (true, true) => "run.png, run.gif, ",
+                (true, false) => "run.png, ",
+                (false, true) => "run.gif, ",
+                (false, false) => "",
+            },
             r.dropped,
             r.missing_states,
         );
