@@ -406,3 +406,20 @@ impl StatusWatch {
         .await
     }
 }
+
+/// The Python interpreter of the tests that pair our nodes with Python code: `$TILTING_PYTHON`
+/// or `python3`.
+pub fn python() -> String {
+    std::env::var("TILTING_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+/// Does `python -c code` run and exit 0? (The Python tests print SKIP when it does not.)
+pub fn python_runs(code: &str) -> bool {
+    std::process::Command::new(python())
+        .args(["-c", code])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}

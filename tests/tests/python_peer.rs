@@ -22,24 +22,8 @@ const DURATION: f64 = 1.0;
 /// those differences along.
 const TOLERANCE: f64 = 1e-9;
 
-/// The Python interpreter: `$TILTING_PYTHON` or `python3`.
-fn python() -> String {
-    std::env::var("TILTING_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
 fn script() -> PathBuf {
     workspace_root().join("examples/python/controller.py")
-}
-
-/// Does `python -c code` run and exit 0?
-fn python_runs(code: &str) -> bool {
-    Command::new(python())
-        .args(["-c", code])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
 }
 
 #[test]

@@ -36,24 +36,8 @@ const DURATION: f64 = 2.0;
 /// within these 2 s, and a Coriolis term off by a factor of two by 8e-3.
 const TOLERANCE: f64 = 1e-9;
 
-/// The Python interpreter: `$TILTING_PYTHON` or `python3`.
-fn python() -> String {
-    std::env::var("TILTING_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
 fn script() -> PathBuf {
     workspace_root().join("examples/python/plant.py")
-}
-
-/// Does `python -c code` run and exit 0?
-fn python_runs(code: &str) -> bool {
-    Command::new(python())
-        .args(["-c", code])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
 }
 
 #[test]

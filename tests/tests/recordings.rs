@@ -20,18 +20,8 @@ use std::time::{Duration, Instant};
 use tilting_proto::{codec, Topic, TorqueCommand};
 use tilting_tests::*;
 
-fn python() -> String {
-    std::env::var("TILTING_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
 fn python_has_mcap() -> bool {
-    Command::new(python())
-        .args(["-c", "import mcap.stream_reader, zstandard"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
+    python_runs("import mcap.stream_reader, zstandard")
 }
 
 /// The Python reader's view of `file` (see tests/python/check_mcap.py).
