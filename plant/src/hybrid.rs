@@ -256,6 +256,8 @@ pub struct Plant {
     tilts: u64,
     /// Right-hand-side evaluations, all counted (steps, dense output, event location, checks).
     rhs_evals: u64,
+    /// Return after the first transition inside an `advance_*` call.
+    stop_at_event: bool,
 }
 
 impl Plant {
@@ -318,6 +320,7 @@ impl Plant {
             transitions: 0,
             tilts: 0,
             rhs_evals: 0,
+            stop_at_event: false,
         })
     }
 
@@ -381,6 +384,26 @@ impl Plant {
             return Err(Fault::NonFiniteTorque { t: self.t, tau });
         }
         self.integrate(&Held(tau), t_target, obs)
+    }
+
+    /// Like [`Plant::advance_held`], but stops right after the first mode transition inside
+    /// `(t, t_target)` (the reset applied, the new mode entered, a landing's settling done).
+    /// Returns `true` if it stopped there, `false` if it reached `t_target`. A transition at
+    /// the starting instant itself (a torque step that tilts the flat plate at once) does not
+    /// stop it. Used to sample the state at each mode transition (`--sample-on-event`).
+    pub fn advance_held_to_event<O: Observer>(
+        &mut self,
+        tau: f64,
+        t_target: f64,
+        obs: &mut O,
+    ) -> Result<bool, Fault> {
+        if !tau.is_finite() {
+            return Err(Fault::NonFiniteTorque { t: self.t, tau });
+        }
+        self.stop_at_event = true;
+        let r = self.integrate(&Held(tau), t_target, obs);
+        self.stop_at_event = false;
+        r.map(|()| self.t < t_target)
     }
 
     /// Advances to `t_target` (s) with the torque law evaluated inside the right-hand side.
@@ -701,6 +724,9 @@ impl Plant {
                     self.settle(tau_of, obs)?;
                 }
                 (Some(Ev::B), _) => unreachable!("alpha extremes are not terminal"),
+            }
+            if terminal.is_some() && self.stop_at_event {
+                return Ok(());
             }
         }
         Ok(())

@@ -459,6 +459,44 @@ fn held_torque_step_tilts_the_flat_plate_at_once() {
 }
 
 #[test]
+fn stopping_at_each_transition_follows_the_same_trajectory() {
+    // The orbit under a held paper law, once straight through each 10 ms period and once
+    // stopping at every transition and going on with the same torque: the stops land on the
+    // reported transition times, and since only the integrator's step sequence differs, the
+    // two trajectories agree to the integrator's tolerance (1e-9 rad after 3 s, with rtol 1e-10).
+    let p = Params::default();
+    let law = paper_law(p, 0.0);
+    let x0 = State::new(0.0, FRAC_PI_2 + ORBIT_BETA0, 0.0, ORBIT_BETA_DOT0);
+    let period = 0.01;
+    let mut a = Plant::new(SimConfig::default(), 0.0, Mode::Left, x0).unwrap();
+    let mut b = a.clone();
+    let (mut la, mut lb) = (Log::default(), Log::default());
+    let mut stops = 0;
+    for k in 0..300u64 {
+        let t1 = (k + 1) as f64 * period;
+        let tau = law(k as f64 * period, a.mode(), &a.state());
+        a.advance_held(tau, t1, &mut la).unwrap();
+        let tau_b = law(k as f64 * period, b.mode(), &b.state());
+        let n = lb.events.len();
+        while b.advance_held_to_event(tau_b, t1, &mut lb).unwrap() {
+            stops += 1;
+            assert!(lb.events.len() > n, "stopped without a transition");
+            assert_eq!(b.time(), lb.events.last().unwrap().t);
+            assert_eq!(b.mode(), lb.events.last().unwrap().to);
+        }
+        assert_eq!(b.time(), t1);
+    }
+    // About one landing per 0.44 s half period: at least 4 in 3 s.
+    assert!(stops >= 4, "only {stops} stops in 3 s of tilting");
+    assert_eq!(la.events.len(), lb.events.len());
+    for (ea, eb) in la.events.iter().zip(&lb.events) {
+        assert!((ea.t - eb.t).abs() < 1e-9, "{} vs {}", ea.t, eb.t);
+    }
+    let (xa, xb) = (a.state(), b.state());
+    assert!((xa - xb).abs().max() < 1e-9, "{xa} vs {xb}");
+}
+
+#[test]
 fn sampled_coupling_converges_to_continuous() {
     // The zero-order hold approaches the continuous law as the period shrinks: the first
     // landing time moves towards the continuous one roughly in proportion to the period.
