@@ -14,9 +14,11 @@
 
 #[cfg(feature = "node")]
 pub mod node;
+pub mod predict;
 pub mod reference;
 pub mod wire;
 
+pub use predict::Predictor;
 pub use reference::Reference;
 
 use serde::{Deserialize, Serialize};

@@ -277,6 +277,21 @@ pub struct NetStats {
     pub longest_gap: u64,
 }
 
+impl NetStats {
+    /// The median age of the applied torques (periods), `None` before the first.
+    pub fn age_median(&self) -> Option<u64> {
+        let n: u64 = self.age_histogram.iter().sum();
+        let mut seen = 0;
+        for (age, &c) in self.age_histogram.iter().enumerate() {
+            seen += c;
+            if c > 0 && 2 * seen >= n {
+                return Some(age as u64);
+            }
+        }
+        None
+    }
+}
+
 /// The zero-order hold of a sampled loop whose states and torques cross two emulated links,
 /// with the plant's rule for late torques (the semantics are in `tilting_sim::network`).
 /// Used by the offline `simulate` and by the plant node in lockstep, so the two agree bit for
@@ -366,6 +381,58 @@ impl ImpairedHold {
             }
         }
         self.tau
+    }
+
+    /// An extra state sampled at `t` (s) between two sample instants (at a mode transition,
+    /// `--sample-on-event`): it crosses the state link; if it arrives, `answer` computes the
+    /// torque for it, which crosses the torque link. Returns when that torque arrives (s) and
+    /// the torque, or `None` if either message is lost. The draws come from the same random
+    /// streams as the periodic messages.
+    pub fn send_extra(&mut self, t: f64, answer: impl FnOnce() -> f64) -> Option<(f64, f64)> {
+        let Some(a) = self.up.send(t) else {
+            self.stats.states_lost += 1;
+            return None;
+        };
+        let tau = answer();
+        match self.down.send(a) {
+            None => {
+                self.stats.torques_lost_on_link += 1;
+                None
+            }
+            Some(r) => Some((r, tau)),
+        }
+    }
+
+    /// The answer `tau` (N m) to an extra state sampled during period `k` has arrived during
+    /// period `now` (`now >= k`): it takes effect at once, unless a torque answering a newer
+    /// state (a periodic state after `k`) is already in force, in which case it is dropped and
+    /// counted as reordered. Returns the torque now in force.
+    pub fn take_extra(&mut self, k: u64, tau: f64, now: u64) -> f64 {
+        if self.applied.is_some_and(|a| a > k) {
+            self.stats.torques_reordered += 1;
+            return self.tau;
+        }
+        let age = now.saturating_sub(k) as usize;
+        if self.stats.age_histogram.len() <= age {
+            self.stats.age_histogram.resize(age + 1, 0);
+        }
+        self.stats.age_histogram[age] += 1;
+        self.stats.torques_applied += 1;
+        self.stats.torques_late += u64::from(age > 0);
+        self.applied = Some(k);
+        self.tau = tau;
+        self.gap = 0;
+        self.tau
+    }
+
+    /// The torque in force (N m).
+    pub fn torque(&self) -> f64 {
+        self.tau
+    }
+
+    /// The period of the newest state whose answer is or was in force.
+    pub fn applied(&self) -> Option<u64> {
+        self.applied
     }
 
     /// What the links and the rule did so far.

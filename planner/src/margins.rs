@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use tilting_link::{Impairment, LinkSpec};
 use tilting_plant::{Mode, Plant, TiltPeak, Transition};
-use tilting_sim::{run_sampled_over, Scenario};
+use tilting_sim::{run_sampled_over, LoopOptions, Scenario};
 
 /// Plant time allowed per requested tilt (s): the orbit tilts every 0.435 s.
 const SECONDS_PER_TILT: f64 = 0.6;
@@ -93,7 +93,13 @@ impl tilting_plant::Observer for Watch {
 
 /// Mean |peak| of the last tilts of the loop at `rate` over `imp` (a run of `tilts` tilts), or
 /// the reason it failed.
-fn run(sc: &Scenario, rate: f64, imp: &Impairment, c: &Criteria) -> (u64, f64, String) {
+fn run(
+    sc: &Scenario,
+    rate: f64,
+    imp: &Impairment,
+    opts: &LoopOptions,
+    c: &Criteria,
+) -> (u64, f64, String) {
     let Ok(law) = sc.controller() else {
         return (0, 0.0, "invalid scenario".into());
     };
@@ -111,6 +117,7 @@ fn run(sc: &Scenario, rate: f64, imp: &Impairment, c: &Criteria) -> (u64, f64, S
         1.0 / rate,
         t_end,
         imp,
+        opts,
         &mut w,
         &mut |_| {},
     );
@@ -138,15 +145,24 @@ fn run(sc: &Scenario, rate: f64, imp: &Impairment, c: &Criteria) -> (u64, f64, S
 
 /// The nominal last peak: the loop at 1 kHz over a perfect network (rad).
 pub fn nominal_peak(sc: &Scenario, c: &Criteria) -> f64 {
-    run(sc, 1000.0, &Impairment::default(), c).1
+    run(
+        sc,
+        1000.0,
+        &Impairment::default(),
+        &LoopOptions::default(),
+        c,
+    )
+    .1
 }
 
+#[allow(clippy::too_many_arguments)]
 fn point(
     sc: &Scenario,
     rate: f64,
     delay: f64,
     loss: f64,
     seed: u64,
+    opts: &LoopOptions,
     c: &Criteria,
     nominal: f64,
 ) -> Point {
@@ -164,7 +180,7 @@ fn point(
         // Any age: the delay is what is measured, not the plant's age rule.
         max_age: u64::MAX,
     };
-    let (tilts, last_peak, mut why) = run(sc, rate, &imp, c);
+    let (tilts, last_peak, mut why) = run(sc, rate, &imp, opts, c);
     if why.is_empty() && (last_peak / nominal - 1.0).abs() > c.tolerance {
         why = format!(
             "last peaks {last_peak:.4} rad, {:+.0} % from the nominal {nominal:.4} rad",
@@ -182,8 +198,9 @@ fn point(
     }
 }
 
-/// The delay × loss map at `rate` (Hz): every `(delay, loss)` pair, in row order (delays
-/// outer); `tick` is called after each point.
+/// The delay × loss map at `rate` (Hz) with the loop options `opts` (prediction, sampling on
+/// events): every `(delay, loss)` pair, in row order (delays outer); `tick` is called after
+/// each point.
 #[allow(clippy::too_many_arguments)]
 pub fn delay_loss_map(
     sc: &Scenario,
@@ -191,6 +208,7 @@ pub fn delay_loss_map(
     delays: &[f64],
     losses: &[f64],
     seed: u64,
+    opts: &LoopOptions,
     c: &Criteria,
     nominal: f64,
     tick: &(dyn Fn() + Sync),
@@ -202,17 +220,19 @@ pub fn delay_loss_map(
     pairs
         .par_iter()
         .map(|&(d, l)| {
-            let p = point(sc, rate, d, l, seed, c, nominal);
+            let p = point(sc, rate, d, l, seed, opts, c, nominal);
             tick();
             p
         })
         .collect()
 }
 
-/// The control-rate map over a perfect network: one point per rate (Hz).
+/// The control-rate map over a perfect network with the loop options `opts`: one point per
+/// rate (Hz).
 pub fn rate_map(
     sc: &Scenario,
     rates: &[f64],
+    opts: &LoopOptions,
     c: &Criteria,
     nominal: f64,
     tick: &(dyn Fn() + Sync),
@@ -220,7 +240,7 @@ pub fn rate_map(
     rates
         .par_iter()
         .map(|&r| {
-            let p = point(sc, r, 0.0, 0.0, 0, c, nominal);
+            let p = point(sc, r, 0.0, 0.0, 0, opts, c, nominal);
             tick();
             p
         })
@@ -270,6 +290,7 @@ mod tests {
             &[0.0, 0.02],
             &[0.0, 1.0],
             1,
+            &LoopOptions::default(),
             &c,
             nominal,
             &|| {},

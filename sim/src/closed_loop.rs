@@ -8,13 +8,17 @@
 //! - sampled (`control_period = T > 0`): the controller runs at `t_k = k T` on the state at that
 //!   instant and its torque is held until `t_{k+1}` ([`Plant::advance_held`]), as over a network.
 
-use crate::network::{run_sampled_over, Impairment, NetStats};
+use crate::network::{run_sampled_over, Impairment, LoopOptions, NetStats};
 use crate::scenario::{Scenario, ScenarioError};
 use serde::Serialize;
 use std::time::Instant;
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, TorqueLaw, Transition};
 
-/// Options of [`simulate`] that do not change the result.
+/// The plant's default `--max-age` (periods), used for a loop with prediction or sampling on
+/// events over a perfect network.
+pub const DEFAULT_MAX_AGE: u64 = 10;
+
+/// Options of [`simulate`]: how it reports, and the network and loop options.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct SimOptions {
     /// Record the trajectory (decimated) for plotting.
@@ -24,6 +28,8 @@ pub struct SimOptions {
     /// Run the sampled loop over these impaired links ([`crate::network`]); needs a control
     /// period.
     pub network: Option<Impairment>,
+    /// Prediction and sampling on events ([`crate::network`]); need a control period.
+    pub loop_options: LoopOptions,
 }
 
 /// A mode transition as reported.
@@ -118,9 +124,13 @@ pub struct SimulationReport {
     pub fault: Option<Fault>,
     /// Work counters.
     pub stats: RunStats,
-    /// What the network did, for a run over impaired links.
+    /// What the network did, for a run over impaired links (or with prediction or sampling on
+    /// events).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub network: Option<NetStats>,
+    /// Prediction and sampling on events, if asked for.
+    #[serde(skip_serializing_if = "LoopOptions::is_plain")]
+    pub loop_options: LoopOptions,
     /// The trajectory, if recorded (not serialised).
     #[serde(skip)]
     pub samples: Vec<Sample>,
@@ -290,6 +300,22 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
         }
     };
     let network = opts.network.filter(|n| !n.is_perfect());
+    let plain = opts.loop_options.is_plain();
+    if !plain && !sc.is_sampled() {
+        return Err(ScenarioError::OutOfRange {
+            field: "control_period".into(),
+            flag: "--control-period".into(),
+            value: sc.control_period.to_string(),
+            allowed: "> 0 for --predict or --sample-on-event: both act on a sampled loop".into(),
+        });
+    }
+    let network = match network {
+        None if !plain => Some(opts.network.unwrap_or(Impairment {
+            max_age: DEFAULT_MAX_AGE,
+            ..Impairment::default()
+        })),
+        n => n,
+    };
     if let (Some(n), false) = (&network, sc.is_sampled()) {
         let _ = n;
         return Err(ScenarioError::OutOfRange {
@@ -309,6 +335,7 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
             sc.control_period,
             t_end,
             imp,
+            &opts.loop_options,
             &mut rec,
             &mut tick,
         );
@@ -349,6 +376,7 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
         },
         fault: result.err(),
         network: net_stats,
+        loop_options: opts.loop_options,
         stats: RunStats {
             coupling: if sc.is_sampled() {
                 "sampled"

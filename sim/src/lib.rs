@@ -30,5 +30,7 @@ pub mod network;
 pub mod scenario;
 
 pub use closed_loop::{run_continuous, run_sampled, simulate, SimOptions, SimulationReport};
-pub use network::{run_sampled_over, Impairment, NetStats, NetworkArgs};
+pub use network::{
+    run_sampled_over, Impairment, LoopArgs, LoopOptions, NetStats, NetworkArgs, Predict,
+};
 pub use scenario::{Scenario, ScenarioArgs, ScenarioError, ScenarioFile};

@@ -17,32 +17,129 @@
 //! So with a constant delay `D` (both directions together) and no loss, the torque computed
 //! from the state at `t_k` acts from the first sample instant at or after `t_k + D`.
 
+//!
+//! Two options change the controller and the plant ([`LoopOptions`]):
+//!
+//! - **prediction** (`--predict`): the controller answers each state with the torque for the
+//!   state predicted at the instant its answer will act ([`tilting_controller::Predictor`]);
+//!   the round-trip delay is given, or estimated from the ages of the applied torques as the
+//!   plant reports them (their median, when the first torque is applied and then every
+//!   [`ESTIMATE_EVERY`] periods);
+//! - **sampling on events** (`--sample-on-event`): at each mode transition inside a period the
+//!   plant sends an extra state; its answer crosses the same links and takes effect the moment
+//!   it arrives (between sample instants), unless a torque answering a newer periodic state is
+//!   already in force.
+//!
+//! With neither option the loop is the plain one above, bit for bit.
+
+use serde::Serialize;
+use tilting_controller::Predictor;
 use tilting_plant::{Fault, Observer, Plant, TorqueLaw};
 
 pub use tilting_link::Impairment;
 pub use tilting_link::NetStats;
 
+/// How often an estimating predictor reads the ages (periods): the plant's status goes out at
+/// 10 Hz, every 100 periods at 1 kHz.
+pub const ESTIMATE_EVERY: u64 = 100;
+
+/// Where the predicting controller gets the delay from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Predict {
+    /// A given round-trip delay (s).
+    Given(f64),
+    /// Estimated online: the median age of the applied torques times the period.
+    Estimated,
+}
+
+/// Options of the sampled loop that change what it does.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct LoopOptions {
+    /// Predict over the delay (`--predict`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predict: Option<Predict>,
+    /// The plant sends an extra state at each mode transition (`--sample-on-event`).
+    pub sample_on_event: bool,
+}
+
+impl LoopOptions {
+    /// Neither option: the plain loop.
+    pub fn is_plain(&self) -> bool {
+        self.predict.is_none() && !self.sample_on_event
+    }
+}
+
+/// Event answers in flight: `(period of the event, arrival time (s), torque (N m))`.
+type InFlight = Vec<(u64, f64, f64)>;
+
+/// Applies the event answers that have arrived by `t` (within `tol`), in arrival order.
+fn take_arrived(
+    pending: &mut InFlight,
+    hold: &mut tilting_link::ImpairedHold,
+    t: f64,
+    tol: f64,
+    now: u64,
+) {
+    while let Some(i) = pending
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.1 <= t + tol)
+        .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
+        .map(|(i, _)| i)
+    {
+        let (k, _, tau) = pending.swap_remove(i);
+        hold.take_extra(k, tau, now);
+    }
+}
+
 /// [`crate::closed_loop::run_sampled`] over the links of `imp`: the zero-order hold with the
 /// controller `law` at `period` (s) up to `t_end` (s), torques chosen by
-/// [`tilting_link::ImpairedHold`]. Returns the run's result, the number of samples, and what
-/// the network did.
+/// [`tilting_link::ImpairedHold`], with the options `opts` (the predictor's model is the
+/// plant's configuration). Returns the run's result, the number of states the controller
+/// answered, and what the network did.
+#[allow(clippy::too_many_arguments)]
 pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     plant: &mut Plant,
     law: &L,
     period: f64,
     t_end: f64,
     imp: &Impairment,
+    opts: &LoopOptions,
     obs: &mut O,
     progress: &mut dyn FnMut(f64),
 ) -> (Result<(), Fault>, u64, NetStats) {
     let mut hold = imp.hold(period);
+    let tol = 1e-9 * period;
+    let mut predictor = opts.predict.map(|p| {
+        let d = match p {
+            Predict::Given(d) => d,
+            Predict::Estimated => 0.0,
+        };
+        Predictor::new(*plant.config(), period, d)
+    });
+    let estimate = opts.predict == Some(Predict::Estimated);
+    let mut estimated = false;
+    let mut pending: InFlight = Vec::new();
     let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
     let mut next_update = every;
     let mut samples = 0u64;
     let mut k: u64 = 0;
-    loop {
+    let result = loop {
         let t_k = k as f64 * period;
-        let tau = hold.step(k, t_k, || law.torque(t_k, plant.mode(), &plant.state()));
+        // The plant reports the ages in its status, every ESTIMATE_EVERY periods and when the
+        // first torque is applied.
+        if estimate && (k % ESTIMATE_EVERY == 0 || !estimated) {
+            if let (Some(p), Some(a)) = (&mut predictor, hold.stats().age_median()) {
+                p.set_delay(a as f64 * period);
+                estimated = true;
+            }
+        }
+        let (mode, x) = (plant.mode(), plant.state());
+        let mut tau = hold.step(k, t_k, || match &mut predictor {
+            Some(p) => p.answer(law, t_k, mode, &x, true),
+            None => law.torque(t_k, mode, &x),
+        });
         samples += 1;
         let next = (k + 1) as f64 * period;
         let t_next = if next >= t_end - 1e-9 * period {
@@ -50,18 +147,97 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
         } else {
             next
         };
-        if let Err(f) = plant.advance_held(tau, t_next, obs) {
-            return (Err(f), samples, hold.stats().clone());
+        if opts.sample_on_event || !pending.is_empty() {
+            take_arrived(&mut pending, &mut hold, t_k, tol, k);
+            tau = hold.torque();
+        }
+        if !opts.sample_on_event {
+            if let Err(f) = plant.advance_held(tau, t_next, obs) {
+                break Err(f);
+            }
+        } else {
+            // Segments end at the period's end, at an event answer's arrival, or at an event.
+            let mut fault = None;
+            while plant.time() < t_next {
+                let t_seg = pending
+                    .iter()
+                    .map(|p| p.1)
+                    .filter(|&r| r > plant.time() + tol)
+                    .fold(t_next, f64::min);
+                match plant.advance_held_to_event(tau, t_seg, obs) {
+                    Err(f) => {
+                        fault = Some(f);
+                        break;
+                    }
+                    Ok(true) => {
+                        let (t_e, m, xe) = (plant.time(), plant.mode(), plant.state());
+                        let sent = hold.send_extra(t_e, || match &mut predictor {
+                            Some(p) => p.answer(law, t_e, m, &xe, false),
+                            None => law.torque(t_e, m, &xe),
+                        });
+                        samples += 1;
+                        if let Some((r, tau_e)) = sent {
+                            pending.push((k, r, tau_e));
+                        }
+                    }
+                    Ok(false) => {}
+                }
+                take_arrived(&mut pending, &mut hold, plant.time(), tol, k);
+                tau = hold.torque();
+            }
+            if let Some(f) = fault {
+                break Err(f);
+            }
         }
         if t_next >= t_end {
-            return (Ok(()), samples, hold.stats().clone());
+            break Ok(());
         }
         k += 1;
         if k >= next_update {
             next_update += every;
             progress(t_next);
         }
-    }
+    };
+    (result, samples, hold.stats().clone())
 }
 
 pub use tilting_link::NetworkArgs;
+
+/// Parses `--predict`'s value: `auto` or a delay in seconds in [0, 60].
+fn parse_predict(s: &str) -> Result<Predict, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(Predict::Estimated);
+    }
+    match s.parse::<f64>() {
+        Ok(d) if (0.0..=60.0).contains(&d) => Ok(Predict::Given(d)),
+        _ => Err(format!(
+            "`{s}`: allowed are `auto` (estimate the delay from the ages the plant reports) \
+             or a round-trip delay in seconds in [0, 60]"
+        )),
+    }
+}
+
+/// The flags that change the loop ([`LoopOptions`]), shared by `simulate` and the nodes.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct LoopArgs {
+    /// The controller predicts the plant's state over the round-trip delay with the hybrid
+    /// model and answers for the predicted state: `auto` (the default value) estimates the delay
+    /// from the ages of the applied torques, or give the delay in seconds, in [0, 60]
+    #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
+          value_parser = parse_predict, allow_negative_numbers = true)]
+    pub predict: Option<Predict>,
+    /// The plant sends an extra state at each mode transition; its answer takes effect as
+    /// soon as it arrives
+    #[arg(long)]
+    pub sample_on_event: bool,
+}
+
+impl LoopArgs {
+    /// The options these flags ask for.
+    pub fn options(&self) -> LoopOptions {
+        LoopOptions {
+            predict: self.predict,
+            sample_on_event: self.sample_on_event,
+        }
+    }
+}

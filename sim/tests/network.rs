@@ -7,7 +7,7 @@
 use tilting_link::{Jitter, LinkSpec};
 use tilting_plant::Plant;
 use tilting_sim::closed_loop::run_sampled;
-use tilting_sim::{run_sampled_over, Impairment, Scenario};
+use tilting_sim::{run_sampled_over, Impairment, LoopOptions, Scenario};
 
 const H: f64 = 0.001;
 const T: f64 = 2.0;
@@ -20,7 +20,16 @@ fn over(imp: Impairment) -> (Plant, tilting_sim::NetStats) {
     let sc = Scenario::default();
     let law = sc.controller().unwrap();
     let mut p = plant(&sc);
-    let (r, n, st) = run_sampled_over(&mut p, &law, H, T, &imp, &mut (), &mut |_| {});
+    let (r, n, st) = run_sampled_over(
+        &mut p,
+        &law,
+        H,
+        T,
+        &imp,
+        &LoopOptions::default(),
+        &mut (),
+        &mut |_| {},
+    );
     r.unwrap();
     assert_eq!(n, 2000);
     (p, st)

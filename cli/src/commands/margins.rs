@@ -9,7 +9,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 use tilting_planner::margins::{self, Criteria, Point};
 use tilting_planner::CommandError;
-use tilting_sim::Scenario;
+use tilting_sim::{LoopOptions, Scenario};
 
 /// Most points of one map.
 const MAX_POINTS: usize = 10_000;
@@ -163,11 +163,19 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         &args.delays,
         &args.losses,
         args.seed,
+        &LoopOptions::default(),
         &c,
         nominal,
         &|| b.inc(1),
     );
-    let rates = margins::rate_map(&sc, &args.rates, &c, nominal, &|| b.inc(1));
+    let rates = margins::rate_map(
+        &sc,
+        &args.rates,
+        &LoopOptions::default(),
+        &c,
+        nominal,
+        &|| b.inc(1),
+    );
     b.finish_and_clear();
     let (largest_delay, largest_loss, lowest_rate) = margins::boundaries(&map, &rates);
     let report = MarginsReport {

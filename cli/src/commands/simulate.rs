@@ -6,7 +6,7 @@ use anyhow::Context as _;
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use tilting_planner::CommandError;
-use tilting_sim::{NetworkArgs, ScenarioArgs, SimOptions};
+use tilting_sim::{LoopArgs, NetworkArgs, ScenarioArgs, SimOptions};
 use tilting_viz::plot::plot_run;
 
 /// Flags of `tilting simulate`.
@@ -22,6 +22,9 @@ pub struct SimulateArgs {
     /// it answers and the current one), as the plant's --max-age
     #[arg(long, default_value_t = 10, value_name = "PERIODS")]
     pub max_age: u64,
+    /// Prediction and sampling on events (sampled loop only).
+    #[command(flatten)]
+    pub loop_args: LoopArgs,
     /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
     /// summary
     #[arg(long)]
@@ -63,6 +66,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
         record_samples: args.plot.is_some(),
         progress: !args.json && std::io::stderr().is_terminal(),
         network,
+        loop_options: args.loop_args.options(),
     };
     let report = tilting_sim::simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
     if args.json {
