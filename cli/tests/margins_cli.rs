@@ -1,6 +1,7 @@
 //! Runs the built `tilting plan margins` on a small grid: the JSON states its criteria, the
-//! map brackets what `simulate` shows (no delay survives, 20 ms does not; 1 kHz survives, 50 Hz
-//! does not), the PNG is drawn, and bad lists are refused naming the flag and the range.
+//! maps bracket what `simulate` shows (no delay survives, 10 ms does not unless the controller
+//! predicts; 1 kHz survives, 75 Hz only with samples on events, 50 Hz not at all), the PNG is
+//! drawn, and bad lists are refused naming the flag and the range.
 
 use serde_json::Value;
 use std::process::Command;
@@ -14,24 +15,43 @@ fn a_small_map_with_its_criteria_and_plot() {
     let png = dir.path().join("m.png");
     let o = Command::new(BIN)
         .args([
-            "plan", "margins", "--tilts", "20", "--delays", "0,0.02", "--losses", "0",
+            "plan",
+            "margins",
+            "--tilts",
+            "20",
+            "--delays",
+            "0,0.01,0.02",
+            "--losses",
+            "0",
         ])
-        .args(["--rates", "1000,50", "--json", "--plot"])
+        .args(["--rates", "1000,75,50", "--json", "--plot"])
         .arg(&png)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["survives_means"].as_str().unwrap().contains("20 tilts"));
-    let map = v["delay_loss"].as_array().unwrap();
-    assert_eq!(map.len(), 2);
-    assert_eq!(map[0]["survived"], true, "{}", map[0]);
-    assert_eq!(map[1]["survived"], false, "{}", map[1]);
+    let survived = |key: &str| -> Vec<bool> {
+        v[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["survived"].as_bool().unwrap())
+            .collect()
+    };
+    // Plain: 10 ms is past the 9 ms at which the orbit falls (see `simulate`).
+    assert_eq!(survived("delay_loss"), [true, false, false]);
+    // Predicting over the delay it measures, the controller keeps the orbit at 10 ms.
+    let predict = survived("delay_loss_predict");
+    assert!(predict[0] && predict[1], "{predict:?}");
     assert_eq!(v["largest_delay"], 0.0);
-    let rates = v["rates"].as_array().unwrap();
-    assert_eq!(rates[0]["survived"], true);
-    assert_eq!(rates[1]["survived"], false);
+    assert!(v["largest_delay_predict"].as_f64().unwrap() >= 0.01);
+    // 75 Hz leaves the landed plate waiting up to 13 ms for its next sample and falls; an
+    // extra sample at each landing keeps it.
+    assert_eq!(survived("rates"), [true, false, false]);
+    assert_eq!(survived("rates_events"), [true, true, false]);
     assert_eq!(v["lowest_rate"], 1000.0);
+    assert_eq!(v["lowest_rate_events"], 75.0);
     let bytes = std::fs::read(&png).unwrap();
     assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
 }

@@ -8,13 +8,26 @@ use tilting_planner::margins::{Criteria, Point};
 
 const FONT: &str = "sans-serif";
 
-/// Draws the delay × loss map (`map`, delays in s, losses per direction) and the rate map
-/// (`rates`) into `path` (PNG). A cell's colour is the deviation of its last peaks from
+/// The maps of one `plan margins` run.
+#[derive(Debug, Clone, Copy)]
+pub struct Maps<'a> {
+    /// Delay × loss, plain controller.
+    pub delay_loss: &'a [Point],
+    /// Delay × loss, predicting controller.
+    pub delay_loss_predict: &'a [Point],
+    /// Control rate, periodic sampling only.
+    pub rates: &'a [Point],
+    /// Control rate, with an extra sample at each mode transition.
+    pub rates_events: &'a [Point],
+}
+
+/// Draws the maps into `path` (PNG): the two delay × loss heat maps (delays in s, losses per
+/// direction) and the rate maps. A cell's colour is the deviation of its last peaks from
 /// `nominal` (rad): green when it survives, red when it does not; the black line is the survival
 /// boundary (the largest surviving delay of each loss).
-pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Criteria) -> Result<()> {
+pub fn plot(path: &Path, maps: &Maps, nominal: f64, c: &Criteria) -> Result<()> {
     crate::plot::register_fonts()?;
-    let root = BitMapBackend::new(path, (1400, 650)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1400, 1250)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(
         &format!(
@@ -26,7 +39,44 @@ pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Crite
         ),
         (FONT, 22),
     )?;
-    let (left, right) = root.split_horizontally(900);
+    let (top, bottom) = root.split_vertically(600);
+    let (tl, tr) = top.split_horizontally(700);
+    let (bl, br) = bottom.split_horizontally(700);
+    heat(
+        &tl,
+        maps.delay_loss,
+        "delay × loss, plain controller (labels at cell corners)",
+        nominal,
+        c,
+    )?;
+    heat(
+        &tr,
+        maps.delay_loss_predict,
+        "delay × loss, --predict auto (delay estimated from the ages)",
+        nominal,
+        c,
+    )?;
+    rate_bars(
+        &bl,
+        maps.rates,
+        "control rate, periodic samples",
+        nominal,
+        c,
+    )?;
+    rate_bars(
+        &br,
+        maps.rates_events,
+        "control rate, --sample-on-event",
+        nominal,
+        c,
+    )?;
+    root.present()?;
+    Ok(())
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+fn heat(left: &Area, map: &[Point], title: &str, nominal: f64, c: &Criteria) -> Result<()> {
     let mut delays: Vec<f64> = map.iter().map(|p| p.delay).collect();
     delays.sort_by(f64::total_cmp);
     delays.dedup();
@@ -34,14 +84,11 @@ pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Crite
     losses.sort_by(f64::total_cmp);
     losses.dedup();
     let (nl, nd) = (losses.len().max(1), delays.len().max(1));
-    let mut chart = ChartBuilder::on(&left)
+    let mut chart = ChartBuilder::on(left)
         .margin(20)
         .x_label_area_size(50)
         .y_label_area_size(70)
-        .caption(
-            "survival over delay × loss (a cell per run; labels at its lower left corner)",
-            (FONT, 20),
-        )
+        .caption(title, (FONT, 20))
         .build_cartesian_2d(0f64..nl as f64, 0f64..nd as f64)?;
     let ls = losses.clone();
     let ds = delays.clone();
@@ -91,6 +138,10 @@ pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Crite
     }
     chart.draw_series(LineSeries::new(line, BLACK.stroke_width(4)))?;
 
+    Ok(())
+}
+
+fn rate_bars(right: &Area, rates: &[Point], title: &str, nominal: f64, c: &Criteria) -> Result<()> {
     let mut rs: Vec<&Point> = rates.iter().collect();
     rs.sort_by(|a, b| a.rate.total_cmp(&b.rate));
     let n = rs.len().max(1);
@@ -100,16 +151,21 @@ pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Crite
         .fold(1.0 + c.tolerance, f64::max)
         * 1.1;
     let labels: Vec<String> = rs.iter().map(|p| format!("{}", p.rate)).collect();
-    let mut chart = ChartBuilder::on(&right)
+    // One segment per rate, labelled at its centre.
+    let mut chart = ChartBuilder::on(right)
         .margin(20)
         .x_label_area_size(50)
         .y_label_area_size(60)
-        .caption("control rate, perfect network", (FONT, 20))
-        .build_cartesian_2d(0f64..n as f64, 0f64..y_hi)?;
+        .caption(title, (FONT, 20))
+        .build_cartesian_2d((0..n as i32 - 1).into_segmented(), 0f64..y_hi)?;
     chart
         .configure_mesh()
-        .x_labels(n)
-        .x_label_formatter(&move |x| labels.get(x.floor() as usize).cloned().unwrap_or_default())
+        .disable_x_mesh()
+        .x_labels(n + 1)
+        .x_label_formatter(&move |x| match x {
+            SegmentValue::CenterOf(i) => labels.get(*i as usize).cloned().unwrap_or_default(),
+            _ => String::new(),
+        })
         .x_desc("control rate (Hz)")
         .y_desc("last peaks / nominal")
         .axis_desc_style((FONT, 18))
@@ -126,17 +182,24 @@ pub fn plot(path: &Path, map: &[Point], rates: &[Point], nominal: f64, c: &Crite
         } else {
             0.02 * y_hi
         };
-        Rectangle::new(
-            [(i as f64 + 0.15, 0.0), (i as f64 + 0.85, h)],
+        let mut bar = Rectangle::new(
+            [
+                (SegmentValue::Exact(i as i32), 0.0),
+                (SegmentValue::Exact(i as i32 + 1), h),
+            ],
             color.filled(),
-        )
+        );
+        bar.set_margin(0, 0, 12, 12);
+        bar
     }))?;
     for y in [1.0 - c.tolerance, 1.0 + c.tolerance] {
         chart.draw_series(LineSeries::new(
-            vec![(0.0, y), (n as f64, y)],
+            vec![
+                (SegmentValue::Exact(0), y),
+                (SegmentValue::Exact(n as i32), y),
+            ],
             BLACK.stroke_width(2),
         ))?;
     }
-    root.present()?;
     Ok(())
 }

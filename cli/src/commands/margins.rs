@@ -9,7 +9,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 use tilting_planner::margins::{self, Criteria, Point};
 use tilting_planner::CommandError;
-use tilting_sim::{LoopOptions, Scenario};
+use tilting_sim::{LoopOptions, Predict, Scenario};
 
 /// Most points of one map.
 const MAX_POINTS: usize = 10_000;
@@ -21,7 +21,7 @@ pub struct MarginsArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "0,0.002,0.004,0.006,0.008,0.010",
+        default_value = "0,0.002,0.004,0.006,0.008,0.010,0.015,0.020",
         allow_negative_numbers = true
     )]
     pub delays: Vec<f64>,
@@ -40,7 +40,7 @@ pub struct MarginsArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "1000,500,250,200,150,100,75,50",
+        default_value = "1000,500,250,200,150,100,75,60,50",
         allow_negative_numbers = true
     )]
     pub rates: Vec<f64>,
@@ -73,20 +73,30 @@ pub struct MarginsReport {
     pub survives_means: String,
     /// Nominal mean |peak| of the last 10 tilts, 1 kHz, perfect network (rad).
     pub nominal_peak: f64,
-    /// Control rate of the delay × loss map (Hz).
+    /// Control rate of the delay × loss maps (Hz).
     pub rate: f64,
-    /// The delay × loss map (delays outer).
+    /// The delay × loss map of the plain controller (delays outer).
     pub delay_loss: Vec<Point>,
-    /// The rate map (perfect network).
+    /// The delay × loss map of the predicting controller, delay estimated online from the
+    /// ages of the applied torques (`--predict auto`).
+    pub delay_loss_predict: Vec<Point>,
+    /// The rate map (perfect network), periodic samples only.
     pub rates: Vec<Point>,
-    /// Largest surviving delay with no loss (s).
+    /// The rate map (perfect network) with an extra sample at each mode transition
+    /// (`--sample-on-event`).
+    pub rates_events: Vec<Point>,
+    /// Largest surviving delay with no loss (s), plain controller.
     pub largest_delay: Option<f64>,
-    /// Largest surviving loss with no delay.
+    /// Largest surviving loss with no delay, plain controller.
     pub largest_loss: Option<f64>,
-    /// Lowest surviving control rate (Hz).
+    /// Largest surviving delay with no loss (s), predicting controller.
+    pub largest_delay_predict: Option<f64>,
+    /// Largest surviving loss with no delay, predicting controller.
+    pub largest_loss_predict: Option<f64>,
+    /// Lowest surviving control rate (Hz), periodic samples.
     pub lowest_rate: Option<f64>,
-    /// Not mapped yet: the controller with prediction and the event-triggered sampling.
-    pub not_mapped: Vec<&'static str>,
+    /// Lowest surviving control rate (Hz), with samples on events.
+    pub lowest_rate_events: Option<f64>,
 }
 
 fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), CommandError> {
@@ -148,7 +158,11 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         tolerance: args.tolerance,
     };
     let sc = Scenario::default();
-    let b = bar((n + args.rates.len() + 1) as u64, "margins", args.json);
+    let b = bar(
+        (2 * (n + args.rates.len()) + 1) as u64,
+        "margins",
+        args.json,
+    );
     let nominal = margins::nominal_peak(&sc, &c);
     b.inc(1);
     if nominal <= 0.0 {
@@ -157,27 +171,36 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
             c.tilts
         )));
     }
-    let map = margins::delay_loss_map(
-        &sc,
-        args.rate,
-        &args.delays,
-        &args.losses,
-        args.seed,
-        &LoopOptions::default(),
-        &c,
-        nominal,
-        &|| b.inc(1),
-    );
-    let rates = margins::rate_map(
-        &sc,
-        &args.rates,
-        &LoopOptions::default(),
-        &c,
-        nominal,
-        &|| b.inc(1),
-    );
+    let plain = LoopOptions::default();
+    let predict = LoopOptions {
+        predict: Some(Predict::Estimated),
+        ..plain
+    };
+    let events = LoopOptions {
+        sample_on_event: true,
+        ..plain
+    };
+    let tick = || b.inc(1);
+    let map = |opts: &LoopOptions| {
+        margins::delay_loss_map(
+            &sc,
+            args.rate,
+            &args.delays,
+            &args.losses,
+            args.seed,
+            opts,
+            &c,
+            nominal,
+            &tick,
+        )
+    };
+    let (delay_loss, delay_loss_predict) = (map(&plain), map(&predict));
+    let rates = margins::rate_map(&sc, &args.rates, &plain, &c, nominal, &tick);
+    let rates_events = margins::rate_map(&sc, &args.rates, &events, &c, nominal, &tick);
     b.finish_and_clear();
-    let (largest_delay, largest_loss, lowest_rate) = margins::boundaries(&map, &rates);
+    let (largest_delay, largest_loss, lowest_rate) = margins::boundaries(&delay_loss, &rates);
+    let (largest_delay_predict, largest_loss_predict, lowest_rate_events) =
+        margins::boundaries(&delay_loss_predict, &rates_events);
     let report = MarginsReport {
         criteria: c,
         survives_means: format!(
@@ -190,65 +213,95 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         ),
         nominal_peak: nominal,
         rate: args.rate,
-        delay_loss: map,
+        delay_loss,
+        delay_loss_predict,
         rates,
+        rates_events,
         largest_delay,
         largest_loss,
+        largest_delay_predict,
+        largest_loss_predict,
         lowest_rate,
-        not_mapped: vec![
-            "the controller with prediction (--predict): not implemented yet",
-            "event-triggered sampling (--sample-on-event): not implemented yet",
-        ],
+        lowest_rate_events,
     };
     if let Some(p) = &args.plot {
-        tilting_viz::margins::plot(p, &report.delay_loss, &report.rates, nominal, &c)
+        let maps = tilting_viz::margins::Maps {
+            delay_loss: &report.delay_loss,
+            delay_loss_predict: &report.delay_loss_predict,
+            rates: &report.rates,
+            rates_events: &report.rates_events,
+        };
+        tilting_viz::margins::plot(p, &maps, nominal, &c)
             .with_context(|| format!("cannot draw {}", p.display()))
             .map_err(CommandError::Failed)?;
     }
     emit(args.json, &report, || {
-        let mut s = format!(
-            "survives = {}\n\ndelay × loss at {} Hz (rows: total delay, columns: loss of each direction)\n{:>10}",
-            report.survives_means, report.rate, "delay \\ loss"
-        );
-        for l in &args.losses {
-            s += &format!("{l:>8}");
-        }
-        s += "\n";
-        for d in &args.delays {
-            s += &format!("{:>10.4} s ", d);
+        let mut s = format!("survives = {}\n", report.survives_means);
+        for (name, map) in [
+            ("plain controller", &report.delay_loss),
+            ("--predict auto", &report.delay_loss_predict),
+        ] {
+            s += &format!(
+                "\ndelay × loss at {} Hz, {name} (rows: total delay, columns: loss of each direction)\n{:>12}",
+                report.rate, "delay \\ loss"
+            );
             for l in &args.losses {
-                let p = report
-                    .delay_loss
-                    .iter()
-                    .find(|p| p.delay == *d && p.loss == *l);
-                s += &format!(
-                    "{:>8}",
-                    p.map_or("?", |p| if p.survived { "yes" } else { "no" })
-                );
+                s += &format!("{l:>8}");
             }
             s += "\n";
-        }
-        s += "\ncontrol rate (perfect network)\n";
-        for p in &report.rates {
-            s += &format!(
-                "  {:>7.1} Hz: {}{}\n",
-                p.rate,
-                if p.survived { "survives" } else { "fails" },
-                if p.why.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", p.why)
+            for d in &args.delays {
+                s += &format!("{:>10.4} s ", d);
+                for l in &args.losses {
+                    let p = map.iter().find(|p| p.delay == *d && p.loss == *l);
+                    s += &format!(
+                        "{:>8}",
+                        p.map_or("?", |p| if p.survived { "yes" } else { "no" })
+                    );
                 }
-            );
+                s += "\n";
+            }
+        }
+        for (name, rates) in [
+            ("periodic samples", &report.rates),
+            ("--sample-on-event", &report.rates_events),
+        ] {
+            s += &format!("\ncontrol rate (perfect network), {name}\n");
+            for p in rates.iter() {
+                s += &format!(
+                    "  {:>7.1} Hz: {}{}\n",
+                    p.rate,
+                    if p.survived { "survives" } else { "fails" },
+                    if p.why.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", p.why)
+                    }
+                );
+            }
         }
         let f = |v: Option<f64>, unit: &str| {
             v.map_or("none of the grid".into(), |v| format!("{v} {unit}"))
         };
         s += &format!(
-            "\nlargest delay survived (no loss): {}\nlargest loss survived (no delay): {}\nlowest rate survived: {}\nnot mapped yet: prediction, event-triggered sampling\n",
+            "\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
+            "",
+            "plain",
+            "--predict auto",
+            "largest delay survived (no loss)",
             f(report.largest_delay, "s"),
+            f(report.largest_delay_predict, "s"),
+            "largest loss survived (no delay)",
             f(report.largest_loss, ""),
+            f(report.largest_loss_predict, ""),
+        );
+        s += &format!(
+            "{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
+            "",
+            "periodic",
+            "--sample-on-event",
+            "lowest rate survived",
             f(report.lowest_rate, "Hz"),
+            f(report.lowest_rate_events, "Hz"),
         );
         if let Some(p) = &args.plot {
             s += &format!("plot: {}\n", p.display());
