@@ -129,7 +129,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
         let t_k = k as f64 * period;
         // The plant reports the ages in its status, every ESTIMATE_EVERY periods and when the
         // first torque is applied.
-        if estimate && (k % ESTIMATE_EVERY == 0 || !estimated) {
+        if estimate && (k.is_multiple_of(ESTIMATE_EVERY) || !estimated) {
             if let (Some(p), Some(a)) = (&mut predictor, hold.stats().age_median()) {
                 p.set_delay(a as f64 * period);
                 estimated = true;
