@@ -22,6 +22,31 @@ const GRID_TOL: f64 = 1e-9;
 /// Most answers kept (older ones can no longer be in force).
 const MAX_SENT: usize = 65_536;
 
+/// Where a predicting controller gets the delay from (`--predict auto|SECONDS`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Predict {
+    /// A given round-trip delay (s).
+    Given(f64),
+    /// Estimated online: the median age of the applied torques (as the plant reports it)
+    /// times the period.
+    Estimated,
+}
+
+/// Parses `--predict`'s value: `auto` or a round-trip delay in seconds in [0, 60].
+pub fn parse_predict(s: &str) -> Result<Predict, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(Predict::Estimated);
+    }
+    match s.parse::<f64>() {
+        Ok(d) if (0.0..=60.0).contains(&d) => Ok(Predict::Given(d)),
+        _ => Err(format!(
+            "`{s}`: allowed are `auto` (estimate the delay from the ages the plant reports) \
+             or a round-trip delay in seconds in [0, 60]"
+        )),
+    }
+}
+
 /// The predictor of one controller: the model of the plant, the loop's period and delay, and
 /// the answers sent.
 #[derive(Debug, Clone)]

@@ -280,11 +280,17 @@ pub struct NetStats {
 impl NetStats {
     /// The median age of the applied torques (periods), `None` before the first.
     pub fn age_median(&self) -> Option<u64> {
+        self.age_quantile(0.5)
+    }
+
+    /// The smallest age (periods) at or below which a fraction `q` in (0, 1] of the applied
+    /// torques lie, `None` before the first.
+    pub fn age_quantile(&self, q: f64) -> Option<u64> {
         let n: u64 = self.age_histogram.iter().sum();
         let mut seen = 0;
         for (age, &c) in self.age_histogram.iter().enumerate() {
             seen += c;
-            if c > 0 && 2 * seen >= n {
+            if c > 0 && seen as f64 >= q * n as f64 {
                 return Some(age as u64);
             }
         }

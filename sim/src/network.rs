@@ -43,15 +43,7 @@ pub use tilting_link::NetStats;
 /// 10 Hz, every 100 periods at 1 kHz.
 pub const ESTIMATE_EVERY: u64 = 100;
 
-/// Where the predicting controller gets the delay from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Predict {
-    /// A given round-trip delay (s).
-    Given(f64),
-    /// Estimated online: the median age of the applied torques times the period.
-    Estimated,
-}
+pub use tilting_controller::predict::Predict;
 
 /// Options of the sampled loop that change what it does.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -203,20 +195,6 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
 
 pub use tilting_link::NetworkArgs;
 
-/// Parses `--predict`'s value: `auto` or a delay in seconds in [0, 60].
-fn parse_predict(s: &str) -> Result<Predict, String> {
-    if s.eq_ignore_ascii_case("auto") {
-        return Ok(Predict::Estimated);
-    }
-    match s.parse::<f64>() {
-        Ok(d) if (0.0..=60.0).contains(&d) => Ok(Predict::Given(d)),
-        _ => Err(format!(
-            "`{s}`: allowed are `auto` (estimate the delay from the ages the plant reports) \
-             or a round-trip delay in seconds in [0, 60]"
-        )),
-    }
-}
-
 /// The flags that change the loop ([`LoopOptions`]), shared by `simulate` and the nodes.
 #[derive(Debug, Clone, Copy, Default, clap::Args)]
 pub struct LoopArgs {
@@ -224,7 +202,7 @@ pub struct LoopArgs {
     /// model and answers for the predicted state: `auto` (the default value) estimates the delay
     /// from the ages of the applied torques, or give the delay in seconds, in [0, 60]
     #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
-          value_parser = parse_predict, allow_negative_numbers = true)]
+          value_parser = tilting_controller::predict::parse_predict, allow_negative_numbers = true)]
     pub predict: Option<Predict>,
     /// The plant sends an extra state at each mode transition; its answer takes effect as
     /// soon as it arrives

@@ -24,8 +24,9 @@ use std::time::Duration;
 
 use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_plant::{paper, Params, State};
-use tilting_proto::{Keys, PlantState, TorqueCommand};
+use tilting_proto::{Keys, PlantState, Status, TorqueCommand};
 
+use crate::predict::{Predict, Predictor};
 use crate::{ComputedTorque, ControlConfig, Reference};
 
 /// Flags of `tilting-controller`.
@@ -65,6 +66,13 @@ pub struct ControllerArgs {
     /// Keep the law of the flags: ignore references published by a planner
     #[arg(long)]
     pub ignore_planner: bool,
+    /// Predict the plant's state over the round-trip delay with the hybrid model (impacts and
+    /// mode changes included) and answer for the predicted state: `auto` (the default value)
+    /// estimates the delay from the torque ages in the plant's status, or give the delay in
+    /// seconds, in [0, 60]
+    #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
+          value_parser = crate::predict::parse_predict)]
+    pub predict: Option<Predict>,
 }
 
 impl ControllerArgs {
@@ -110,6 +118,21 @@ struct Node {
     live_reference: AtomicBool,
     ignore_planner: bool,
     torque: TypedPublisher<TorqueCommand>,
+    /// `--predict`: the predictor, once the loop's period is known from the states' times.
+    predict: Option<Mutex<Prediction>>,
+}
+
+/// The predictor of the node and what it has learnt.
+struct Prediction {
+    p: Predictor,
+    /// The period is known (from a state with `seq > 0`: `t = seq * T` on the grid).
+    period_known: bool,
+    /// ... from state 1, `t = T` exactly.
+    period_exact: bool,
+    /// Estimate the delay from the plant's status.
+    estimate: bool,
+    /// Status messages that set the delay.
+    estimates: u64,
 }
 
 impl Node {
@@ -123,7 +146,26 @@ impl Node {
         let x = State::from(s.x());
         let tau = {
             let law = self.law.lock().unwrap_or_else(|e| e.into_inner());
-            law.torque(s.time, mode, &x)
+            match &self.predict {
+                None => law.torque(s.time, mode, &x),
+                Some(m) => {
+                    let mut pr = m.lock().unwrap_or_else(|e| e.into_inner());
+                    if s.seq > 0 && !pr.period_exact {
+                        // Periodic states lie on the grid, `t = seq * T`; an extra state
+                        // (sampled at a mode transition) comes later in its period, so the
+                        // smallest `t / seq` is the period; state 1 is at exactly `T`.
+                        let per = s.time / s.seq as f64;
+                        if !pr.period_known || per < pr.p.period() || s.seq == 1 {
+                            pr.p.set_period(per);
+                            pr.period_known = true;
+                            pr.period_exact = s.seq == 1;
+                        }
+                    }
+                    let on_grid =
+                        pr.period_known && (s.time / pr.p.period() - s.seq as f64).abs() < 1e-6;
+                    pr.p.answer(&*law, s.time, mode, &x, on_grid)
+                }
+            }
         };
         if !tau.is_finite() {
             let n = self.torques_not_finite.fetch_add(1, Ordering::Relaxed) + 1;
@@ -203,9 +245,38 @@ impl Node {
         }
     }
 
+    /// The plant's status: with `--predict auto`, its median torque age sets the delay.
+    fn on_status(&self, bytes: &[u8]) {
+        let Some(m) = &self.predict else { return };
+        let Ok(st) = tilting_proto::codec::decode::<Status>(bytes) else {
+            return; // the status is advisory here; malformed ones are the logger's business
+        };
+        let mut pr = m.lock().unwrap_or_else(|e| e.into_inner());
+        if pr.estimate && pr.period_known && st.age_p50.is_finite() && st.age_p50 >= 0.0 {
+            let d = st.age_p50.round() * pr.p.period();
+            if d != pr.p.delay() {
+                tracing::info!(delay = d, age = st.age_p50, "predicting over the delay");
+            }
+            pr.p.set_delay(d);
+            pr.estimates += 1;
+        }
+    }
+
     fn summary(&self) -> ControllerSummary {
         let law = *self.law.lock().unwrap_or_else(|e| e.into_inner()).config();
+        let prediction = self.predict.as_ref().map(|m| {
+            let pr = m.lock().unwrap_or_else(|e| e.into_inner());
+            let (made, fallbacks) = pr.p.counts();
+            PredictionSummary {
+                delay: pr.p.delay(),
+                estimated: pr.estimate,
+                estimates: pr.estimates,
+                predictions: made,
+                fallbacks,
+            }
+        });
         ControllerSummary {
+            prediction,
             states_received: self.states.received(),
             states_dropped: self.states.dropped(),
             torques_published: self.torques_published.load(Ordering::Relaxed),
@@ -251,6 +322,24 @@ pub struct ControllerSummary {
     pub references_applied: u64,
     /// The law in force at the end.
     pub law: LawSummary,
+    /// With `--predict`: the delay predicted over at the end and the counts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prediction: Option<PredictionSummary>,
+}
+
+/// What the predictor of `--predict` did.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PredictionSummary {
+    /// The round-trip delay predicted over at the end (s).
+    pub delay: f64,
+    /// The delay was estimated from the plant's status (`--predict auto`).
+    pub estimated: bool,
+    /// Status messages that set the delay.
+    pub estimates: u64,
+    /// Answers computed for a predicted state.
+    pub predictions: u64,
+    /// Predictions the model could not make (answered for the state as received).
+    pub fallbacks: u64,
 }
 
 /// The law in force, as the controller summary reports it.
@@ -306,6 +395,7 @@ async fn run_async(
         })
         .await?;
     let torque = TypedPublisher::declare(&session, keys.controller_torque(), Qos::Control).await?;
+    let params = law.config().params;
     let node = Arc::new(Node {
         params: law.config().params,
         law: Mutex::new(law),
@@ -320,11 +410,36 @@ async fn run_async(
         ignore_planner: args.ignore_planner,
         planner: _planner.clone(),
         torque,
+        predict: args.predict.map(|p| {
+            let (delay, estimate) = match p {
+                Predict::Given(d) => (d, false),
+                Predict::Estimated => (0.0, true),
+            };
+            let model = tilting_plant::SimConfig {
+                params,
+                ..tilting_plant::SimConfig::default()
+            };
+            Mutex::new(Prediction {
+                p: Predictor::new(model, 1e-3, delay),
+                period_known: false,
+                period_exact: false,
+                estimate,
+                estimates: 0,
+            })
+        }),
     });
 
     let n = node.clone();
     let _state_sub =
         tilting_net::subscribe_bytes(&session, keys.plant_state(), move |b| n.on_state(b)).await?;
+    let n = node.clone();
+    let _status_sub = match node.predict {
+        Some(_) => Some(
+            tilting_net::subscribe_bytes(&session, keys.plant_status(), move |b| n.on_status(b))
+                .await?,
+        ),
+        None => None,
+    };
     let n = node.clone();
     let _reference_sub =
         tilting_net::subscribe_bytes(&session, keys.planner_reference(), move |b| {

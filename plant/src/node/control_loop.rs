@@ -151,6 +151,14 @@ impl Loop {
             age_max: self.age.max(),
             fault: String::new(),
         };
+        if let Some(h) = &self.hold {
+            // Over emulated links the ages are the hold's (the answers themselves are fresh).
+            let st = h.stats();
+            let q = |q| st.age_quantile(q).unwrap_or(0) as f64;
+            s.age_p50 = q(0.5);
+            s.age_p99 = q(0.99);
+            s.age_max = st.age_histogram.len().saturating_sub(1) as f64;
+        }
         s.set_fault(&self.fault);
         s
     }
@@ -254,6 +262,10 @@ impl Loop {
                 self.torques_applied += 1;
                 self.rec(|r| r.torque(&cmd));
                 self.age.push(age as f64);
+                if self.torques_applied == 1 {
+                    // The first age at once: a predicting controller learns the delay from it.
+                    self.publish_status();
+                }
                 self.missed = 0;
                 self.tau = cmd.tau;
                 if self.status_state != Status::RUNNING {
