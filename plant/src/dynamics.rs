@@ -238,9 +238,9 @@ pub fn vertical_force(p: &Params, mode: Mode, x: &State, add: f64, bdd: f64) -> 
     p.total_mass() * p.g + p.m_f * yf_dd + p.m_l * yl_dd
 }
 
-/// [`vertical_force`] with the sines and cosines of `x` at hand (`tr = Trig::new(x)`; `sin(alpha
-/// + beta)` then comes from the sum formula, so the result may differ from [`vertical_force`] in
-/// the last bits).
+/// [`vertical_force`] with the sines and cosines of `x` at hand (`tr = Trig::new(x)`; the sine
+/// of `alpha + beta` then comes from the sum formula, so the result may differ from
+/// [`vertical_force`] in the last bits).
 #[inline(always)]
 pub fn vertical_force_t(p: &Params, mode: Mode, x: &State, tr: &Trig, add: f64, bdd: f64) -> f64 {
     let (ad, bd) = (x[2], x[3]);
