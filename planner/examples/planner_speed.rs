@@ -4,14 +4,77 @@
 //! Baseline: the sweep on one thread, measured in the same run (the ratio is the parallel
 //! speed-up; the rows must be bit-identical).
 //!
+//! The sweep's throughput, one point at a time on one thread: a sweep point
+//! (`bifurcation::run_one`, 500 tilts) against a plain continuous simulation of the same length
+//! (one `Plant::advance_continuous` call, no observer) at the same `k`, interleaved, best of 5:
+//! the ratio says what the sweep adds to the simulator. And the fixed set-up cost of a
+//! `tilting plan bifurcation` command (finding the `k = 0` base orbit, `orbit::smallest`).
+//!
 //! Run: `cargo run --release -p tilting-planner --example planner_speed`
 
 use std::time::Instant;
+use tilting_controller::{ComputedTorque, ControlConfig};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::gains::range;
 use tilting_planner::orbit::{self, OrbitProblem};
 use tilting_planner::sinusoid::{self, Search};
-use tilting_plant::{paper, ImpactLaw, Params};
+use tilting_plant::{paper, ImpactLaw, Mode, Params, Plant, SimConfig};
+
+/// Keeps the fastest wall time (s) of `run` into `best`.
+fn time_into<T>(best: &mut f64, run: impl FnOnce() -> T) -> T {
+    let start = Instant::now();
+    let out = std::hint::black_box(run());
+    *best = best.min(start.elapsed().as_secs_f64());
+    out
+}
+
+/// One sweep point against a plain simulation of the same length at the same `k`.
+fn point_throughput(sw: &Sweep, k: f64) {
+    let pb = &sw.problem;
+    let law = ComputedTorque::new(ControlConfig {
+        k,
+        energy_avg: sw.energy_avg,
+        ..pb.control
+    })
+    .expect("valid law");
+    let cfg = SimConfig {
+        params: pb.params,
+        impact: pb.impact,
+        ..SimConfig::default()
+    };
+    let x0 = OrbitProblem::start(sw.start_beta0, sw.start_beta_dot0);
+    // The length of the sweep point: it advances in 10 s slices until `tilts` tilts.
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).expect("valid start");
+    let mut t_end = 0.0;
+    while (plant.tilts() as usize) < sw.tilts {
+        t_end += 10.0;
+        plant
+            .advance_continuous(&law, t_end, &mut ())
+            .expect("no fault");
+    }
+    let (mut w_point, mut w_plain) = (f64::INFINITY, f64::INFINITY);
+    let mut evals = 0;
+    for _ in 0..5 {
+        let row = time_into(&mut w_point, || bifurcation::run_one(sw, k));
+        assert!(row.fault.is_none(), "k = {k}: {:?}", row.fault);
+        evals = time_into(&mut w_plain, || {
+            let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).expect("valid start");
+            plant
+                .advance_continuous(&law, t_end, &mut ())
+                .expect("no fault");
+            plant.stats().evals
+        });
+    }
+    println!(
+        "  k = {k:>6}: {t_end} simulated s ({} tilts): sweep point {:>6.0} simulated s per wall s, \
+         plain simulation {:>6.0} ({:.0} RHS evaluations per simulated s); ratio {:.2}",
+        sw.tilts,
+        t_end / w_point,
+        t_end / w_plain,
+        evals as f64 / t_end,
+        w_plain / w_point,
+    );
+}
 
 fn rss_kib() -> u64 {
     std::fs::read_to_string("/proc/self/status")
@@ -47,7 +110,16 @@ fn main() {
     }
 
     let pb = OrbitProblem::new(p, ImpactLaw::Paper, paper::ORBIT_KP, paper::ORBIT_KD);
-    let o = orbit::find_all(&pb).remove(0);
+    let mut setup = f64::INFINITY;
+    let mut o = None;
+    for _ in 0..5 {
+        o = time_into(&mut setup, || orbit::smallest(&pb));
+    }
+    let o = o.expect("the paper's orbit exists");
+    println!(
+        "bifurcation set-up (the k = 0 base orbit, orbit::smallest), best of 5: {:.1} ms",
+        setup * 1e3
+    );
     let sw = Sweep {
         problem: pb,
         start_beta0: o.beta0,
@@ -57,6 +129,10 @@ fn main() {
         keep: 200,
         period_tol: 1e-5,
     };
+    println!("sweep throughput, one point at a time on one thread (best of 5, interleaved):");
+    for k in [1500.0, 2000.0, 2500.0] {
+        point_throughput(&sw, k);
+    }
     let ks = range(1500.0, 2500.0, 10.0);
     let t = Instant::now();
     let rows = bifurcation::sweep(&sw, &ks, &|| {});

@@ -6,8 +6,8 @@
 //! networked controller: [`Plant::advance_held`]) or with a torque law evaluated inside the
 //! right-hand side ([`Plant::advance_continuous`], the paper's setting).
 
-use crate::dynamics::{accelerations_t, rhs, vertical_force, Terms};
-use crate::ode::{Dop853, OdeError, OdeStats, Tolerance};
+use crate::dynamics::{accelerations_t, rhs, vertical_force_t, Terms, Trig};
+use crate::ode::{Dop853, Dopri5, OdeError, OdeStats, Tolerance};
 use crate::{ConfigError, ImpactLaw, Mode, Params, State};
 
 /// A torque law `tau(t, q, x)` (N m) evaluated inside the right-hand side. It must be a pure
@@ -247,6 +247,12 @@ pub struct Plant {
     mode: Mode,
     x: State,
     stepper: Dop853,
+    /// The cheaper stepper of short held-torque intervals (see [`Plant::advance_held`]).
+    short: Dopri5,
+    /// The shared terms of `(mode, x)` when they are known (from the last step's end): the
+    /// next call's first evaluation (the torque changed, the state did not) then skips the
+    /// sines and cosines. Keyed by the bits of the state, so a stale entry is never used.
+    terms: Option<(Mode, [u64; 4], Terms)>,
     /// Extreme of the tilt in progress, `(t, alpha)`.
     extreme: Option<(f64, f64)>,
     /// Times of the most recent transitions (ring buffer for the Zeno guard).
@@ -258,6 +264,8 @@ pub struct Plant {
     rhs_evals: u64,
     /// Return after the first transition inside an `advance_*` call.
     stop_at_event: bool,
+    /// Held-torque intervals may use the 5th-order stepper ([`Plant::set_short_steps`]).
+    short_steps: bool,
 }
 
 impl Plant {
@@ -308,12 +316,16 @@ impl Plant {
         }
         let mut stepper = Dop853::new(cfg.tol);
         stepper.h_max = cfg.h_max;
+        let mut short = Dopri5::new(cfg.tol);
+        short.h_max = cfg.h_max;
         Ok(Self {
             cfg,
             t: t0,
             mode,
             x,
             stepper,
+            short,
+            terms: None,
             extreme: None,
             recent: vec![f64::NEG_INFINITY; cfg.zeno_events],
             recent_next: 0,
@@ -321,7 +333,24 @@ impl Plant {
             tilts: 0,
             rhs_evals: 0,
             stop_at_event: false,
+            short_steps: true,
         })
+    }
+
+    /// Allows (`true`, the default) or forbids the cheaper 5th-order stepper on held-torque
+    /// intervals ([`Plant::advance_held`]). With it forbidden every step is a DOP853 step, as
+    /// in [`Plant::advance_continuous`]: slower under a 1 kHz hold, useful as a reference.
+    pub fn set_short_steps(&mut self, allowed: bool) {
+        self.short_steps = allowed;
+    }
+
+    /// The torque (N m) `law` gives at the plant's current time, mode and state: the value of
+    /// `law.torque(t, mode, &x)`, computed by [`TorqueLaw::torque_t`] with the shared terms the
+    /// plant has at hand from its last step (which are those of `x`, computed the same way, so
+    /// the value is the same to the bit). For a sampled controller at each sample instant.
+    pub fn torque_now<L: TorqueLaw + ?Sized>(&mut self, law: &L) -> f64 {
+        let tm = self.terms_here();
+        law.torque_t(self.t, self.mode, &self.x, &self.cfg.params, &tm)
     }
 
     /// Current time (s).
@@ -342,9 +371,12 @@ impl Plant {
     }
     /// Integrator work counters.
     pub fn stats(&self) -> OdeStats {
+        let (a, b) = (self.stepper.stats, self.short.stats);
         OdeStats {
             evals: self.rhs_evals,
-            ..self.stepper.stats
+            steps: a.steps + b.steps,
+            rejected: a.rejected + b.rejected,
+            dense: a.dense,
         }
     }
     /// Mode transitions so far.
@@ -383,7 +415,7 @@ impl Plant {
         if !tau.is_finite() {
             return Err(Fault::NonFiniteTorque { t: self.t, tau });
         }
-        self.integrate(&Held(tau), t_target, obs)
+        self.integrate(&Held(tau), t_target, obs, true)
     }
 
     /// Like [`Plant::advance_held`], but stops right after the first mode transition inside
@@ -401,7 +433,7 @@ impl Plant {
             return Err(Fault::NonFiniteTorque { t: self.t, tau });
         }
         self.stop_at_event = true;
-        let r = self.integrate(&Held(tau), t_target, obs);
+        let r = self.integrate(&Held(tau), t_target, obs, true);
         self.stop_at_event = false;
         r.map(|()| self.t < t_target)
     }
@@ -413,7 +445,7 @@ impl Plant {
         t_target: f64,
         obs: &mut O,
     ) -> Result<(), Fault> {
-        self.integrate(law, t_target, obs)
+        self.integrate(law, t_target, obs, false)
     }
 
     /// Event function values at state `x` with derivative `xd = f_q(x, tau)` in the current
@@ -421,8 +453,14 @@ impl Plant {
     /// `beta_ddot` by inverting the flat equation, so the torque law is not evaluated again.
     #[inline]
     fn events(&self, x: &State, xd: &State) -> [f64; NG] {
+        self.events_t(x, xd, &Trig::new(x))
+    }
+
+    /// [`Plant::events`] with the sines and cosines of `x` at hand.
+    #[inline]
+    fn events_t(&self, x: &State, xd: &State, tr: &Trig) -> [f64; NG] {
         let p = &self.cfg.params;
-        let fy = vertical_force(p, self.mode, x, xd[2], xd[3]);
+        let fy = vertical_force_t(p, self.mode, x, tr, xd[2], xd[3]);
         match self.mode {
             Mode::Flat => {
                 let tau = p.m_l * p.l * (p.l * xd[3] + p.g * x[1].cos());
@@ -433,6 +471,26 @@ impl Plant {
                 [s * x[0], s * x[2], fy, self.cfg.fall_angle - s * x[0]]
             }
         }
+    }
+
+    /// The shared terms of the current `(mode, x)`: from the cache when they were computed at
+    /// this very state (the end of the last step), else computed now and cached.
+    #[inline]
+    fn terms_here(&mut self) -> Terms {
+        let key = [
+            self.x[0].to_bits(),
+            self.x[1].to_bits(),
+            self.x[2].to_bits(),
+            self.x[3].to_bits(),
+        ];
+        if let Some((m, k, tm)) = &self.terms {
+            if *m == self.mode && *k == key {
+                return *tm;
+            }
+        }
+        let tm = Terms::new(&self.cfg.params, self.mode, &self.x);
+        self.terms = Some((self.mode, key, tm));
+        tm
     }
 
     /// Does event `i` need the derivative (and so a right-hand-side evaluation)?
@@ -486,9 +544,12 @@ impl Plant {
             if !tau.is_finite() {
                 return Err(Fault::NonFiniteTorque { t: self.t, tau });
             }
-            let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
+            // The right-hand side at the current state (its terms are usually cached).
+            let tm = self.terms_here();
+            let (add, bdd) = accelerations_t(&self.cfg.params, self.mode, &tm, tau);
+            let xd = State::new(self.x[2], self.x[3], add, bdd);
             self.rhs_evals += 1;
-            let g = self.events(&self.x, &xd);
+            let g = self.events_t(&self.x, &xd, &tm.trig);
             if g[2] <= 0.0 {
                 return Err(Fault::ContactLoss {
                     t: self.t,
@@ -554,17 +615,21 @@ impl Plant {
         self.record_transition(Mode::Flat, x_after, obs)
     }
 
+    /// `held`: the torque is constant over the call, so intervals that one 5th-order step
+    /// covers within the tolerance are taken by the cheaper [`Dopri5`] (events still located on
+    /// [`Dop853`]'s dense output).
     fn integrate<T: TorqueLaw + ?Sized, O: Observer>(
         &mut self,
         tau_of: &T,
         t_target: f64,
         obs: &mut O,
+        held: bool,
     ) -> Result<(), Fault> {
         self.settle(tau_of, obs)?;
         self.check_tilt_direction(tau_of, obs)?;
         let p = self.cfg.params;
         let evals = std::cell::Cell::new(0u64);
-        let result = self.integrate_inner(tau_of, t_target, obs, &p, &evals);
+        let result = self.integrate_inner(tau_of, t_target, obs, &p, &evals, held);
         self.rhs_evals += evals.get();
         result
     }
@@ -607,19 +672,35 @@ impl Plant {
         obs: &mut O,
         p: &Params,
         evals: &std::cell::Cell<u64>,
+        held: bool,
     ) -> Result<(), Fault> {
         let p = *p;
         while self.t < t_target {
             let mode = self.mode;
-            let mut f = |t: f64, x: &State| {
+            // The start of the current step and its sines and cosines: the 5th-order stepper's
+            // inner stages take theirs from these by the angle-sum formulas.
+            let tm0 = self.terms_here();
+            let base = std::cell::Cell::new((self.x, tm0.trig));
+            let f5 = |t: f64, x: &State, end: bool| {
                 evals.set(evals.get() + 1);
-                let tm = Terms::new(&p, mode, x);
+                let tm = if end {
+                    Terms::new(&p, mode, x)
+                } else {
+                    let (x0, tr0) = base.get();
+                    Terms::from_trig(&p, mode, x, Trig::near(x, &x0, &tr0))
+                };
                 let tau = tau_of.torque_t(t, mode, x, &p, &tm);
                 let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
-                State::new(x[2], x[3], add, bdd)
+                (State::new(x[2], x[3], add, bdd), tm)
             };
-            let mut f0 = f(self.t, &self.x);
-            let mut g0 = self.events(&self.x, &f0);
+            let mut f = |t: f64, x: &State| f5(t, x, true).0;
+            evals.set(evals.get() + 1);
+            let tau0 = tau_of.torque_t(self.t, mode, &self.x, &p, &tm0);
+            let (add, bdd) = accelerations_t(&p, mode, &tm0, tau0);
+            let mut f0 = State::new(self.x[2], self.x[3], add, bdd);
+            let mut g0 = self.events_t(&self.x, &f0, &tm0.trig);
+            // The sines and cosines at the current state, when known.
+            let mut trig_here = Some(tm0.trig);
             let mut terminal = None;
             while self.t < t_target {
                 // A sliver of time left by rounding (a few ulp): finish it with one Euler step
@@ -630,12 +711,40 @@ impl Plant {
                     self.t = t_target;
                     break;
                 }
-                let step = self.stepper.step(&mut f, self.t, &self.x, &f0, t_target)?;
-                let g1 = self.events(&step.y1, step.f1());
+                // Under a held torque an interval that one 5th-order step covers (the
+                // stepper's memory says so, or it has none yet) is tried with Dopri5 first; a
+                // step without a sign change of any event function is kept, one with a sign
+                // change is taken again below by Dop853 over the same interval, for its dense
+                // output.
+                let mut step_end = t_target;
+                if held
+                    && self.short_steps
+                    && (self.short.h_next == 0.0 || rest <= self.short.h_next)
+                {
+                    let tr = *trig_here.get_or_insert_with(|| Trig::new(&self.x));
+                    base.set((self.x, tr));
+                    let s = self.short.step(&mut &f5, self.t, &self.x, &f0, t_target)?;
+                    let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig);
+                    if !(0..NG).any(|i| crossed(g0[i], g1[i])) {
+                        self.t = s.t1;
+                        self.x = s.y1;
+                        self.terms = Some((mode, s.y1.map(f64::to_bits).into(), s.aux1));
+                        trig_here = Some(s.aux1.trig);
+                        f0 = s.f1;
+                        g0 = g1;
+                        obs.sample(self.t, mode, &self.x);
+                        continue;
+                    }
+                    step_end = s.t1;
+                }
+                let step = self.stepper.step(&mut f, self.t, &self.x, &f0, step_end)?;
+                let tr1 = Trig::new(&step.y1);
+                let g1 = self.events_t(&step.y1, step.f1(), &tr1);
                 let fired = (0..NG).filter(|&i| crossed(g0[i], g1[i]));
                 if fired.clone().next().is_none() {
                     self.t = step.t1;
                     self.x = step.y1;
+                    trig_here = Some(tr1);
                     f0 = *step.f1();
                     g0 = g1;
                     obs.sample(self.t, mode, &self.x);
@@ -660,10 +769,21 @@ impl Plant {
                 }
                 let roots = &mut roots[..n_roots];
                 roots.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let first_terminal = roots
+                let mut first_terminal = roots
                     .iter()
                     .find(|(_, e)| mode == Mode::Flat || *e != Ev::B)
                     .copied();
+                // A landing located within the location width of another terminal event (the
+                // pivot force reaching zero as the plate lands, say) is taken as the landing:
+                // their order inside that width is round-off, and the impact resets the state.
+                if let Some((t_first, _)) = first_terminal.filter(|_| mode != Mode::Flat) {
+                    if let Some(&land) = roots
+                        .iter()
+                        .find(|(t, e)| *e == Ev::A && *t <= t_first + self.cfg.event_tol)
+                    {
+                        first_terminal = Some(land);
+                    }
+                }
                 for &(tr, e) in roots.iter() {
                     if e == Ev::B && mode != Mode::Flat {
                         if first_terminal.is_some_and(|(tt, _)| tt < tr) {
@@ -686,6 +806,7 @@ impl Plant {
                     None => {
                         self.t = step.t1;
                         self.x = step.y1;
+                        trig_here = Some(tr1);
                         f0 = *step.f1();
                         g0 = g1;
                         obs.sample(self.t, mode, &self.x);

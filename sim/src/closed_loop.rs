@@ -226,7 +226,8 @@ pub fn run_sampled<L: TorqueLaw, O: Observer>(
     loop {
         let t_k = k as f64 * period;
         debug_assert_eq!(t_k, plant.time());
-        let tau = law.torque(t_k, plant.mode(), &plant.state());
+        // law.torque(t_k, plant.mode(), &plant.state()), reusing the plant's terms.
+        let tau = plant.torque_now(law);
         samples += 1;
         let next = (k + 1) as f64 * period;
         let t_next = if next >= t_end - 1e-9 * period {

@@ -6,6 +6,7 @@ use super::{bar, check, emit, usage, ModelArgs};
 use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
+use std::time::Instant;
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
 use tilting_planner::{gains, sinusoid, CommandError};
@@ -241,6 +242,20 @@ pub struct BifurcationReport {
     pub k_onset_observed: Option<f64>,
     /// One row per k.
     pub rows: Vec<bifurcation::Row>,
+    /// Where the wall time went.
+    pub timing: BifurcationTiming,
+}
+
+/// Wall times of one `bifurcation` command (s): a fixed set-up, the sweep (which grows with
+/// the number of values of k and of tilts) and `k*`.
+#[derive(Debug, Serialize)]
+pub struct BifurcationTiming {
+    /// Finding the `k = 0` base orbit the sweep starts from (s).
+    pub setup_s: f64,
+    /// The sweep over k on all cores (s).
+    pub sweep_s: f64,
+    /// Locating `k*` (s).
+    pub k_star_s: f64,
 }
 
 /// Most cells of a `gains` grid (each one is an orbit search of about 0.1 s: 100,000 cells are
@@ -300,7 +315,9 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
         )));
     }
     let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let start = Instant::now();
     let o = base_orbit(&pb)?;
+    let setup_s = start.elapsed().as_secs_f64();
     let ks = gains::range(args.k_from, args.k_to, args.k_step);
     let sw = Sweep {
         problem: pb,
@@ -312,16 +329,25 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
         period_tol: args.period_tol,
     };
     let b = bar(ks.len() as u64, "bifurcation", args.model.json);
+    let start = Instant::now();
     let rows = bifurcation::sweep(&sw, &ks, &|| b.inc(1));
+    let sweep_s = start.elapsed().as_secs_f64();
     b.finish_and_clear();
     // The attracting adapted orbit is found by simulation at k = 500 (the paper's stabilised
     // case), or at k_from if that is lower, and continued from there.
+    let start = Instant::now();
     let k_star = bifurcation::k_star(&sw, ORBIT_K, args.k_from, args.k_to, 1e-3);
+    let k_star_s = start.elapsed().as_secs_f64();
     let report = BifurcationReport {
         energy_avg: o.energy_avg,
         k_star,
         k_onset_observed: rows.iter().find(|r| r.period != Some(1)).map(|r| r.k),
         rows,
+        timing: BifurcationTiming {
+            setup_s,
+            sweep_s,
+            k_star_s,
+        },
     };
     emit(args.model.json, &report, || {
         let mut s = format!(
@@ -329,6 +355,14 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
             report.energy_avg,
             report.k_star.map_or("none in range".into(), |k| format!("{k:.3}")),
             report.k_onset_observed.map_or("none".into(), |k| format!("{k}"))
+        );
+        let tm = &report.timing;
+        s += &format!(
+            "wall time: set-up (base orbit) {:.3} s, sweep of {} values of k {:.3} s, k* {:.3} s\n",
+            tm.setup_s,
+            report.rows.len(),
+            tm.sweep_s,
+            tm.k_star_s
         );
         for r in &report.rows {
             let (lo, hi) = r
