@@ -17,6 +17,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 use tilting_link::{Impairment, LinkSpec};
+use tilting_plant::imperfect::Hardware;
 use tilting_plant::{Mode, Plant, TiltPeak, Transition};
 use tilting_sim::{run_sampled_over, Scenario};
 
@@ -111,6 +112,7 @@ fn run(sc: &Scenario, rate: f64, imp: &Impairment, c: &Criteria) -> (u64, f64, S
         1.0 / rate,
         t_end,
         imp,
+        &mut Hardware::default(),
         &mut w,
         &mut |_| {},
     );

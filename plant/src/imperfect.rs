@@ -193,9 +193,7 @@ impl Sensor {
         rng.set_stream(SENSOR_STREAM);
         Self {
             sigma: imp.noise,
-            quantum: imp
-                .encoder_counts
-                .map(|n| std::f64::consts::TAU / n as f64),
+            quantum: imp.encoder_counts.map(|n| std::f64::consts::TAU / n as f64),
             rng,
         }
     }
@@ -535,7 +533,11 @@ mod tests {
         for b in bins {
             assert!((b as f64 - want).abs() < 5.0 * sd, "{bins:?}");
         }
-        assert!((sq / n as f64 * 12.0 - 1.0).abs() < 0.05, "{}", sq / n as f64);
+        assert!(
+            (sq / n as f64 * 12.0 - 1.0).abs() < 0.05,
+            "{}",
+            sq / n as f64
+        );
     }
 
     /// The torque the flat plant really felt, from the arm's acceleration: in the flat mode the
@@ -610,7 +612,10 @@ mod tests {
         // h = 0.25 ms: the difference's error in the torque is about h^2/6 tau'' <= h^2/6 3/T^2
         // = 7.8e-5 N m.
         for &(t, tau) in &felt_torque(&imp, 100.0, 2.5e-4, 240) {
-            assert!((tau - 3.0 * (1.0 - (-t / 0.02).exp())).abs() < 2e-4, "{t}: {tau}");
+            assert!(
+                (tau - 3.0 * (1.0 - (-t / 0.02).exp())).abs() < 2e-4,
+                "{t}: {tau}"
+            );
         }
         let mut a = Actuator::new(&imp);
         assert_eq!(a.clip(-7.0), -3.0);
@@ -749,7 +754,10 @@ mod tests {
         assert_eq!(imp.torque_saturation, Some(11.0));
         assert_eq!((imp.torque_lag, imp.mass_error, imp.seed), (0.002, -0.1, 4));
         // Zero settings are the perfect robot.
-        assert_eq!(parse(&["--noise-alpha", "0", "--torque-lag", "0"]).unwrap(), None);
+        assert_eq!(
+            parse(&["--noise-alpha", "0", "--torque-lag", "0"]).unwrap(),
+            None
+        );
         for (args, want) in [
             (["--noise-alpha", "-1"], "`--noise-alpha` = -1"),
             (["--encoder-counts", "0"], "`--encoder-counts` = 0"),

@@ -16,7 +16,12 @@
 //!
 //! So with a constant delay `D` (both directions together) and no loss, the torque computed
 //! from the state at `t_k` acts from the first sample instant at or after `t_k + D`.
+//!
+//! The robot's hardware ([`tilting_plant::imperfect`]) sits at both ends: the state is measured
+//! once per sample (`hw.measure`, before the link, so a lost state still draws its noise) and the
+//! torque in force is applied through the actuator (`hw.advance`).
 
+use tilting_plant::imperfect::Hardware;
 use tilting_plant::{Fault, Observer, Plant, TorqueLaw};
 
 pub use tilting_link::Impairment;
@@ -24,14 +29,17 @@ pub use tilting_link::NetStats;
 
 /// [`crate::closed_loop::run_sampled`] over the links of `imp`: the zero-order hold with the
 /// controller `law` at `period` (s) up to `t_end` (s), torques chosen by
-/// [`tilting_link::ImpairedHold`]. Returns the run's result, the number of samples, and what
-/// the network did.
+/// [`tilting_link::ImpairedHold`], the controller seeing the state measured by `hw` and the
+/// torque applied through its actuator ([`Hardware::default`]: the perfect robot). Returns the
+/// run's result, the number of samples, and what the network did.
+#[allow(clippy::too_many_arguments)]
 pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     plant: &mut Plant,
     law: &L,
     period: f64,
     t_end: f64,
     imp: &Impairment,
+    hw: &mut Hardware,
     obs: &mut O,
     progress: &mut dyn FnMut(f64),
 ) -> (Result<(), Fault>, u64, NetStats) {
@@ -42,7 +50,8 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     let mut k: u64 = 0;
     loop {
         let t_k = k as f64 * period;
-        let tau = hold.step(k, t_k, || law.torque(t_k, plant.mode(), &plant.state()));
+        let y = hw.measure(plant);
+        let tau = hold.step(k, t_k, || law.torque(t_k, plant.mode(), &y));
         samples += 1;
         let next = (k + 1) as f64 * period;
         let t_next = if next >= t_end - 1e-9 * period {
@@ -50,7 +59,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
         } else {
             next
         };
-        if let Err(f) = plant.advance_held(tau, t_next, obs) {
+        if let Err(f) = hw.advance(plant, tau, t_next, obs) {
             return (Err(f), samples, hold.stats().clone());
         }
         if t_next >= t_end {

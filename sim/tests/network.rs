@@ -20,7 +20,16 @@ fn over(imp: Impairment) -> (Plant, tilting_sim::NetStats) {
     let sc = Scenario::default();
     let law = sc.controller().unwrap();
     let mut p = plant(&sc);
-    let (r, n, st) = run_sampled_over(&mut p, &law, H, T, &imp, &mut (), &mut |_| {});
+    let (r, n, st) = run_sampled_over(
+        &mut p,
+        &law,
+        H,
+        T,
+        &imp,
+        &mut Default::default(),
+        &mut (),
+        &mut |_| {},
+    );
     r.unwrap();
     assert_eq!(n, 2000);
     (p, st)

@@ -182,6 +182,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
                     record_samples: true,
                     progress: !args.json && std::io::stderr().is_terminal(),
                     network: None,
+                    imperfect: None,
                 },
             )
             .map_err(|e| CommandError::Usage(e.into()))?;

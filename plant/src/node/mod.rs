@@ -141,6 +141,7 @@ async fn run_async(
         .network
         .impairment(args.max_age)?
         .map(|imp| imp.hold(args.period()));
+    let hw = args.imperfections()?.hardware();
     let mut lp = Loop {
         args,
         h,
@@ -161,6 +162,8 @@ async fn run_async(
         torques_lost: 0,
         torques_applied: 0,
         hold,
+        hw,
+        measured: None,
         age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,
