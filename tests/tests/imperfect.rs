@@ -106,7 +106,10 @@ fn lockstep_with_imperfections_equals_simulate_with_the_same_flags() {
         .zip(&want_x)
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
-    assert!(d > 1e-4, "the imperfections changed the final state by {d} only");
+    assert!(
+        d > 1e-4,
+        "the imperfections changed the final state by {d} only"
+    );
 }
 
 /// Real time, noise on `beta` (sigma 2 mrad) and `alpha_dot` (sigma 20 mrad/s) only: the
@@ -186,8 +189,18 @@ async fn realtime_plant_publishes_the_measured_state() {
     for r in &rows {
         let Some(m) = seen.get(&r.seq) else { continue };
         assert_eq!(m.time, r.t);
-        assert_eq!(m.alpha.to_bits(), r.x[0].to_bits(), "alpha at seq {}", r.seq);
-        assert_eq!(m.beta_dot.to_bits(), r.x[3].to_bits(), "beta_dot at {}", r.seq);
+        assert_eq!(
+            m.alpha.to_bits(),
+            r.x[0].to_bits(),
+            "alpha at seq {}",
+            r.seq
+        );
+        assert_eq!(
+            m.beta_dot.to_bits(),
+            r.x[3].to_bits(),
+            "beta_dot at {}",
+            r.seq
+        );
         db.push(m.beta - r.x[1]);
         dad.push(m.alpha_dot - r.x[2]);
     }

@@ -346,6 +346,21 @@ mod tests {
                 "100",
                 "invalid --rt-priority = 100: allowed 1 to 99",
             ),
+            (
+                "--noise-beta",
+                "-1",
+                "invalid `--noise-beta` = -1: allowed a standard deviation in rad in [0, 10]",
+            ),
+            (
+                "--encoder-counts",
+                "0",
+                "invalid `--encoder-counts` = 0: allowed counts per revolution",
+            ),
+            (
+                "--torque-lag",
+                "-0.1",
+                "invalid `--torque-lag` = -0.1: allowed a time constant in s in [0, 10]",
+            ),
         ] {
             let a = PlantArgs::try_parse_from(["tilting-plant", flag, value])
                 .unwrap_or_else(|e| panic!("{flag} {value}: {e}"));
