@@ -118,7 +118,6 @@ fn lockstep_with_imperfections_equals_simulate_with_the_same_flags() {
 /// quantities without noise are published exactly.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn realtime_plant_publishes_the_measured_state() {
-    let _turn = realtime_turn();
     let sigma_b = 0.002;
     let sigma_ad = 0.02;
     let dir = Scratch::new("realtime-imperfect");
