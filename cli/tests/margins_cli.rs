@@ -83,3 +83,58 @@ fn bad_lists_name_the_flag_and_the_range() {
         assert!(err.contains(want), "{args:?}: {err}");
     }
 }
+
+/// The robot maps: the perfect robot survives, angle noise of 0.2 rad and an arm twice as heavy
+/// as modelled do not (20 tilts); the JSON carries the maps and their ranges, the second PNG is
+/// drawn beside the first, and bad lists are refused naming the flag and the range.
+#[test]
+fn robot_maps_with_their_ranges_and_plot() {
+    let dir = TempDir::new("margins-robot");
+    let png = dir.path().join("m.png");
+    let o = Command::new(BIN)
+        .args([
+            "plan", "margins", "--tilts", "20", "--delays", "0", "--losses", "0", "--rates", "1000",
+        ])
+        .args(["--angle-noises", "0,0.2", "--rate-noises", "0"])
+        .args(["--mass-errors=-0.001,0,1", "--json", "--plot"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let r = &v["robot"];
+    let angle = r["angle_noise"].as_array().unwrap();
+    assert_eq!(angle.len(), 2);
+    assert_eq!(angle[0]["survived"], true, "{}", angle[0]);
+    assert_eq!(angle[1]["survived"], false, "{}", angle[1]);
+    assert_eq!(angle[1]["imperfection"], "angle_noise");
+    assert_eq!(r["largest_angle_noise"], 0.0);
+    assert_eq!(r["largest_rate_noise"], 0.0);
+    assert_eq!(r["mass_error_range"], serde_json::json!([-0.001, 0.0]));
+    let bytes = std::fs::read(dir.path().join("m-robot.png")).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
+
+    for (args, want) in [
+        (
+            vec!["--angle-noises", "0,-0.1"],
+            "`--angle-noises` value -0.1: allowed 0 to 10",
+        ),
+        (
+            vec!["--rate-noises", "nan"],
+            "`--rate-noises` value NaN: allowed 0 to 10",
+        ),
+        (
+            vec!["--mass-errors=-1"],
+            "`--mass-errors` value -1: allowed (-1, 10]",
+        ),
+    ] {
+        let o = Command::new(BIN)
+            .args(["plan", "margins"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}

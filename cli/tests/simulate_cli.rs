@@ -139,6 +139,22 @@ fn invalid_flags_exit_2_and_name_the_field() {
         // So do gains the built-in E_av was not computed for.
         (vec!["--kp", "150"], "energy_avg"),
         (vec!["--plot", "out.svg"], "--plot"),
+        // The robot's imperfections name the flag and the range.
+        (
+            vec!["--control-period", "0.001", "--noise-alpha", "-0.1"],
+            "invalid `--noise-alpha` = -0.1: allowed a standard deviation in rad in [0, 10]",
+        ),
+        (
+            vec!["--control-period", "0.001", "--encoder-counts", "0"],
+            "invalid `--encoder-counts` = 0: allowed counts per revolution in [2, 4294967296]",
+        ),
+        (
+            vec!["--control-period", "0.001", "--torque-lag", "-0.01"],
+            "invalid `--torque-lag` = -0.01: allowed a time constant in s in [0, 10]",
+        ),
+        (vec!["--mass-error", "-1"], "`--mass-error` = -1"),
+        // Sensors are sampled.
+        (vec!["--noise-beta", "0.001"], "--control-period"),
     ] {
         let o = simulate(&args);
         let err = stderr(&o);
@@ -158,6 +174,7 @@ fn invalid_files_exit_2_and_name_the_field() {
     let unknown = dir.file("unknown.toml", "duration = 3\nduraton = 4\n");
     let bad_value = dir.file("bad.toml", "kd = -2\n");
     let bad_table = dir.file("bad_table.toml", "[params]\nl = 0\n");
+    let bad_plant_table = dir.file("bad_plant.toml", "[plant_params]\nm_l = 0\n");
     let bad_params = dir.file("params.toml", "m_f = -1\n");
     let unknown_param = dir.file("params2.toml", "mass = 1\n");
     let missing = dir
@@ -171,6 +188,8 @@ fn invalid_files_exit_2_and_name_the_field() {
         (vec!["--scenario", &bad_table], "params.l"),
         (vec!["--params", &bad_params], "m_f"),
         (vec!["--params", &unknown_param], "mass"),
+        (vec!["--plant-params", &bad_params], "--plant-params"),
+        (vec!["--scenario", &bad_plant_table], "plant_params.m_l"),
         (vec!["--scenario", &missing], "missing.toml"),
     ] {
         let o = simulate(&args);

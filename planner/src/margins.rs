@@ -1,6 +1,7 @@
 //! What the stabilised orbit survives: the sampled loop over an emulated network
-//! (`tilting_sim::network`) on a grid of constant delay × Bernoulli loss, and over a range of
-//! control rates.
+//! (`tilting_sim::network`) on a grid of constant delay × Bernoulli loss, over a range of
+//! control rates, and on a robot that is not the model ([`imperfection_map`]: sensor noise on the
+//! angles or on the rates, an arm-mass error).
 //!
 //! A point **survives** when all of these hold (stated in every report):
 //!
@@ -17,6 +18,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 use tilting_link::{Impairment, LinkSpec};
+use tilting_plant::imperfect::Imperfections;
 use tilting_plant::{Mode, Plant, TiltPeak, Transition};
 use tilting_sim::{run_sampled_over, LoopOptions, Scenario};
 
@@ -91,19 +93,22 @@ impl tilting_plant::Observer for Watch {
     }
 }
 
-/// Mean |peak| of the last tilts of the loop at `rate` over `imp` (a run of `tilts` tilts), or
-/// the reason it failed.
+/// Mean |peak| of the last tilts of the loop at `rate` over `imp` on the robot `robot` (a run
+/// of `tilts` tilts), or the reason it failed.
 fn run(
     sc: &Scenario,
     rate: f64,
     imp: &Impairment,
     opts: &LoopOptions,
+    robot: &Imperfections,
     c: &Criteria,
 ) -> (u64, f64, String) {
     let Ok(law) = sc.controller() else {
         return (0, 0.0, "invalid scenario".into());
     };
-    let Ok(mut plant) = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()) else {
+    let mut cfg = sc.sim_config();
+    cfg.params = robot.plant_params(&cfg.params);
+    let Ok(mut plant) = Plant::new(cfg, 0.0, sc.mode, sc.initial_state()) else {
         return (0, 0.0, "invalid initial state".into());
     };
     let mut w = Watch {
@@ -117,7 +122,11 @@ fn run(
         1.0 / rate,
         t_end,
         imp,
-        opts,
+        &LoopOptions {
+            model: Some(sc.sim_config()),
+            ..*opts
+        },
+        &mut robot.hardware(),
         &mut w,
         &mut |_| {},
     );
@@ -150,6 +159,7 @@ pub fn nominal_peak(sc: &Scenario, c: &Criteria) -> f64 {
         1000.0,
         &Impairment::default(),
         &LoopOptions::default(),
+        &Imperfections::default(),
         c,
     )
     .1
@@ -180,13 +190,8 @@ fn point(
         // Any age: the delay is what is measured, not the plant's age rule.
         max_age: u64::MAX,
     };
-    let (tilts, last_peak, mut why) = run(sc, rate, &imp, opts, c);
-    if why.is_empty() && (last_peak / nominal - 1.0).abs() > c.tolerance {
-        why = format!(
-            "last peaks {last_peak:.4} rad, {:+.0} % from the nominal {nominal:.4} rad",
-            100.0 * (last_peak / nominal - 1.0)
-        );
-    }
+    let (tilts, last_peak, why) = run(sc, rate, &imp, opts, &Imperfections::default(), c);
+    let why = judge_peak(why, last_peak, nominal, c);
     Point {
         delay,
         loss,
@@ -196,6 +201,17 @@ fn point(
         last_peak,
         why,
     }
+}
+
+/// `why`, or the peaks' deviation from `nominal` if beyond the tolerance.
+fn judge_peak(why: String, last_peak: f64, nominal: f64, c: &Criteria) -> String {
+    if why.is_empty() && (last_peak / nominal - 1.0).abs() > c.tolerance {
+        return format!(
+            "last peaks {last_peak:.4} rad, {:+.0} % from the nominal {nominal:.4} rad",
+            100.0 * (last_peak / nominal - 1.0)
+        );
+    }
+    why
 }
 
 /// The delay × loss map at `rate` (Hz) with the loop options `opts` (prediction, sampling on
@@ -268,6 +284,131 @@ pub fn boundaries(map: &[Point], rates: &[Point]) -> (Option<f64>, Option<f64>, 
     (d, l, r)
 }
 
+/// An imperfection of the robot mapped by [`imperfection_map`], one at a time, over a perfect
+/// network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Imperfection {
+    /// Gaussian sensor noise of both angles, `alpha` and `beta`: the value is their standard
+    /// deviation (rad).
+    AngleNoise,
+    /// Gaussian sensor noise of both rates, `alpha_dot` and `beta_dot`: the value is their
+    /// standard deviation (rad/s).
+    RateNoise,
+    /// Model mismatch: the plant's arm mass is `(1 + value)` times the controller's model's.
+    MassError,
+}
+
+impl Imperfection {
+    /// The robot with this imperfection at `value` (noise drawn from `seed`).
+    pub fn robot(self, value: f64, seed: u64) -> Imperfections {
+        let mut r = Imperfections {
+            seed,
+            ..Imperfections::default()
+        };
+        match self {
+            Imperfection::AngleNoise => r.noise = [value, value, 0.0, 0.0],
+            Imperfection::RateNoise => r.noise = [0.0, 0.0, value, value],
+            Imperfection::MassError => r.mass_error = value,
+        }
+        r
+    }
+
+    /// What the value is, with its unit.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Imperfection::AngleNoise => "sensor noise of alpha and beta, standard deviation (rad)",
+            Imperfection::RateNoise => {
+                "sensor noise of alpha_dot and beta_dot, standard deviation (rad/s)"
+            }
+            Imperfection::MassError => {
+                "arm-mass error of the plant against the controller's model (relative)"
+            }
+        }
+    }
+}
+
+/// One point of an imperfection map.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImperfectPoint {
+    /// The imperfection.
+    pub imperfection: Imperfection,
+    /// Its level: rad, rad/s or relative ([`Imperfection`]).
+    pub value: f64,
+    /// All criteria hold.
+    pub survived: bool,
+    /// Tilts completed.
+    pub tilts: u64,
+    /// Mean |peak| of the last 10 tilts (rad); 0 with fewer tilts.
+    pub last_peak: f64,
+    /// Why it did not survive (empty if it did).
+    pub why: String,
+}
+
+/// Survival on a robot with one imperfection at each of `values`, at `rate` (Hz) over a perfect
+/// network, with the same criteria as the network maps; `tick` is called after each point.
+#[allow(clippy::too_many_arguments)]
+pub fn imperfection_map(
+    sc: &Scenario,
+    rate: f64,
+    which: Imperfection,
+    values: &[f64],
+    seed: u64,
+    c: &Criteria,
+    nominal: f64,
+    tick: &(dyn Fn() + Sync),
+) -> Vec<ImperfectPoint> {
+    values
+        .par_iter()
+        .map(|&v| {
+            let robot = which.robot(v, seed);
+            let (tilts, last_peak, why) = if let Err(e) = robot.validate() {
+                (0, 0.0, e.to_string())
+            } else {
+                run(
+                    sc,
+                    rate,
+                    &Impairment::default(),
+                    &LoopOptions::default(),
+                    &robot,
+                    c,
+                )
+            };
+            let why = judge_peak(why, last_peak, nominal, c);
+            tick();
+            ImperfectPoint {
+                imperfection: which,
+                value: v,
+                survived: why.is_empty(),
+                tilts,
+                last_peak,
+                why,
+            }
+        })
+        .collect()
+}
+
+/// The surviving range around the perfect robot: the smallest and largest value of the map
+/// such that every value of the map between it and 0 survives (`None` if 0 is not in the map
+/// or does not survive). For noise the upper end is the largest noise survived.
+pub fn imperfection_range(map: &[ImperfectPoint]) -> Option<(f64, f64)> {
+    let mut pts: Vec<&ImperfectPoint> = map.iter().collect();
+    pts.sort_by(|a, b| a.value.total_cmp(&b.value));
+    let zero = pts.iter().position(|p| p.value == 0.0)?;
+    if !pts[zero].survived {
+        return None;
+    }
+    let mut hi = zero;
+    while hi + 1 < pts.len() && pts[hi + 1].survived {
+        hi += 1;
+    }
+    let mut lo = zero;
+    while lo > 0 && pts[lo - 1].survived {
+        lo -= 1;
+    }
+    Some((pts[lo].value, pts[hi].value))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -305,5 +446,45 @@ mod tests {
         assert!(!map[2].survived, "{:?}", map[2]);
         let (d, l, _) = boundaries(&map, &[]);
         assert_eq!((d, l), (Some(0.0), Some(0.0)));
+    }
+
+    /// Short runs (20 tilts): the perfect robot survives, and so do tiny imperfections; angle
+    /// noise of 0.2 rad (a tenth of the arm's swing) and an arm twice as heavy as modelled do
+    /// not. The range is read off around 0.
+    #[test]
+    fn imperfection_maps_separate_survival_from_failure() {
+        let sc = Scenario::default();
+        let c = Criteria {
+            tilts: 20,
+            ..Criteria::default()
+        };
+        let nominal = nominal_peak(&sc, &c);
+        let noise = imperfection_map(
+            &sc,
+            1000.0,
+            Imperfection::AngleNoise,
+            &[0.0, 1e-6, 0.2],
+            3,
+            &c,
+            nominal,
+            &|| {},
+        );
+        assert!(noise[0].survived && noise[1].survived, "{noise:?}");
+        assert!(!noise[2].survived, "{:?}", noise[2]);
+        assert_eq!(imperfection_range(&noise), Some((0.0, 1e-6)));
+        let mass = imperfection_map(
+            &sc,
+            1000.0,
+            Imperfection::MassError,
+            &[-0.001, 0.0, 0.001, 1.0],
+            0,
+            &c,
+            nominal,
+            &|| {},
+        );
+        assert!(!mass[3].survived, "{:?}", mass[3]);
+        assert_eq!(imperfection_range(&mass), Some((-0.001, 0.001)));
+        // The perfect robot's point is the nominal run itself.
+        assert_eq!(mass[1].last_peak, nominal);
     }
 }

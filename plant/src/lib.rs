@@ -10,6 +10,8 @@
 //! - [`impact`]: the landing map with the paper's and the striking-edge law;
 //! - [`ode`]: the DOP853 integrator with dense output;
 //! - [`hybrid`]: the simulator ([`Plant`]) with event location, impacts and faults;
+//! - [`imperfect`]: what a real robot adds to the model (sensor noise, encoder quantisation,
+//!   actuator saturation and lag, a mass error), seeded and off by default;
 //! - [`paper`]: the paper's numbers (the stabilised orbit and its gains), used as defaults everywhere.
 //!
 //! The model knows nothing of networks; the `node` feature adds the plant node (paced in real
@@ -29,6 +31,7 @@
 pub mod dynamics;
 pub mod hybrid;
 pub mod impact;
+pub mod imperfect;
 pub mod kinematics;
 pub mod mode;
 #[cfg(feature = "node")]

@@ -12,6 +12,7 @@ use crate::network::{run_sampled_over, Impairment, LoopOptions, NetStats};
 use crate::scenario::{Scenario, ScenarioError};
 use serde::Serialize;
 use std::time::Instant;
+use tilting_plant::imperfect::Imperfections;
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, TorqueLaw, Transition};
 
 /// The plant's default `--max-age` (periods), used for a loop with prediction or sampling on
@@ -30,6 +31,10 @@ pub struct SimOptions {
     pub network: Option<Impairment>,
     /// Prediction and sampling on events ([`crate::network`]); need a control period.
     pub loop_options: LoopOptions,
+    /// The robot's imperfections ([`tilting_plant::imperfect`]): sensor noise, encoder,
+    /// actuator saturation and lag (these need a control period) and the arm-mass error of the
+    /// plant against the controller's model.
+    pub imperfect: Option<Imperfections>,
 }
 
 /// A mode transition as reported.
@@ -131,6 +136,9 @@ pub struct SimulationReport {
     /// Prediction and sampling on events, if asked for.
     #[serde(skip_serializing_if = "LoopOptions::is_plain")]
     pub loop_options: LoopOptions,
+    /// The robot's imperfections, for a run with any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imperfections: Option<Imperfections>,
     /// The trajectory, if recorded (not serialised).
     #[serde(skip)]
     pub samples: Vec<Sample>,
@@ -279,12 +287,22 @@ pub fn run_continuous<L: TorqueLaw, O: Observer>(
 pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, ScenarioError> {
     sc.validate()?;
     let ctrl = sc.controller()?;
-    let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).map_err(|e| {
-        ScenarioError::File {
+    let imperfect = opts.imperfect.filter(|i| !i.is_perfect());
+    let mut cfg = sc.sim_config();
+    if let Some(i) = &imperfect {
+        i.validate().map_err(|e| ScenarioError::OutOfRange {
+            field: e.flag.trim_start_matches("--").replace('-', "_"),
+            flag: e.flag.into(),
+            value: e.value,
+            allowed: e.allowed.into(),
+        })?;
+        cfg.params = i.plant_params(&cfg.params);
+    }
+    let mut plant =
+        Plant::new(cfg, 0.0, sc.mode, sc.initial_state()).map_err(|e| ScenarioError::File {
             path: "initial state".into(),
             message: e.to_string(),
-        }
-    })?;
+        })?;
     let mut rec = Recorder {
         events: Vec::new(),
         peaks: Vec::new(),
@@ -328,19 +346,47 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
                 .into(),
         });
     }
+    let hardware = imperfect.filter(Imperfections::has_hardware);
+    if let (Some(_), false) = (&hardware, sc.is_sampled()) {
+        return Err(ScenarioError::OutOfRange {
+            field: "control_period".into(),
+            flag: "--control-period".into(),
+            value: sc.control_period.to_string(),
+            allowed: "> 0 for a robot with sensor noise, an encoder or an actuator's saturation \
+                      or lag (--noise-*, --encoder-counts, --torque-saturation, --torque-lag): \
+                      the controller samples the sensors"
+                .into(),
+        });
+    }
+    let actuator = hardware.is_some_and(|h| h.torque_saturation.is_some() || h.torque_lag > 0.0);
+    if opts.loop_options.sample_on_event && actuator {
+        return Err(ScenarioError::OutOfRange {
+            field: "sample_on_event".into(),
+            flag: "--sample-on-event".into(),
+            value: "true".into(),
+            allowed: "without --torque-saturation and --torque-lag (not combined yet)".into(),
+        });
+    }
     let mut net_stats = None;
-    let (result, controller_samples) = if let Some(imp) = &network {
+    let (result, controller_samples) = if network.is_some() || hardware.is_some() {
+        // The perfect link (no --delay ...) hands each torque over at once: the plain sampled
+        // loop, with the hardware at its ends.
+        let perfect = Impairment::default();
         let (r, n, st) = run_sampled_over(
             &mut plant,
             &ctrl,
             sc.control_period,
             t_end,
-            imp,
-            &opts.loop_options,
+            network.as_ref().unwrap_or(&perfect),
+            &LoopOptions {
+                model: Some(sc.sim_config()),
+                ..opts.loop_options
+            },
+            &mut imperfect.unwrap_or_default().hardware(),
             &mut rec,
             &mut tick,
         );
-        net_stats = Some(st);
+        net_stats = network.is_some().then_some(st);
         (r, n)
     } else if sc.is_sampled() {
         run_sampled(
@@ -378,6 +424,7 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
         fault: result.err(),
         network: net_stats,
         loop_options: opts.loop_options,
+        imperfections: imperfect,
         stats: RunStats {
             coupling: if sc.is_sampled() {
                 "sampled"
@@ -482,6 +529,25 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
             n.torques_superseded,
             n.torques_too_old,
             n.periods_before_first_torque
+        );
+    }
+    if let Some(i) = &r.imperfections {
+        let _ = writeln!(
+            s,
+            "robot: sensor noise sigma alpha {} rad, beta {} rad, alpha_dot {} rad/s, beta_dot {} \
+             rad/s (seed {}); encoder {}; torque saturation {}; torque lag {} s; arm mass {:+} % \
+             of the controller's model",
+            i.noise[0],
+            i.noise[1],
+            i.noise[2],
+            i.noise[3],
+            i.seed,
+            i.encoder_counts
+                .map_or("exact".into(), |n| format!("{n} counts/rev")),
+            i.torque_saturation
+                .map_or("none".into(), |v| format!("{v} N m")),
+            i.torque_lag,
+            100.0 * i.mass_error
         );
     }
     let _ = writeln!(

@@ -16,6 +16,10 @@
 //!
 //! So with a constant delay `D` (both directions together) and no loss, the torque computed
 //! from the state at `t_k` acts from the first sample instant at or after `t_k + D`.
+//!
+//! The robot's hardware ([`tilting_plant::imperfect`]) sits at both ends: the state is measured
+//! once per sample (`hw.measure`, before the link, so a lost state still draws its noise) and the
+//! torque in force is applied through the actuator (`hw.advance`).
 
 //!
 //! Two options change the controller and the plant ([`LoopOptions`]):
@@ -34,6 +38,7 @@
 
 use serde::Serialize;
 use tilting_controller::Predictor;
+use tilting_plant::imperfect::Hardware;
 use tilting_plant::{Fault, Observer, Plant, TorqueLaw};
 
 pub use tilting_link::Impairment;
@@ -53,6 +58,10 @@ pub struct LoopOptions {
     pub predict: Option<Predict>,
     /// The plant sends an extra state at each mode transition (`--sample-on-event`).
     pub sample_on_event: bool,
+    /// The controller's model of the plant, which the predictor runs (`None`: the plant's own
+    /// configuration, no model mismatch).
+    #[serde(skip)]
+    pub model: Option<tilting_plant::SimConfig>,
 }
 
 impl LoopOptions {
@@ -87,9 +96,10 @@ fn take_arrived(
 
 /// [`crate::closed_loop::run_sampled`] over the links of `imp`: the zero-order hold with the
 /// controller `law` at `period` (s) up to `t_end` (s), torques chosen by
-/// [`tilting_link::ImpairedHold`], with the options `opts` (the predictor's model is the
-/// plant's configuration). Returns the run's result, the number of states the controller
-/// answered, and what the network did.
+/// [`tilting_link::ImpairedHold`], with the options `opts`. The controller sees the state
+/// measured by `hw` and the torque acts through its actuator ([`Hardware::default`]: the
+/// perfect robot; with sampling on events the torque is held as commanded). Returns the run's
+/// result, the number of states the controller answered, and what the network did.
 #[allow(clippy::too_many_arguments)]
 pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     plant: &mut Plant,
@@ -98,6 +108,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     t_end: f64,
     imp: &Impairment,
     opts: &LoopOptions,
+    hw: &mut Hardware,
     obs: &mut O,
     progress: &mut dyn FnMut(f64),
 ) -> (Result<(), Fault>, u64, NetStats) {
@@ -108,7 +119,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
             Predict::Given(d) => d,
             Predict::Estimated => 0.0,
         };
-        Predictor::new(*plant.config(), period, d)
+        Predictor::new(opts.model.unwrap_or(*plant.config()), period, d)
     });
     let estimate = opts.predict == Some(Predict::Estimated);
     let mut estimated = false;
@@ -127,7 +138,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
                 estimated = true;
             }
         }
-        let (mode, x) = (plant.mode(), plant.state());
+        let (mode, x) = (plant.mode(), hw.measure(plant));
         let mut tau = hold.step(k, t_k, || match &mut predictor {
             Some(p) => p.answer(law, t_k, mode, &x, true),
             None => law.torque(t_k, mode, &x),
@@ -144,7 +155,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
             tau = hold.torque();
         }
         if !opts.sample_on_event {
-            if let Err(f) = plant.advance_held(tau, t_next, obs) {
+            if let Err(f) = hw.advance(plant, tau, t_next, obs) {
                 break Err(f);
             }
         } else {
@@ -162,7 +173,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
                         break;
                     }
                     Ok(true) => {
-                        let (t_e, m, xe) = (plant.time(), plant.mode(), plant.state());
+                        let (t_e, m, xe) = (plant.time(), plant.mode(), hw.measure(plant));
                         let sent = hold.send_extra(t_e, || match &mut predictor {
                             Some(p) => p.answer(law, t_e, m, &xe, false),
                             None => law.torque(t_e, m, &xe),
@@ -216,6 +227,7 @@ impl LoopArgs {
         LoopOptions {
             predict: self.predict,
             sample_on_event: self.sample_on_event,
+            model: None,
         }
     }
 }

@@ -27,6 +27,7 @@ fn over(imp: Impairment) -> (Plant, tilting_sim::NetStats) {
         T,
         &imp,
         &LoopOptions::default(),
+        &mut Default::default(),
         &mut (),
         &mut |_| {},
     );

@@ -1,10 +1,11 @@
 //! The maps of `tilting plan margins`: survival over delay × loss as a heat map with the
-//! survival boundary drawn, and survival over the control rate.
+//! survival boundary drawn, survival over the control rate, and survival against the robot's
+//! imperfections (sensor noise, arm-mass error).
 
 use anyhow::Result;
 use plotters::prelude::*;
 use std::path::Path;
-use tilting_planner::margins::{Criteria, Point};
+use tilting_planner::margins::{Criteria, ImperfectPoint, Imperfection, Point};
 
 const FONT: &str = "sans-serif";
 
@@ -201,5 +202,86 @@ fn rate_bars(right: &Area, rates: &[Point], title: &str, nominal: f64, c: &Crite
             BLACK.stroke_width(2),
         ))?;
     }
+    Ok(())
+}
+
+/// Draws the imperfection maps of `plan margins` into `path` (PNG): one panel per map (angle
+/// noise, rate noise, arm-mass error), a bar per value of height last peaks / `nominal`, green
+/// when it survives and red when it does not, with the tolerance band of the criteria.
+pub fn plot_imperfections(
+    path: &Path,
+    maps: &[&[ImperfectPoint]],
+    nominal: f64,
+    c: &Criteria,
+) -> Result<()> {
+    crate::plot::register_fonts()?;
+    let panels = maps.iter().filter(|m| !m.is_empty()).count().max(1);
+    let root = BitMapBackend::new(path, (480 * panels as u32, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        &format!(
+            "The robot is not the model: what the k = 500 orbit survives ({} tilts, peaks within {:.0} % of {:.4} rad, no fault)",
+            c.tilts,
+            100.0 * c.tolerance,
+            nominal
+        ),
+        (FONT, 20),
+    )?;
+    let areas = root.split_evenly((1, panels));
+    for (area, map) in areas.iter().zip(maps.iter().filter(|m| !m.is_empty())) {
+        let mut ps: Vec<&ImperfectPoint> = map.iter().collect();
+        ps.sort_by(|a, b| a.value.total_cmp(&b.value));
+        let n = ps.len();
+        let y_hi = ps
+            .iter()
+            .map(|p| p.last_peak / nominal)
+            .fold(1.0 + c.tolerance, f64::max)
+            * 1.1;
+        let labels: Vec<String> = ps.iter().map(|p| format!("{}", p.value)).collect();
+        let (caption, x_desc) = match ps[0].imperfection {
+            Imperfection::AngleNoise => {
+                ("sensor noise of the angles", "sigma of alpha, beta (rad)")
+            }
+            Imperfection::RateNoise => ("sensor noise of the rates", "sigma of the rates (rad/s)"),
+            Imperfection::MassError => ("model mismatch", "arm-mass error (relative)"),
+        };
+        let mut chart = ChartBuilder::on(area)
+            .margin(15)
+            .x_label_area_size(50)
+            .y_label_area_size(55)
+            .caption(caption, (FONT, 18))
+            .build_cartesian_2d(0f64..n as f64, 0f64..y_hi)?;
+        chart
+            .configure_mesh()
+            .x_labels(n)
+            .x_label_formatter(&move |x| {
+                labels.get(x.floor() as usize).cloned().unwrap_or_default()
+            })
+            .x_desc(x_desc)
+            .y_desc("last peaks / nominal")
+            .axis_desc_style((FONT, 16))
+            .label_style((FONT, 12))
+            .draw()?;
+        chart.draw_series(ps.iter().enumerate().map(|(i, p)| {
+            let color = if p.survived {
+                RGBColor(40, 170, 60)
+            } else {
+                RGBColor(200, 60, 60)
+            };
+            // A stub for a run without 10 tilts to compare.
+            let h = (p.last_peak / nominal).max(0.02 * y_hi);
+            Rectangle::new(
+                [(i as f64 + 0.15, 0.0), (i as f64 + 0.85, h)],
+                color.filled(),
+            )
+        }))?;
+        for y in [1.0 - c.tolerance, 1.0 + c.tolerance] {
+            chart.draw_series(LineSeries::new(
+                vec![(0.0, y), (n as f64, y)],
+                BLACK.stroke_width(2),
+            ))?;
+        }
+    }
+    root.present()?;
     Ok(())
 }

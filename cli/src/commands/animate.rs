@@ -183,6 +183,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
                     progress: !args.json && std::io::stderr().is_terminal(),
                     network: None,
                     loop_options: Default::default(),
+                    imperfect: None,
                 },
             )
             .map_err(|e| CommandError::Usage(e.into()))?;

@@ -1,13 +1,13 @@
 //! `tilting plan margins`: what the paper's stabilised orbit (`k = 500`) survives, mapped over
-//! constant delay × loss and over the control rate (see `tilting_planner::margins` for the
-//! criteria).
+//! constant delay × loss, over the control rate, and over the robot's imperfections (sensor
+//! noise, arm-mass error; see `tilting_planner::margins` for the criteria).
 
 use super::{bar, emit, usage};
 use anyhow::Context as _;
 use clap::Args;
 use serde::Serialize;
 use std::path::PathBuf;
-use tilting_planner::margins::{self, Criteria, Point};
+use tilting_planner::margins::{self, Criteria, ImperfectPoint, Imperfection, Point};
 use tilting_planner::CommandError;
 use tilting_sim::{LoopOptions, Predict, Scenario};
 
@@ -56,12 +56,159 @@ pub struct MarginsArgs {
     /// Seed of the links' random streams
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// The robot's imperfections to map (at --rate, perfect network).
+    #[command(flatten)]
+    pub robot: RobotMapArgs,
     /// Draw the maps (heat map with the survival boundary, and the rate map) into this PNG
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
     /// Print one JSON object instead of the tables
     #[arg(long)]
     pub json: bool,
+}
+
+/// The imperfection maps of `plan margins`: one imperfection at a time, at `--rate` over a
+/// perfect network, the noise seeded with `--seed`.
+#[derive(Debug, Clone, Args)]
+pub struct RobotMapArgs {
+    /// Sensor noise of both angles, alpha and beta: standard deviations (rad), comma-separated,
+    /// each in [0, 10]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0,0.001,0.003,0.005,0.007,0.01,0.02",
+        allow_negative_numbers = true
+    )]
+    pub angle_noises: Vec<f64>,
+    /// Sensor noise of both rates, alpha_dot and beta_dot: standard deviations (rad/s),
+    /// comma-separated, each in [0, 10]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0,0.01,0.02,0.03,0.04,0.05,0.1",
+        allow_negative_numbers = true
+    )]
+    pub rate_noises: Vec<f64>,
+    /// Arm-mass errors of the plant against the controller's model (relative),
+    /// comma-separated, each in (-1, 10]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "-0.1,-0.05,-0.03,-0.02,-0.01,0,0.01,0.02,0.05,0.1",
+        allow_negative_numbers = true
+    )]
+    pub mass_errors: Vec<f64>,
+}
+
+/// The imperfection maps in the JSON of `plan margins`.
+#[derive(Debug, Serialize)]
+pub struct RobotMargins {
+    /// Control rate (Hz); the network is perfect.
+    pub rate: f64,
+    /// Survival against the sensor noise of the angles.
+    pub angle_noise: Vec<ImperfectPoint>,
+    /// Survival against the sensor noise of the rates.
+    pub rate_noise: Vec<ImperfectPoint>,
+    /// Survival against the arm-mass error.
+    pub mass_error: Vec<ImperfectPoint>,
+    /// Largest angle noise (rad) survived, with every smaller one of the grid.
+    pub largest_angle_noise: Option<f64>,
+    /// Largest rate noise (rad/s) survived, with every smaller one of the grid.
+    pub largest_rate_noise: Option<f64>,
+    /// The range of mass errors around 0 survived, every grid value inside it too.
+    pub mass_error_range: Option<(f64, f64)>,
+}
+
+impl RobotMapArgs {
+    fn check(&self) -> Result<usize, CommandError> {
+        check_list("--angle-noises", &self.angle_noises, 0.0, 10.0)?;
+        check_list("--rate-noises", &self.rate_noises, 0.0, 10.0)?;
+        check_list("--mass-errors", &self.mass_errors, -1.0, 10.0)?;
+        if let Some(&e) = self.mass_errors.iter().find(|&&e| e <= -1.0) {
+            return Err(usage(format!(
+                "invalid `--mass-errors` value {e}: allowed (-1, 10]"
+            )));
+        }
+        let n = self.angle_noises.len() + self.rate_noises.len() + self.mass_errors.len();
+        if n > MAX_POINTS {
+            return Err(usage(format!(
+                "too many points: {n} imperfection values, at most {MAX_POINTS}"
+            )));
+        }
+        Ok(n)
+    }
+
+    fn run(
+        &self,
+        sc: &Scenario,
+        rate: f64,
+        seed: u64,
+        c: &Criteria,
+        nominal: f64,
+        tick: &(dyn Fn() + Sync),
+    ) -> RobotMargins {
+        let map = |which, values: &[f64]| {
+            margins::imperfection_map(sc, rate, which, values, seed, c, nominal, tick)
+        };
+        let angle_noise = map(Imperfection::AngleNoise, &self.angle_noises);
+        let rate_noise = map(Imperfection::RateNoise, &self.rate_noises);
+        let mass_error = map(Imperfection::MassError, &self.mass_errors);
+        RobotMargins {
+            rate,
+            largest_angle_noise: margins::imperfection_range(&angle_noise).map(|r| r.1),
+            largest_rate_noise: margins::imperfection_range(&rate_noise).map(|r| r.1),
+            mass_error_range: margins::imperfection_range(&mass_error),
+            angle_noise,
+            rate_noise,
+            mass_error,
+        }
+    }
+}
+
+impl RobotMargins {
+    fn text(&self) -> String {
+        let mut s = format!(
+            "\nthe robot is not the model, at {} Hz over a perfect network (one imperfection at a \
+             time)\n",
+            self.rate
+        );
+        for map in [&self.angle_noise, &self.rate_noise, &self.mass_error] {
+            let Some(first) = map.first() else { continue };
+            s += &format!("  {}\n", first.imperfection.describe());
+            for p in map {
+                s += &format!(
+                    "  {:>10}: {}{}\n",
+                    p.value,
+                    if p.survived { "survives" } else { "fails" },
+                    if p.why.is_empty() {
+                        format!(" (last peaks {:.4} rad)", p.last_peak)
+                    } else {
+                        format!(" ({})", p.why)
+                    }
+                );
+            }
+        }
+        let f = |v: Option<f64>, unit: &str| {
+            v.map_or("none of the grid".into(), |v| format!("{v} {unit}"))
+        };
+        s += &format!(
+            "largest angle noise survived: {}\nlargest rate noise survived: {}\narm-mass errors \
+             survived: {}\n",
+            f(self.largest_angle_noise, "rad"),
+            f(self.largest_rate_noise, "rad/s"),
+            self.mass_error_range
+                .map_or("none of the grid".into(), |(a, b)| format!("{a} to {b}")),
+        );
+        s
+    }
+}
+
+/// The PNG of the imperfection maps beside `--plot FILE.png`: `FILE-robot.png`.
+pub fn robot_plot_path(plot: &std::path::Path) -> PathBuf {
+    let stem = plot
+        .file_stem()
+        .map_or("margins".into(), |s| s.to_string_lossy());
+    plot.with_file_name(format!("{stem}-robot.png"))
 }
 
 /// The JSON of `plan margins`.
@@ -97,6 +244,8 @@ pub struct MarginsReport {
     pub lowest_rate: Option<f64>,
     /// Lowest surviving control rate (Hz), with samples on events.
     pub lowest_rate_events: Option<f64>,
+    /// The robot's imperfections (sensor noise, arm-mass error).
+    pub robot: RobotMargins,
 }
 
 fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), CommandError> {
@@ -137,6 +286,7 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
             args.watchdog
         )));
     }
+    let n_robot = args.robot.check()?;
     let n = args.delays.len() * args.losses.len();
     if n > MAX_POINTS || args.rates.len() > MAX_POINTS {
         return Err(usage(format!(
@@ -159,7 +309,7 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
     };
     let sc = Scenario::default();
     let b = bar(
-        (2 * (n + args.rates.len()) + 1) as u64,
+        (2 * (n + args.rates.len()) + n_robot + 1) as u64,
         "margins",
         args.json,
     );
@@ -197,6 +347,9 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
     let (delay_loss, delay_loss_predict) = (map(&plain), map(&predict));
     let rates = margins::rate_map(&sc, &args.rates, &plain, &c, nominal, &tick);
     let rates_events = margins::rate_map(&sc, &args.rates, &events, &c, nominal, &tick);
+    let robot = args
+        .robot
+        .run(&sc, args.rate, args.seed, &c, nominal, &tick);
     b.finish_and_clear();
     let (largest_delay, largest_loss, lowest_rate) = margins::boundaries(&delay_loss, &rates);
     let (largest_delay_predict, largest_loss_predict, lowest_rate_events) =
@@ -223,6 +376,7 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         largest_loss_predict,
         lowest_rate,
         lowest_rate_events,
+        robot,
     };
     if let Some(p) = &args.plot {
         let maps = tilting_viz::margins::Maps {
@@ -234,6 +388,16 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         tilting_viz::margins::plot(p, &maps, nominal, &c)
             .with_context(|| format!("cannot draw {}", p.display()))
             .map_err(CommandError::Failed)?;
+        let rp = robot_plot_path(p);
+        let r = &report.robot;
+        tilting_viz::margins::plot_imperfections(
+            &rp,
+            &[&r.angle_noise, &r.rate_noise, &r.mass_error],
+            nominal,
+            &c,
+        )
+        .with_context(|| format!("cannot draw {}", rp.display()))
+        .map_err(CommandError::Failed)?;
     }
     emit(args.json, &report, || {
         let mut s = format!("survives = {}\n", report.survives_means);
@@ -303,8 +467,13 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
             f(report.lowest_rate, "Hz"),
             f(report.lowest_rate_events, "Hz"),
         );
+        s += &report.robot.text();
         if let Some(p) = &args.plot {
-            s += &format!("plot: {}\n", p.display());
+            s += &format!(
+                "plot: {} and {}\n",
+                p.display(),
+                robot_plot_path(p).display()
+            );
         }
         s
     })

@@ -6,6 +6,7 @@ use anyhow::Context as _;
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use tilting_planner::CommandError;
+use tilting_plant::imperfect::ImperfectArgs;
 use tilting_sim::{LoopArgs, NetworkArgs, ScenarioArgs, SimOptions};
 use tilting_viz::plot::plot_run;
 
@@ -18,6 +19,10 @@ pub struct SimulateArgs {
     /// An impaired network between plant and controller (sampled loop only).
     #[command(flatten)]
     pub network: NetworkArgs,
+    /// The robot's imperfections (sensor noise, encoder, actuator saturation and lag, arm-mass
+    /// error); the noise draws from --seed (its own stream).
+    #[command(flatten)]
+    pub imperfect: ImperfectArgs,
     /// With an impaired network: the oldest torque the plant applies (periods between the state
     /// it answers and the current one), as the plant's --max-age
     #[arg(long, default_value_t = 10, value_name = "PERIODS")]
@@ -62,11 +67,16 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
         .network
         .impairment(args.max_age)
         .map_err(|e| CommandError::Usage(e.into()))?;
+    let imperfect = args
+        .imperfect
+        .imperfections(args.network.seed)
+        .map_err(|e| CommandError::Usage(e.into()))?;
     let opts = SimOptions {
         record_samples: args.plot.is_some(),
         progress: !args.json && std::io::stderr().is_terminal(),
         network,
         loop_options: args.loop_args.options(),
+        imperfect,
     };
     let report = tilting_sim::simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
     if args.json {

@@ -43,6 +43,11 @@ pub struct PlantArgs {
     /// `tilting simulate` with the same flags.
     #[command(flatten)]
     pub network: tilting_link::NetworkArgs,
+    /// The robot's imperfections (both clocks): the published state is the measured one, the
+    /// torque is applied through the actuator, the arm mass is off by --mass-error; the noise
+    /// draws from --seed (its own stream), exactly as in `tilting simulate` with the same flags.
+    #[command(flatten)]
+    pub imperfect: crate::imperfect::ImperfectArgs,
     /// Pace plant time by the wall clock (realtime) or by the controller's answers (lockstep)
     #[arg(long, value_enum, default_value_t = ClockMode::Realtime)]
     pub clock: ClockMode,
@@ -181,6 +186,7 @@ impl PlantArgs {
                 MAX_PERIODS * h
             );
         }
+        self.imperfections()?;
         if self.network.impairment(self.max_age)?.is_some() {
             anyhow::ensure!(
                 self.clock == ClockMode::Lockstep,
@@ -245,12 +251,23 @@ impl PlantArgs {
         Ok(())
     }
 
-    /// The simulator settings (the same convention as `simulate`: `atol = rtol / 100`).
+    /// The robot's imperfections (validated), the noise seeded with `--seed`; the perfect robot
+    /// without any imperfection flag.
+    pub fn imperfections(&self) -> anyhow::Result<crate::imperfect::Imperfections> {
+        Ok(self
+            .imperfect
+            .imperfections(self.network.seed)?
+            .unwrap_or_default())
+    }
+
+    /// The simulator settings (the same convention as `simulate`: `atol = rtol / 100`), with
+    /// `--mass-error` applied to the arm mass of `--params`.
     pub fn sim_config(&self) -> anyhow::Result<SimConfig> {
         let params = match &self.params {
             Some(p) => Params::from_toml_file(p)?,
             None => Params::default(),
         };
+        let params = self.imperfections()?.plant_params(&params);
         Ok(SimConfig {
             params,
             impact: self.impact,
@@ -328,6 +345,21 @@ mod tests {
                 "--rt-priority",
                 "100",
                 "invalid --rt-priority = 100: allowed 1 to 99",
+            ),
+            (
+                "--noise-beta",
+                "-1",
+                "invalid `--noise-beta` = -1: allowed a standard deviation in rad in [0, 10]",
+            ),
+            (
+                "--encoder-counts",
+                "0",
+                "invalid `--encoder-counts` = 0: allowed counts per revolution",
+            ),
+            (
+                "--torque-lag",
+                "-0.1",
+                "invalid `--torque-lag` = -0.1: allowed a time constant in s in [0, 10]",
             ),
         ] {
             let a = PlantArgs::try_parse_from(["tilting-plant", flag, value])

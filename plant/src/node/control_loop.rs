@@ -57,6 +57,10 @@ pub(super) struct Loop {
     pub(super) torques_applied: u64,
     /// Lockstep over emulated links (`--delay` ...): the hold that picks the torque.
     pub(super) hold: Option<tilting_link::ImpairedHold>,
+    /// The robot's sensors and actuator (`crate::imperfect`; perfect by default).
+    pub(super) hw: crate::imperfect::Hardware,
+    /// The state measured for `seq` (measured once: a re-publication sends the same numbers).
+    pub(super) measured: Option<(u64, State)>,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
     /// When it was published (ns).
@@ -93,8 +97,20 @@ pub(super) const SAFE_MODE_POLL: Duration = Duration::from_millis(1);
 pub(super) const TIMING_LOG_INTERVAL: Duration = Duration::from_secs(10);
 
 impl Loop {
+    /// The state the sensors measured at the current `seq` (measured at its first use).
+    pub(super) fn measured_state(&mut self) -> State {
+        match self.measured {
+            Some((seq, y)) if seq == self.seq => y,
+            _ => {
+                let y = self.hw.measure(&self.plant);
+                self.measured = Some((self.seq, y));
+                y
+            }
+        }
+    }
+
     pub(super) fn publish_state(&mut self) {
-        let x = self.plant.state();
+        let x = self.measured_state();
         let msg = PlantState {
             seq: self.seq,
             time: self.plant.time(),
@@ -210,11 +226,11 @@ impl Loop {
         }
     }
 
-    pub(super) fn safe_torque(&self) -> f64 {
+    pub(super) fn safe_torque(&mut self) -> f64 {
         match self.args.safe_mode {
             SafeMode::Zero => 0.0,
             SafeMode::Hold => {
-                let x = self.plant.state();
+                let x = self.measured_state();
                 let (kp, kd) = self.safe_pd;
                 let v = kd * (0.0 - x[3]) + kp * (FRAC_PI_2 - x[1]);
                 crate::dynamics::torque_for_beta_ddot(
@@ -419,7 +435,7 @@ impl Loop {
         };
         self.obs.transitions.clear();
         let t0 = clock::now_ns();
-        let res = self.plant.advance_held(tau, t_next, &mut self.obs);
+        let res = self.hw.advance(&mut self.plant, tau, t_next, &mut self.obs);
         self.step_cost
             .push(clock::now_ns().saturating_sub(t0) as f64 * 1e-3);
         for ev in &self.obs.transitions {

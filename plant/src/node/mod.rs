@@ -21,6 +21,14 @@
 //!   `seq = k` (re-publishing the state every 100 ms), then integrates: the run is
 //!   deterministic and reproduces `tilting simulate --control-period h` bit for bit.
 //!
+//! # A robot that is not the model
+//!
+//! With the imperfection flags (`--noise-*`, `--encoder-counts`, `--torque-saturation`,
+//! `--torque-lag`, `--mass-error`; [`crate::imperfect`]) the published `PlantState` is the
+//! measured state (measured once per `seq`), the torque acts through the actuator, and the arm
+//! is off by the mass error, in both clocks. In lockstep this equals `tilting simulate` with the
+//! same flags bit for bit. The `--record` CSV keeps the true state and the commanded torque.
+//!
 //! # Safe mode
 //!
 //! Without a valid torque at most `--max-age` periods old for `--watchdog` periods (real-time),
@@ -141,6 +149,7 @@ async fn run_async(
         .network
         .impairment(args.max_age)?
         .map(|imp| imp.hold(args.period()));
+    let hw = args.imperfections()?.hardware();
     let mut lp = Loop {
         args,
         h,
@@ -161,6 +170,8 @@ async fn run_async(
         torques_lost: 0,
         torques_applied: 0,
         hold,
+        hw,
+        measured: None,
         age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,

@@ -52,6 +52,10 @@ pub struct ScenarioArgs {
     /// Parameter file (TOML: m_f, m_l, l, f, g); overrides the scenario's [params] table
     #[arg(long, value_name = "FILE.toml")]
     pub params: Option<PathBuf>,
+    /// The plant's own parameter file (model mismatch: the controller keeps --params); overrides
+    /// the scenario's [plant_params] table [default: the plant is the controller's model]
+    #[arg(long, value_name = "FILE.toml")]
+    pub plant_params: Option<PathBuf>,
 }
 
 impl ScenarioArgs {
@@ -59,6 +63,7 @@ impl ScenarioArgs {
     pub fn to_layer(&self) -> ScenarioFile {
         ScenarioFile {
             params: None,
+            plant_params: None,
             x0: self.x0,
             mode: self.mode,
             kp: self.kp,
@@ -80,21 +85,30 @@ impl ScenarioArgs {
             Some(p) => ScenarioFile::from_toml_file(p)?,
             None => ScenarioFile::default(),
         };
-        let params = match &self.params {
-            Some(p) => ScenarioFile {
-                params: Some(Params::from_toml_file(p).map_err(|e| {
-                    let detail = match e {
-                        ConfigError::Parse { message, .. } => message.trim_end().to_string(),
-                        other => other.to_string(),
-                    };
-                    ScenarioError::File {
-                        path: p.clone(),
-                        message: format!("invalid parameter file (--params): {detail}"),
-                    }
-                })?),
-                ..ScenarioFile::default()
-            },
-            None => ScenarioFile::default(),
+        let read = |p: &PathBuf, flag: &str| {
+            Params::from_toml_file(p).map_err(|e| {
+                let detail = match e {
+                    ConfigError::Parse { message, .. } => message.trim_end().to_string(),
+                    other => other.to_string(),
+                };
+                ScenarioError::File {
+                    path: p.clone(),
+                    message: format!("invalid parameter file ({flag}): {detail}"),
+                }
+            })
+        };
+        let params = ScenarioFile {
+            params: self
+                .params
+                .as_ref()
+                .map(|p| read(p, "--params"))
+                .transpose()?,
+            plant_params: self
+                .plant_params
+                .as_ref()
+                .map(|p| read(p, "--plant-params"))
+                .transpose()?,
+            ..ScenarioFile::default()
         };
         let s = Scenario::resolve(&[&file, &params, &self.to_layer()]);
         s.validate()?;

@@ -9,6 +9,9 @@ use super::*;
 pub struct ScenarioFile {
     /// Physical parameters (a `[params]` table; missing entries keep the paper's values).
     pub params: Option<Params>,
+    /// The plant's own parameters (a `[plant_params]` table; missing entries keep the paper's
+    /// values): a plant that differs from the controller's model.
+    pub plant_params: Option<Params>,
     /// Initial state `[alpha, beta, alpha_dot, beta_dot]` (rad, rad, rad/s, rad/s).
     pub x0: Option<[f64; 4]>,
     /// Initial mode: `"flat"`, `"left"` or `"right"`.

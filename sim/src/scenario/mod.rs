@@ -3,7 +3,9 @@
 //!
 //! Values come in layers, later ones winning: the built-in defaults, a TOML scenario file
 //! (`--scenario`), a TOML parameter file (`--params`, only the `[params]` table), then the
-//! command-line flags. [`Scenario::validate`] checks the result and names the offending field
+//! command-line flags. The plant may be given other parameters than the controller (model
+//! mismatch): a `[plant_params]` table or `--plant-params FILE.toml`; without them the plant has
+//! the controller's `params`. [`Scenario::validate`] checks the result and names the offending field
 //! and its allowed range.
 //!
 //! A scenario file holds any subset of the keys, for example
@@ -54,8 +56,12 @@ pub const MAX_PERIODS: f64 = 1e8;
 /// tilt on the orbit, `K_P0 = 100`, `K_D = 14.14`, `k = 500`, 10 s, continuous coupling.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Scenario {
-    /// Physical parameters.
+    /// Physical parameters: the controller's model, and the plant's unless `plant_params` is
+    /// given.
     pub params: Params,
+    /// The plant's own parameters when they differ from the controller's model (model
+    /// mismatch); `None`: the plant is the model.
+    pub plant_params: Option<Params>,
     /// Initial state `[alpha, beta, alpha_dot, beta_dot]` (rad, rad, rad/s, rad/s).
     pub x0: [f64; 4],
     /// Initial mode.
@@ -92,6 +98,7 @@ impl Default for Scenario {
     fn default() -> Self {
         Self {
             params: Params::default(),
+            plant_params: None,
             x0: orbit_x0(),
             mode: ORBIT_MODE,
             kp: ORBIT_KP,
@@ -122,6 +129,9 @@ impl Scenario {
         for l in layers {
             if let Some(v) = l.params {
                 s.params = v;
+            }
+            if let Some(v) = l.plant_params {
+                s.plant_params = Some(v);
             }
             if let Some(v) = l.x0 {
                 s.x0 = v;
@@ -207,11 +217,16 @@ impl Scenario {
         State::from(self.x0)
     }
 
-    /// The simulator settings: the defaults with this scenario's params, impact law and
-    /// tolerances.
+    /// The plant's parameters: `plant_params`, or the controller's `params`.
+    pub fn plant_params(&self) -> Params {
+        self.plant_params.unwrap_or(self.params)
+    }
+
+    /// The simulator settings: the defaults with this scenario's plant parameters, impact law
+    /// and tolerances.
     pub fn sim_config(&self) -> SimConfig {
         SimConfig {
-            params: self.params,
+            params: self.plant_params(),
             impact: self.impact,
             tol: Tolerance {
                 rtol: self.rtol,
@@ -221,7 +236,7 @@ impl Scenario {
         }
     }
 
-    /// The controller settings (the controller's model is the plant's: no model mismatch).
+    /// The controller settings (its model is `params`, whatever the plant's).
     pub fn control_config(&self) -> ControlConfig {
         ControlConfig {
             params: self.params,

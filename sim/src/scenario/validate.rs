@@ -79,6 +79,15 @@ impl Scenario {
         self.params
             .validate()
             .map_err(|e| from_config(e, "params.", "[params] table or --params file"))?;
+        if let Some(p) = &self.plant_params {
+            p.validate().map_err(|e| {
+                from_config(
+                    e,
+                    "plant_params.",
+                    "[plant_params] table or --plant-params file",
+                )
+            })?;
+        }
         let gain = |field: &str, v: f64| {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
@@ -251,7 +260,7 @@ impl Scenario {
             let ctrl = self.controller()?;
             let x = self.initial_state();
             let tau = ctrl.torque(0.0, self.mode, &x);
-            let (alpha_ddot, _) = accelerations(&self.params, self.mode, &x, tau);
+            let (alpha_ddot, _) = accelerations(&self.plant_params(), self.mode, &x, tau);
             if s * alpha_dot < 0.0 || (alpha_dot == 0.0 && s * alpha_ddot < 0.0) {
                 return Err(out_of_range(
                     "x0",
