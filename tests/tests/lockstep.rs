@@ -283,3 +283,72 @@ fn lockstep_equals_simulate(name: &str, net: &[&str], ctl_flags: &[&str]) {
         serde_json::from_value(v["network"].clone()).expect("simulate's network counters");
     assert_eq!(got_net, want_net);
 }
+
+/// The plant in lockstep with `--sample-on-event` publishes an extra state at each mode
+/// transition and switches to its answer at once; `simulate --sample-on-event` over a perfect
+/// link does the same offline, so the two runs agree bit for bit.
+#[test]
+fn lockstep_sampling_on_events_equals_simulate() {
+    let dir = Scratch::new("lockevent");
+    let port = free_port();
+    let robot = robot("lockevent");
+    let extra = [
+        "--clock",
+        "lockstep",
+        "--duration",
+        "2",
+        "--rate",
+        "100",
+        "--sample-on-event",
+    ];
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(&robot, port, &extra),
+        dir.path(),
+    );
+    let mut ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &peer_args(&robot, port, &[]),
+        dir.path(),
+    );
+    let status = plant.expect_exit(Duration::from_secs(60));
+    assert!(status.success(), "plant: {status}\n{}", plant.logs());
+    ctl.interrupt(Duration::from_secs(10));
+    let summary = plant.plant_summary();
+    let c = ctl.controller_summary();
+    let out = std::process::Command::new(bin("tilting"))
+        .args([
+            "simulate",
+            "--json",
+            "--control-period",
+            "0.01",
+            "--duration",
+            "2",
+            "--sample-on-event",
+        ])
+        .output()
+        .expect("run simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // The controller answered the 200 periodic states and one extra state per stop, as many
+    // as simulate's controller did, plus the final state (t = 2 s) the plant publishes last.
+    let samples = v["stats"]["controller_samples"].as_u64().unwrap();
+    assert!(samples > 200, "no extra sample offline: {samples}");
+    assert_eq!(c.torques_published, samples + 1, "{c:?}");
+    assert_eq!(summary.time, 2.0);
+    let want_x: Vec<f64> = v["final"]["x"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    for (i, (g, w)) in summary.x.iter().zip(&want_x).enumerate() {
+        assert_eq!(g.to_bits(), w.to_bits(), "component {i}: {g} vs {w}");
+    }
+}

@@ -110,6 +110,10 @@ pub struct PlantArgs {
     /// Start at once instead of waiting for a controller (its liveliness token or an answer)
     #[arg(long)]
     pub no_wait: bool,
+    /// Lockstep clock: publish an extra state at each mode transition (same `seq` as its
+    /// period, its own time) and switch to its answer at once
+    #[arg(long)]
+    pub sample_on_event: bool,
     /// Realtime clock: busy-wait this long before each deadline (µs)
     #[arg(long, default_value_t = 50, value_name = "US")]
     pub spin_us: u64,
@@ -186,7 +190,19 @@ impl PlantArgs {
                 MAX_PERIODS * h
             );
         }
-        self.imperfections()?;
+        let imperfect = self.imperfections()?;
+        if self.sample_on_event {
+            anyhow::ensure!(
+                self.clock == ClockMode::Lockstep,
+                "--sample-on-event is implemented for --clock lockstep only"
+            );
+            anyhow::ensure!(
+                self.network.impairment(self.max_age)?.is_none() && !imperfect.has_hardware(),
+                "--sample-on-event is not combined with emulated links (--delay ...) or the \
+                 robot's hardware (--noise-*, --encoder-counts, --torque-*) in the plant yet; \
+                 `tilting simulate` combines it with the links"
+            );
+        }
         if self.network.impairment(self.max_age)?.is_some() {
             anyhow::ensure!(
                 self.clock == ClockMode::Lockstep,

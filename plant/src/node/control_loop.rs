@@ -63,6 +63,8 @@ pub(super) struct Loop {
     pub(super) measured: Option<(u64, State)>,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
+    /// Extra states published at mode transitions (`--sample-on-event`).
+    pub(super) extra_states: u64,
     /// When it was published (ns).
     pub(super) t_pub: u64,
     pub(super) status_state: u8,
@@ -129,7 +131,7 @@ impl Loop {
     }
 
     /// Runs `f` on the `--record` file; a write error is logged once and stops the recording.
-    fn rec(&mut self, f: impl FnOnce(&mut Recording) -> anyhow::Result<()>) {
+    pub(super) fn rec(&mut self, f: impl FnOnce(&mut Recording) -> anyhow::Result<()>) {
         if let Some(r) = &mut self.record {
             if let Err(e) = f(r) {
                 tracing::warn!("--record: write failed, recording stops: {e:#}");
@@ -435,7 +437,11 @@ impl Loop {
         };
         self.obs.transitions.clear();
         let t0 = clock::now_ns();
-        let res = self.hw.advance(&mut self.plant, tau, t_next, &mut self.obs);
+        let res = if self.args.sample_on_event {
+            self.advance_sampling_events(tau, t_next)
+        } else {
+            self.hw.advance(&mut self.plant, tau, t_next, &mut self.obs)
+        };
         self.step_cost
             .push(clock::now_ns().saturating_sub(t0) as f64 * 1e-3);
         for ev in &self.obs.transitions {
@@ -467,6 +473,33 @@ impl Loop {
         self.seq += 1;
         self.publish_state();
         Ok(last)
+    }
+
+    /// `--sample-on-event` (lockstep, perfect robot): integrates to `t_next` (s) with `tau`
+    /// (N m), stopping at each mode transition to publish the state there (the period's `seq`,
+    /// the transition's time) and switch to its answer, as `simulate --sample-on-event` does
+    /// over a perfect link. Without an answer within `--lockstep-timeout-ms` the torque in force
+    /// stays.
+    fn advance_sampling_events(&mut self, mut tau: f64, t_next: f64) -> Result<(), Fault> {
+        let timeout = Duration::from_millis(self.args.lockstep_timeout_ms);
+        while self
+            .plant
+            .advance_held_to_event(tau, t_next, &mut self.obs)?
+        {
+            self.measured = None;
+            let t = self.t_pub;
+            self.publish_state();
+            self.t_pub = t;
+            self.extra_states += 1;
+            if let Some((cmd, _)) = self.wait_fresh(timeout) {
+                self.rec(|r| r.torque(&cmd));
+                tau = cmd.tau;
+                if self.args.torque_limit > 0.0 {
+                    tau = tau.clamp(-self.args.torque_limit, self.args.torque_limit);
+                }
+            }
+        }
+        Ok(())
     }
 
     pub(super) fn run_realtime(&mut self) -> Outcome {

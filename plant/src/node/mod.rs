@@ -160,6 +160,7 @@ async fn run_async(
         obs: Obs::default(),
         record,
         seq: 0,
+        extra_states: 0,
         t_pub: 0,
         status_state: Status::STARTING,
         fault: String::new(),
