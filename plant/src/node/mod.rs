@@ -69,7 +69,8 @@ use crate::{
     Transition,
 };
 pub use args::{
-    ClockMode, PlantArgs, SafeMode, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US, PERIOD_RANGE,
+    ClockMode, PlantArgs, SafeMode, DEFAULT_MAX_AGE, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US,
+    PERIOD_RANGE,
 };
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
