@@ -4,12 +4,12 @@
 //! - 1 ms each way at 1 kHz: the emulator (`tilting_link::ImpairedHold`, the hold `simulate`
 //!   uses) applies every torque exactly 2 periods old. On the wall clock the plant publishes
 //!   state `k` a step's computation after deadline `k` and hands its answer to the inbox at
-//!   least 2 ms later, so no torque can be applied younger than 2 periods; the controller and
-//!   zenoh add 0.1-0.4 ms on loopback, and a loaded machine wakes the link thread late now and
-//!   then, so a real age is 2 or 3 where the emulator says 2: the median must be within one
-//!   period of the emulator's, and no applied torque may be younger than 1 period (none
-//!   on time: no latency sample, every applied torque late). The 99th percentile may reach 4
-//!   periods beyond it (a loaded 2-core machine delays 1 % of the hand-overs by up to 4 ms).
+//!   least 2 ms later, so (unless the pacing thread itself stalls) no torque is applied younger
+//!   than 2 periods; the controller and zenoh add 0.1-0.4 ms on loopback, and a loaded machine
+//!   wakes the link thread late now and then, so a real age is 2 or 3 where the emulator says 2: the median must be within one
+//!   period of the emulator's, and hardly any torque may be on time (age 0: at most 2 %, the
+//!   answers found after a stall of the pacing thread itself). The 99th percentile may reach
+//!   4 periods beyond it (a loaded 2-core machine delays 1 % of the hand-overs by up to 4 ms).
 //! - 10 % loss each way: the plant draws the same streams as the offline emulator (`--seed`,
 //!   stream 0 for states, 1 for torques), so the number of lost states is exactly the number of
 //!   losses in the first `states_sent` draws of stream 0 (replayed here with `tilting_link::Link`),
@@ -114,10 +114,15 @@ async fn a_delay_on_the_wall_clock_ages_torques_like_the_emulator() {
         "age p99 {} periods, emulated {emulated}",
         age.p99
     );
-    // Nothing on time: every applied torque was late, no latency sample (age 0) exists.
+    // Hardly anything on time (age 0): only a pacing thread that stalls for more than the
+    // 2 ms round trip right after publishing a state (a loaded machine) finds that state's
+    // answer in before its next deadline; at most 2 % of the applied torques.
     assert!(s.torques_applied > 2500, "{s:?}");
-    assert_eq!(s.torques_late, s.torques_applied, "{s:?}");
-    assert_eq!(s.latency_us.count, Some(0), "{s:?}");
+    let on_time = s.torques_applied - s.torques_late;
+    assert!(
+        on_time * 50 <= s.torques_applied,
+        "{on_time} on time: {s:?}"
+    );
     // The status says the same as the summary.
     assert_eq!(st.state, tilting_proto::Status::STOPPED, "{st:?}");
     assert_eq!((st.age_p50, st.age_p99), (age.p50, age.p99), "{st:?}");
