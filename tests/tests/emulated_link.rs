@@ -68,10 +68,19 @@ fn losses(spec: LinkSpec, seed: u64, stream: u64, n: u64) -> u64 {
     (0..n).filter(|_| l.send(0.0).is_none()).count() as u64
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_delay_on_the_wall_clock_ages_torques_like_the_emulator() {
+/// A runtime for the test's zenoh client (the real-time turn is held outside it).
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("a tokio runtime")
+}
+
+#[test]
+fn a_delay_on_the_wall_clock_ages_torques_like_the_emulator() {
     let _turn = realtime_turn();
-    let (s, st) = run("emu_delay", &["--delay", "0.001"]).await;
+    let (s, st) = runtime().block_on(run("emu_delay", &["--delay", "0.001"]));
     eprintln!("{s:?}");
     assert_eq!(s.result, RunResult::Completed);
     assert_eq!(s.watchdog_trips, 0, "{s:?}");
@@ -129,11 +138,14 @@ async fn a_delay_on_the_wall_clock_ages_torques_like_the_emulator() {
     assert!(s.tilts >= 5, "the orbit goes on: {} tilts", s.tilts);
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn losses_on_the_wall_clock_are_the_emulators_draws() {
+#[test]
+fn losses_on_the_wall_clock_are_the_emulators_draws() {
     let _turn = realtime_turn();
     let seed = 7;
-    let (s, st) = run("emu_loss", &["--loss", "0.1", "--seed", &seed.to_string()]).await;
+    let (s, st) = runtime().block_on(run(
+        "emu_loss",
+        &["--loss", "0.1", "--seed", &seed.to_string()],
+    ));
     eprintln!("{s:?}");
     assert_eq!(s.result, RunResult::Completed);
     assert_eq!(s.watchdog_trips, 0, "{s:?}");
