@@ -56,7 +56,7 @@ struct Cli {
 enum Command {
     /// The main job: plant and controller as child processes and the planner in-process on
     /// localhost, the paper's stabilised orbit live at 1 kHz; status line, recording, plot
-    Live(live::LiveArgs),
+    Live(Box<live::LiveArgs>),
     /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
     /// default the paper's stabilised tilting orbit
     Simulate(Box<simulate::SimulateArgs>),

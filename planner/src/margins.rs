@@ -23,9 +23,10 @@ use tilting_plant::{Mode, Plant, TiltPeak, Transition};
 use tilting_sim::{run_sampled_over, LoopOptions, Scenario};
 
 /// Plant time allowed per requested tilt (s): the orbit tilts every 0.435 s.
-const SECONDS_PER_TILT: f64 = 0.6;
-/// Tilts whose peaks are compared with the nominal orbit.
-const LAST: usize = 10;
+pub const SECONDS_PER_TILT: f64 = 0.6;
+/// Tilts whose peaks are compared with the nominal orbit: the mean |peak| of the last
+/// `LAST_PEAKS` tilts.
+pub const LAST_PEAKS: usize = 10;
 
 /// The survival criteria.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -86,7 +87,7 @@ impl tilting_plant::Observer for Watch {
         }
     }
     fn tilt_peak(&mut self, p: &TiltPeak) {
-        if self.peaks.len() == LAST {
+        if self.peaks.len() == LAST_PEAKS {
             self.peaks.remove(0);
         }
         self.peaks.push(p.alpha.abs());
@@ -130,8 +131,8 @@ fn run(
         &mut w,
         &mut |_| {},
     );
-    let peak = if w.peaks.len() == LAST {
-        w.peaks.iter().sum::<f64>() / LAST as f64
+    let peak = if w.peaks.len() == LAST_PEAKS {
+        w.peaks.iter().sum::<f64>() / LAST_PEAKS as f64
     } else {
         0.0
     };
@@ -150,6 +151,20 @@ fn run(
         String::new()
     };
     (w.tilts, peak, why)
+}
+
+/// The peak criterion: `last_peak`, the mean |peak| of the last [`LAST_PEAKS`] tilts (rad), is
+/// within `c.tolerance` of `nominal` (rad); otherwise the reason, with both peaks.
+pub fn peaks_hold(last_peak: f64, nominal: f64, c: &Criteria) -> Result<(), String> {
+    let rel = last_peak / nominal - 1.0;
+    if rel.abs() <= c.tolerance {
+        Ok(())
+    } else {
+        Err(format!(
+            "last peaks {last_peak:.4} rad, {:+.0} % from the nominal {nominal:.4} rad",
+            100.0 * rel
+        ))
+    }
 }
 
 /// The nominal last peak: the loop at 1 kHz over a perfect network (rad).
@@ -205,11 +220,10 @@ fn point(
 
 /// `why`, or the peaks' deviation from `nominal` if beyond the tolerance.
 fn judge_peak(why: String, last_peak: f64, nominal: f64, c: &Criteria) -> String {
-    if why.is_empty() && (last_peak / nominal - 1.0).abs() > c.tolerance {
-        return format!(
-            "last peaks {last_peak:.4} rad, {:+.0} % from the nominal {nominal:.4} rad",
-            100.0 * (last_peak / nominal - 1.0)
-        );
+    if why.is_empty() {
+        if let Err(e) = peaks_hold(last_peak, nominal, c) {
+            return e;
+        }
     }
     why
 }

@@ -15,6 +15,13 @@
 //! - a report on stdout: tilts, peak |alpha| of the last tilts, loop latency p50/p99/p99.9,
 //!   deadline misses, faults.
 //!
+//! With the impairment flags of `simulate` (`--delay`, `--jitter`, `--loss`, `--loss-burst`, each
+//! also `--state-...`/`--torque-...`, `--seed`) and `--max-age`, the plant emulates the link on
+//! the wall clock (`tilting_plant::node`): its states reach the controller (and the recording,
+//! which listens on the same key) delayed or not at all, and the torques reach its inbox
+//! delayed or not at all. The status line then shows the torque ages and the losses, and
+//! every line and the report say whether the orbit holds ([`orbit`]).
+//!
 //! If a child dies during the run, the command says which one and how, stops the other, still
 //! writes what was recorded, and exits with code 1.
 //!
@@ -27,6 +34,7 @@
 //! own port and connects to the plant; the controller listens on a third port and connects to
 //! both. The children are started and stopped by [`crate::supervise`].
 
+mod orbit;
 pub mod status;
 pub mod summary;
 
@@ -34,6 +42,7 @@ use crate::record::{self, Record, Recorder};
 use crate::security;
 use crate::supervise::{endpoint, free_port, utc_timestamp, Child, NodeBinaries};
 use anyhow::{anyhow, Context as _};
+use orbit::OrbitCheck;
 use status::{status_line, LatestStatus};
 use std::io::{IsTerminal as _, Write as _};
 use std::path::{Path, PathBuf};
@@ -43,7 +52,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use summary::{Endpoints, LawRecord, LiveResult, LiveSummary, PlannerCounts, RecordCounts};
 use tilting_controller::node::ControllerSummary;
+use tilting_link::{Burst, Jitter, LinkSpec, NetworkArgs};
 use tilting_net::{subscribe_decoded, DropCounter, Role, ZenohArgs};
+use tilting_planner::margins::{self, Criteria};
 use tilting_planner::node::{check_seconds, describe, LawArgs, ReferencePublisher};
 use tilting_planner::CommandError;
 use tilting_plant::node::PlantSummary;
@@ -93,6 +104,78 @@ pub struct LiveArgs {
     /// The controller's law (also published as the planner's reference).
     #[command(flatten)]
     pub law: LawArgs,
+    /// An impaired link between plant and controller, emulated by the plant on the wall clock
+    /// (the flags of `simulate`).
+    #[command(flatten)]
+    pub network: NetworkArgs,
+    /// The plant's --max-age: it applies the newest torque answering a state at most this many
+    /// periods old
+    #[arg(long, default_value_t = tilting_plant::node::DEFAULT_MAX_AGE, value_name = "PERIODS")]
+    pub max_age: u64,
+}
+
+/// Largest `--max-age` (periods), as the plant allows.
+const MAX_AGE: u64 = 1000;
+
+/// The plant's flags for the impairment `net` (the same flags, spelled out again).
+fn network_flags(net: &NetworkArgs) -> Vec<String> {
+    fn jitter(j: Jitter) -> String {
+        match j {
+            Jitter::Uniform { max } => format!("uniform:{max}"),
+            Jitter::Normal { sigma } => format!("normal:{sigma}"),
+            Jitter::Exp { mean } => format!("exp:{mean}"),
+        }
+    }
+    let burst = |b: Burst| format!("{},{}", b.p, b.r);
+    let mut v = Vec::new();
+    let mut flag = |name: &str, value: Option<String>| {
+        if let Some(x) = value {
+            v.extend([format!("--{name}"), x]);
+        }
+    };
+    for (prefix, delay, jit, loss, bur) in [
+        ("", net.delay, net.jitter, net.loss, net.loss_burst),
+        (
+            "state-",
+            net.state_delay,
+            net.state_jitter,
+            net.state_loss,
+            net.state_loss_burst,
+        ),
+        (
+            "torque-",
+            net.torque_delay,
+            net.torque_jitter,
+            net.torque_loss,
+            net.torque_loss_burst,
+        ),
+    ] {
+        flag(&format!("{prefix}delay"), delay.map(|x| x.to_string()));
+        flag(&format!("{prefix}jitter"), jit.map(jitter));
+        flag(&format!("{prefix}loss"), loss.map(|x| x.to_string()));
+        flag(&format!("{prefix}loss-burst"), bur.map(burst));
+    }
+    flag("seed", Some(net.seed.to_string()));
+    v
+}
+
+/// One direction of a link in words: `2 ms + exp:0.5 ms, loss 5 %`.
+fn describe_link(s: &LinkSpec) -> String {
+    let mut parts = vec![format!("{} ms", s.delay * 1e3)];
+    match s.jitter {
+        Some(Jitter::Uniform { max }) => parts.push(format!("+ uniform:{} ms", max * 1e3)),
+        Some(Jitter::Normal { sigma }) => parts.push(format!("+ normal:{} ms", sigma * 1e3)),
+        Some(Jitter::Exp { mean }) => parts.push(format!("+ exp:{} ms", mean * 1e3)),
+        None => {}
+    }
+    let mut text = parts.join(" ");
+    if s.loss > 0.0 {
+        text.push_str(&format!(", loss {} %", s.loss * 100.0));
+    }
+    if let Some(b) = s.burst {
+        text.push_str(&format!(", bursts {},{}", b.p, b.r));
+    }
+    text
 }
 
 /// Ctrl-C/SIGTERM count, updated by a task that starts with the runtime.
@@ -144,6 +227,16 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
             1.0 / lo
         )));
     }
+    let impairment = args
+        .network
+        .impairment(args.max_age)
+        .map_err(|e| CommandError::Usage(e.into()))?;
+    if args.max_age > MAX_AGE {
+        return Err(CommandError::Usage(anyhow!(
+            "invalid `--max-age` = {}: allowed 0 to {MAX_AGE} periods",
+            args.max_age
+        )));
+    }
     if args.port == Some(0) {
         return Err(CommandError::Usage(anyhow!(
             "invalid `--port` = 0: allowed 1 to 65535 (omit it for a free port)"
@@ -166,7 +259,9 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     let signals = Signals::start(&rt);
     let ok = rt
-        .block_on(live(args, keys, reference, &bins, &dir, signals))
+        .block_on(live(
+            args, keys, reference, impairment, &bins, &dir, signals,
+        ))
         .map_err(CommandError::Failed)?;
     if ok {
         Ok(())
@@ -183,6 +278,7 @@ async fn live(
     args: &LiveArgs,
     keys: Keys,
     reference: Reference,
+    impairment: Option<tilting_link::Impairment>,
     bins: &NodeBinaries,
     dir: &Path,
     signals: Signals,
@@ -206,6 +302,38 @@ async fn live(
         describe(&reference)
     );
     eprintln!("live: recording to {}", dir.display());
+    if let Some(imp) = &impairment {
+        eprintln!(
+            "live: the plant emulates the link: states {}; torques {}; seed {}, --max-age {}",
+            describe_link(&imp.state),
+            describe_link(&imp.torque),
+            imp.seed,
+            args.max_age
+        );
+    }
+    // The nominal orbit the run is judged against (`tilting plan margins`' criterion): the
+    // same law at 1 kHz over a perfect network, simulated here (about 0.1 s).
+    let scenario = Scenario {
+        kp: reference.kp,
+        kd: reference.kd,
+        k: reference.k,
+        energy_avg: Some(reference.energy_avg),
+        control_period: period,
+        duration: args.duration,
+        torque_limit: (reference.torque_limit > 0.0).then_some(reference.torque_limit),
+        ..Scenario::default()
+    };
+    let criteria = Criteria::default();
+    let check = {
+        let (sc, c) = (scenario.clone(), criteria);
+        let nominal = tokio::task::spawn_blocking(move || margins::nominal_peak(&sc, &c))
+            .await
+            .context("the nominal orbit")?;
+        (nominal > 0.0).then_some(OrbitCheck { nominal, criteria })
+    };
+    if check.is_none() {
+        eprintln!("live: the law has no nominal orbit to compare with (no orbit verdict)");
+    }
 
     // 0. With --secure: the certificates and the router every node connects to.
     let mut secure = match args.secure {
@@ -245,6 +373,10 @@ async fn live(
     if let Some(l) = (reference.torque_limit > 0.0).then_some(reference.torque_limit) {
         // The controller saturates already; the plant's hard limit is the same.
         plant_args.extend(["--torque-limit".into(), l.to_string()]);
+    }
+    plant_args.extend(["--max-age".into(), args.max_age.to_string()]);
+    if impairment.is_some() {
+        plant_args.extend(network_flags(&args.network));
     }
     let mut plant = Child::spawn("plant", &bins.plant, &plant_args, dir)?;
 
@@ -363,7 +495,19 @@ async fn live(
         }
         if tty || second || end.is_some() {
             let st = latest.lock().unwrap_or_else(|e| e.into_inner()).clone();
-            let line = status_line(st.as_ref(), &recorder.view(), recorder.dropped());
+            let view = recorder.view();
+            let verdict = check.zip(st.as_ref()).map(|(c, st)| {
+                let fault = (!st.fault.is_empty()).then_some(st.fault.as_str());
+                let peaks: Vec<(f64, f64)> = view.peaks.iter().copied().collect();
+                c.judge(&peaks, st.time, st.watchdog_trips, fault)
+            });
+            let line = status_line(
+                st.as_ref(),
+                &view,
+                recorder.dropped(),
+                impairment.is_some(),
+                verdict.as_ref(),
+            );
             if line != printed {
                 let mut err = std::io::stderr().lock();
                 let _ = if tty {
@@ -473,16 +617,6 @@ async fn live(
 
     // 7. The figure and the summary.
     let png = dir.join(record::RUN_PNG);
-    let scenario = Scenario {
-        kp: reference.kp,
-        kd: reference.kd,
-        k: reference.k,
-        energy_avg: Some(reference.energy_avg),
-        control_period: period,
-        duration: args.duration,
-        torque_limit: (reference.torque_limit > 0.0).then_some(reference.torque_limit),
-        ..Scenario::default()
-    };
     let early = fault.is_some() || !problems.is_empty();
     let plot_result = if view.states > 0 {
         record::plot_recording(dir, &png, &scenario, early)
@@ -499,6 +633,20 @@ async fn live(
             problems.push(format!("cannot animate {}: {e:#}", gif.display()));
         }
     }
+    // The orbit verdict from the plant's own peaks (every tilt, not the sampled states), or
+    // the recording's without a plant summary.
+    let orbit = check.map(|c| match &plant_summary {
+        Some(p) => {
+            let peaks: Vec<(f64, f64)> = p.tilt_peaks.iter().map(|x| (x[0], x[1])).collect();
+            c.judge(&peaks, p.time, p.watchdog_trips, fault.as_deref())
+        }
+        None => {
+            let peaks: Vec<(f64, f64)> = view.peaks.iter().copied().collect();
+            let now = view.last_state.map_or(0.0, |s| s.time);
+            let trips = last_status.as_ref().map_or(0, |s| s.watchdog_trips);
+            c.judge(&peaks, now, trips, fault.as_deref())
+        }
+    });
     let ok = problems.is_empty();
     let result = match (&end, ok) {
         (End::Interrupted, true) => LiveResult::Interrupted,
@@ -551,6 +699,7 @@ async fn live(
         controller_exit: ctl_status.map(|s| s.0.to_string()),
         plant: plant_summary,
         controller: ctl_summary,
+        orbit,
     };
     let summary_path = dir.join("summary.json");
     let text = serde_json::to_string_pretty(&summary).context("cannot serialise the summary")?;
@@ -634,4 +783,52 @@ async fn start_router(
         endpoint,
         router,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser as _;
+
+    #[derive(clap::Parser)]
+    struct Flags {
+        #[command(flatten)]
+        net: NetworkArgs,
+    }
+
+    /// The flags handed to the plant say what the user's flags say: parsed again, they give
+    /// the same impairment (both directions, every field, the seed).
+    #[test]
+    fn network_flags_round_trip() {
+        for argv in [
+            &["--delay", "0.002"][..],
+            &["--jitter", "exp:0.0005", "--loss", "0.05", "--seed", "9"][..],
+            &[
+                "--state-delay",
+                "0.001",
+                "--torque-jitter",
+                "normal:0.0003",
+                "--loss-burst",
+                "0.01,0.25",
+                "--torque-loss",
+                "0.125",
+                "--state-jitter",
+                "uniform:0.004",
+                "--torque-delay",
+                "0.0015",
+            ][..],
+        ] {
+            let given = Flags::try_parse_from(std::iter::once("x").chain(argv.iter().copied()))
+                .unwrap()
+                .net;
+            let flags = network_flags(&given);
+            let again =
+                Flags::try_parse_from(std::iter::once("x".to_owned()).chain(flags.iter().cloned()))
+                    .unwrap()
+                    .net;
+            let (a, b) = (given.impairment(10).unwrap(), again.impairment(10).unwrap());
+            assert!(a.is_some(), "{argv:?}");
+            assert_eq!(a, b, "{argv:?} -> {flags:?}");
+        }
+    }
 }

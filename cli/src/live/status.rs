@@ -1,5 +1,6 @@
 //! The status line of a live run: one line on stderr, refreshed while the loop runs.
 
+use super::summary::OrbitVerdict;
 use crate::record::RecordView;
 use std::sync::{Arc, Mutex};
 use tilting_proto::{Mode, Status};
@@ -21,9 +22,16 @@ fn mode_name(q: u8) -> &'static str {
 }
 
 /// The status line: plant time, run state, mode, alpha, tilts and last peaks, loop latency,
-/// deadline misses, and the torque ages (late, lost, reordered), the watchdog and recording
-/// counters when they are not zero.
-pub(super) fn status_line(st: Option<&Status>, v: &RecordView, dropped: u64) -> String {
+/// deadline misses, and the torque ages (late, lost, reordered; always over an `impaired`
+/// link), the watchdog and recording counters when they are not zero, and whether the orbit
+/// holds.
+pub(super) fn status_line(
+    st: Option<&Status>,
+    v: &RecordView,
+    dropped: u64,
+    impaired: bool,
+    orbit: Option<&OrbitVerdict>,
+) -> String {
     let Some(st) = st else {
         return format!(
             "waiting for the plant's status | recorded {} states",
@@ -51,7 +59,7 @@ pub(super) fn status_line(st: Option<&Status>, v: &RecordView, dropped: u64) -> 
         st.latency_p99_us,
         st.deadline_misses,
     );
-    if st.age_max > 0.0 || st.torques_lost > 0 || st.torques_reordered > 0 {
+    if impaired || st.age_max > 0.0 || st.torques_lost > 0 || st.torques_reordered > 0 {
         line.push_str(&format!(
             " | age p99 {:.0} max {:.0} periods, late {}, lost {}, reordered {}",
             st.age_p99, st.age_max, st.torques_late, st.torques_lost, st.torques_reordered
@@ -65,6 +73,14 @@ pub(super) fn status_line(st: Option<&Status>, v: &RecordView, dropped: u64) -> 
             " | recording dropped {dropped}, missing {}",
             v.missing_states
         ));
+    }
+    if let Some(o) = orbit {
+        line.push_str(" | orbit ");
+        line.push_str(match o.state {
+            super::summary::OrbitState::Holds => "holds",
+            super::summary::OrbitState::Lost => "LOST",
+            super::summary::OrbitState::Pending => "?",
+        });
     }
     line
 }
@@ -104,7 +120,7 @@ mod tests {
             peaks: [(0.2, 0.04), (0.6, -0.041)].into_iter().collect(),
             ..RecordView::default()
         };
-        let l = status_line(Some(&st), &v, 0);
+        let l = status_line(Some(&st), &v, 0, false, None);
         for needle in [
             "running",
             "left",
@@ -116,6 +132,18 @@ mod tests {
         ] {
             assert!(l.contains(needle), "{needle:?} not in {l:?}");
         }
-        assert!(status_line(None, &v, 0).contains("waiting"));
+        assert!(status_line(None, &v, 0, false, None).contains("waiting"));
+        assert!(!l.contains("age p99") && !l.contains("orbit"), "{l}");
+        // Over an impaired link: the ages and losses always, and the orbit's verdict.
+        let o = OrbitVerdict {
+            state: super::super::summary::OrbitState::Holds,
+            why: String::new(),
+            last_peak: 0.041,
+            nominal_peak: 0.0413,
+            tolerance: 0.25,
+        };
+        let l = status_line(Some(&st), &v, 0, true, Some(&o));
+        assert!(l.contains("age p99 0") && l.contains("lost 0"), "{l}");
+        assert!(l.ends_with("orbit holds"), "{l}");
     }
 }

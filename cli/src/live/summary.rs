@@ -20,6 +20,50 @@ pub enum LiveResult {
     Failed,
 }
 
+/// Whether a run holds the orbit (the criterion of `tilting plan margins`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OrbitState {
+    /// Alternating tilts, still coming, no safe mode, no fault, and the last peaks within the
+    /// tolerance of the nominal orbit's.
+    Holds,
+    /// One of these failed (see `why`).
+    Lost,
+    /// Fewer than two tilts so far.
+    Pending,
+}
+
+/// The orbit verdict of a live run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OrbitVerdict {
+    /// Holds, lost or pending.
+    pub state: OrbitState,
+    /// Why it is lost (or pending); empty when it holds.
+    pub why: String,
+    /// Mean |peak| of the last tilts (at most 10), rad.
+    pub last_peak: f64,
+    /// The nominal orbit's (the same law at 1 kHz over a perfect network), rad.
+    pub nominal_peak: f64,
+    /// Largest relative deviation of `last_peak` from `nominal_peak` that holds.
+    pub tolerance: f64,
+}
+
+impl OrbitVerdict {
+    /// One phrase: `holds (last peaks ...)`, `LOST: why` or `pending`.
+    pub fn describe(&self) -> String {
+        match self.state {
+            OrbitState::Holds => format!(
+                "holds (last peaks {:.4} rad, {:+.0} % from the nominal {:.4} rad)",
+                self.last_peak,
+                100.0 * (self.last_peak / self.nominal_peak - 1.0),
+                self.nominal_peak
+            ),
+            OrbitState::Lost => format!("LOST: {}", self.why),
+            OrbitState::Pending => "pending".into(),
+        }
+    }
+}
+
 /// The law that was published, as in the `Reference` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LawRecord {
@@ -152,6 +196,9 @@ pub struct LiveSummary {
     pub plant: Option<PlantSummary>,
     /// The controller's own summary.
     pub controller: Option<ControllerSummary>,
+    /// Whether the run held the orbit, judged at its end from the plant's tilt peaks.
+    #[serde(default)]
+    pub orbit: Option<OrbitVerdict>,
 }
 
 impl LiveSummary {
@@ -234,6 +281,25 @@ impl LiveSummary {
                 "loop latency (us, from the last status): p50 {:.1}, p99 {:.1}; deadline misses {}, watchdog trips {}",
                 st.latency_p50_us, st.latency_p99_us, st.deadline_misses, st.watchdog_trips
             );
+        }
+        if let Some(l) = p.and_then(|p| p.link.as_ref()) {
+            let _ = writeln!(
+                out,
+                "emulated link: states lost {} of {}, torques lost {} of {}; hand-over late p99 {:.0} us",
+                l.states_lost, l.states_sent, l.torques_lost, l.torques_sent, l.delivery_late_us.p99,
+            );
+        }
+        if let Some((p, a)) = p.and_then(|p| p.age_periods.as_ref().map(|a| (p, a))) {
+            if a.max > 0.0 {
+                let _ = writeln!(
+                    out,
+                    "torque age (periods): p50 {:.0}, p99 {:.0}, max {:.0}; late {}, unanswered states {}, reordered {}",
+                    a.p50, a.p99, a.max, p.torques_late, p.torques_lost, p.torques_reordered
+                );
+            }
+        }
+        if let Some(o) = &self.orbit {
+            let _ = writeln!(out, "orbit: {}", o.describe());
         }
         let _ = writeln!(out, "faults: {}", fault.unwrap_or("none"));
         let r = &self.record;

@@ -38,9 +38,10 @@ pub struct PlantArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
-    /// Network impairments emulated by the plant (lockstep only): states and torques cross
-    /// links with these delays and losses, deterministically from --seed, exactly as in
-    /// `tilting simulate` with the same flags.
+    /// Network impairments emulated by the plant: states and torques cross links with these
+    /// delays and losses, drawn from --seed as in `tilting simulate`. In lockstep the run is
+    /// the same as `simulate` with the same flags, bit for bit; in real time the plant delays
+    /// and drops the messages on the wall clock.
     #[command(flatten)]
     pub network: tilting_link::NetworkArgs,
     /// The robot's imperfections (both clocks): the published state is the measured one, the
@@ -203,13 +204,8 @@ impl PlantArgs {
                  `tilting simulate` combines it with the links"
             );
         }
-        if self.network.impairment(self.max_age)?.is_some() {
-            anyhow::ensure!(
-                self.clock == ClockMode::Lockstep,
-                "--delay, --jitter, --loss and --loss-burst are emulated in lockstep only \
-                 (--clock lockstep); in real time, put a real or proxied link between the nodes"
-            );
-        }
+        // Checked for both clocks: the same ranges and messages as `simulate`.
+        self.network.impairment(self.max_age)?;
         anyhow::ensure!(
             self.max_age <= 1000,
             "invalid --max-age = {}: allowed 0 to 1000 periods",
@@ -383,6 +379,47 @@ mod tests {
             let err = a.validate().unwrap_err().to_string();
             assert!(err.contains(needle), "{flag} {value}: {err}");
         }
+    }
+
+    /// The impairment flags are checked for the real-time clock as for lockstep and
+    /// `simulate`: the message names the flag and the allowed range; good values are accepted
+    /// in real time.
+    #[test]
+    fn impairment_flags_are_validated_for_both_clocks() {
+        for (extra, needle) in [
+            (&["--delay", "-0.001"][..], "invalid `--delay` = -0.001"),
+            (
+                &["--torque-loss", "1.5"][..],
+                "invalid `--torque-loss` = 1.5",
+            ),
+            (&["--loss", "2"][..], "a probability in [0, 1]"),
+        ] {
+            for clock in ["realtime", "lockstep"] {
+                let mut argv = vec!["tilting-plant", "--clock", clock];
+                argv.extend_from_slice(extra);
+                let a = PlantArgs::try_parse_from(&argv).unwrap();
+                let err = a.validate().unwrap_err().to_string();
+                assert!(err.contains(needle), "{argv:?}: {err}");
+            }
+        }
+        let e = PlantArgs::try_parse_from(["tilting-plant", "--jitter", "gamma:0.001"])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("--jitter") && e.contains("unknown distribution"),
+            "{e}"
+        );
+        let a = PlantArgs::try_parse_from([
+            "tilting-plant",
+            "--delay",
+            "0.001",
+            "--jitter",
+            "exp:0.0005",
+            "--loss",
+            "0.1",
+        ])
+        .unwrap();
+        a.validate().unwrap();
     }
 
     #[test]

@@ -61,6 +61,8 @@ pub(super) struct Loop {
     pub(super) hw: crate::imperfect::Hardware,
     /// The state measured for `seq` (measured once: a re-publication sends the same numbers).
     pub(super) measured: Option<(u64, State)>,
+    /// Real time over emulated links (`--delay` ...): states leave through it.
+    pub(super) link: Option<Arc<super::emulation::Emulator>>,
     /// `seq` of the last published state (= periods done).
     pub(super) seq: u64,
     /// Extra states published at mode transitions (`--sample-on-event`).
@@ -124,7 +126,9 @@ impl Loop {
         };
         self.shared.current_seq.store(self.seq, Ordering::Release);
         self.t_pub = clock::now_ns();
-        if let Err(e) = self.pubs.state.put(&msg) {
+        if let Some(link) = &self.link {
+            link.send_state(msg);
+        } else if let Err(e) = self.pubs.state.put(&msg) {
             tracing::warn!("cannot publish the state: {e}");
         }
         self.rec(|r| r.state(&msg));
@@ -661,6 +665,7 @@ impl Loop {
             torques_lost: self.torques_lost,
             torques_applied: self.torques_applied,
             network: self.hold.as_ref().map(|h| h.stats().clone()),
+            link: self.link.as_ref().map(|l| l.stats()),
             age_periods: Some(Window {
                 p50: a.p50,
                 p99: a.p99,

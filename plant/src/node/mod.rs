@@ -17,6 +17,10 @@
 //!   state it answers) is at most `--max-age`; otherwise the torque in force is held. A
 //!   real-time run whose answers all arrive in time is therefore the same computation as a
 //!   lockstep run.
+//! - `--clock realtime` with `--delay`, `--jitter`, `--loss` or `--loss-burst`: the states and
+//!   the torques cross links emulated on the wall clock, with the draws of `tilting simulate`
+//!   (module `emulation`): a lost message never arrives, a delayed one is published (a state)
+//!   or put in the torque inbox (a torque) at its due time, where the `--max-age` rule applies.
 //! - `--clock lockstep`: after publishing `seq = k` the plant waits for the torque answering
 //!   `seq = k` (re-publishing the state every 100 ms), then integrates: the run is
 //!   deterministic and reproduces `tilting simulate --control-period h` bit for bit.
@@ -50,6 +54,7 @@ mod args;
 pub mod clock;
 mod control_loop;
 pub mod csv;
+mod emulation;
 mod inbox;
 mod recording;
 pub mod stats;
@@ -72,13 +77,14 @@ use crate::{
     Transition,
 };
 pub use args::{
-    ClockMode, PlantArgs, SafeMode, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US, PERIOD_RANGE,
+    ClockMode, PlantArgs, SafeMode, DEFAULT_MAX_AGE, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US,
+    PERIOD_RANGE,
 };
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
 use recording::Recording;
 use stats::Ring;
-pub use summary::{PlantSummary, RunResult, Window};
+pub use summary::{LinkEmulation, PlantSummary, RunResult, Window};
 
 /// The columns of a state row in every CSV the project writes (the plant's `--record`, the
 /// `state.csv` of `tilting live`): sample number, plant time (s), mode byte (0 flat, 1 left,
@@ -127,10 +133,26 @@ async fn run_async(
         event: TypedPublisher::declare(&session, keys.plant_event(), Qos::Data).await?,
         status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Data).await?,
     });
+    // Real time over emulated links: states and torques cross them on the wall clock.
+    let impairment = args.network.impairment(args.max_age)?;
+    let link = match (impairment, args.clock) {
+        (Some(imp), ClockMode::Realtime) => Some(emulation::Emulator::start(
+            imp,
+            args.spin_us * 1000,
+            args.rt_priority,
+            pubs.clone(),
+            shared.clone(),
+        )?),
+        _ => None,
+    };
     let sh = shared.clone();
+    let l = link.clone();
     let _torque_sub =
-        tilting_net::subscribe_bytes(&session, keys.controller_torque(), move |b| sh.on_torque(b))
-            .await?;
+        tilting_net::subscribe_bytes(&session, keys.controller_torque(), move |b| match &l {
+            Some(l) => l.send_torque(b),
+            None => sh.on_torque(b),
+        })
+        .await?;
     let sh = shared.clone();
     let (_presence, _presence_sub) =
         tilting_net::watch_presence(&session, keys.alive_controller(), move |alive| {
@@ -145,9 +167,8 @@ async fn run_async(
 
     let h = args.period();
     let safe_pd = (args.safe_kp, args.safe_kd);
-    let hold = args
-        .network
-        .impairment(args.max_age)?
+    let hold = impairment
+        .filter(|_| args.clock == ClockMode::Lockstep)
         .map(|imp| imp.hold(args.period()));
     let hw = args.imperfections()?.hardware();
     let mut lp = Loop {
@@ -173,6 +194,7 @@ async fn run_async(
         hold,
         hw,
         measured: None,
+        link: link.clone(),
         age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,
@@ -209,6 +231,9 @@ async fn run_async(
         .await
         .context("pacing thread join")?
         .map_err(|_| anyhow::anyhow!("the pacing thread panicked"))?;
+    if let Some(l) = &link {
+        l.stop();
+    }
     println!(
         "{}",
         serde_json::to_string(&summary).context("cannot serialise the summary")?

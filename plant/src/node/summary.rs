@@ -40,6 +40,31 @@ pub struct Window {
     pub window: Option<u64>,
 }
 
+/// The links a real-time plant emulated on the wall clock (`--delay`, `--jitter`, `--loss`,
+/// `--loss-burst` with `--clock realtime`): their settings and what they did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LinkEmulation {
+    /// The state link (plant to controller).
+    pub state: tilting_link::LinkSpec,
+    /// The torque link (controller to plant).
+    pub torque: tilting_link::LinkSpec,
+    /// Seed of the random streams (0: states, 1: torques).
+    pub seed: u64,
+    /// States published into the state link (re-publications of state 0 included).
+    pub states_sent: u64,
+    /// States the state link lost.
+    pub states_lost: u64,
+    /// Torque messages that reached the plant's end of the torque link.
+    pub torques_sent: u64,
+    /// Torque messages the torque link lost.
+    pub torques_lost: u64,
+    /// Delayed messages still on their way when the summary was taken (discarded at the end).
+    pub in_flight: u64,
+    /// How late a delayed message was handed on after its due time (µs): the wake-up latency
+    /// of the emulation thread.
+    pub delivery_late_us: Window,
+}
+
 /// The summary of one plant run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PlantSummary {
@@ -86,6 +111,9 @@ pub struct PlantSummary {
     /// What the emulated links did, in lockstep with `--delay` ...
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub network: Option<tilting_link::NetStats>,
+    /// What the links emulated on the wall clock did, in real time with `--delay` ...
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link: Option<LinkEmulation>,
     /// Age of the applied torques (periods between the state a torque answers and the state
     /// it was applied at): percentiles over the last 4096 applied torques.
     #[serde(default)]

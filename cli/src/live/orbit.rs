@@ -1,0 +1,132 @@
+//! Does the live run hold the orbit? The criterion of `tilting plan margins`
+//! (`tilting_planner::margins`), applied to a run as it goes: the tilts alternate sides, keep
+//! coming, the plant's watchdog never tripped, nothing faulted, and the mean |peak| of the last
+//! [`LAST_PEAKS`] tilts is within the tolerance (25 %) of the nominal orbit's (the same law at
+//! 1 kHz over a perfect network, 0.0413 rad for the paper's `k = 500` loop).
+
+use super::summary::{OrbitState, OrbitVerdict};
+use tilting_planner::margins::{peaks_hold, Criteria, LAST_PEAKS, SECONDS_PER_TILT};
+
+/// Longest wait for the next tilt (s of plant time) before the orbit counts as lost: three
+/// times the time `margins` allows per tilt (the orbit tilts every 0.435 s).
+pub(super) const MAX_TILT_GAP: f64 = 3.0 * SECONDS_PER_TILT;
+
+/// The nominal orbit and the criteria a run is judged by.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct OrbitCheck {
+    /// Mean |peak| of the nominal orbit's last tilts (rad).
+    pub(super) nominal: f64,
+    /// The criteria of `tilting plan margins`.
+    pub(super) criteria: Criteria,
+}
+
+impl OrbitCheck {
+    /// Judges a run at plant time `now` (s) from its tilt peaks `(t, alpha)` (s, rad; a tilt to
+    /// one side has the sign of its `alpha`), oldest first, and the plant's health.
+    pub(super) fn judge(
+        &self,
+        peaks: &[(f64, f64)],
+        now: f64,
+        watchdog_trips: u64,
+        fault: Option<&str>,
+    ) -> OrbitVerdict {
+        let last = &peaks[peaks.len().saturating_sub(LAST_PEAKS)..];
+        let last_peak = if last.is_empty() {
+            0.0
+        } else {
+            last.iter().map(|p| p.1.abs()).sum::<f64>() / last.len() as f64
+        };
+        let verdict = |state, why: String| OrbitVerdict {
+            state,
+            why,
+            last_peak,
+            nominal_peak: self.nominal,
+            tolerance: self.criteria.tolerance,
+        };
+        let lost = |why: String| verdict(OrbitState::Lost, why);
+        if let Some(f) = fault {
+            return lost(format!("fault: {f}"));
+        }
+        if watchdog_trips > 0 {
+            return lost(format!(
+                "the plant's watchdog tripped {watchdog_trips} times (safe mode)"
+            ));
+        }
+        let since = peaks.last().map_or(now, |p| now - p.0);
+        if since > MAX_TILT_GAP {
+            return lost(format!("no tilt for {since:.1} s"));
+        }
+        if last.windows(2).any(|w| w[0].1 * w[1].1 >= 0.0) {
+            return lost("tilts do not alternate".into());
+        }
+        if last.len() < 2 {
+            return verdict(OrbitState::Pending, "fewer than 2 tilts".into());
+        }
+        match peaks_hold(last_peak, self.nominal, &self.criteria) {
+            Ok(()) => verdict(OrbitState::Holds, String::new()),
+            Err(why) => lost(why),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check() -> OrbitCheck {
+        OrbitCheck {
+            nominal: 0.0413,
+            criteria: Criteria::default(),
+        }
+    }
+
+    /// `n` alternating peaks of size `a` (rad) every 0.435 s.
+    fn series(n: usize, a: f64) -> Vec<(f64, f64)> {
+        (0..n)
+            .map(|i| (0.2 + 0.435 * i as f64, if i % 2 == 0 { a } else { -a }))
+            .collect()
+    }
+
+    #[test]
+    fn the_margins_criterion_on_a_running_orbit() {
+        let c = check();
+        let now = |p: &[(f64, f64)]| p.last().unwrap().0 + 0.3;
+        // Within 25 % of the nominal peak, either way: holds.
+        for a in [0.0413, 0.0413 * 1.24, 0.0413 * 0.76] {
+            let p = series(20, a);
+            assert_eq!(
+                c.judge(&p, now(&p), 0, None).state,
+                OrbitState::Holds,
+                "{a}"
+            );
+        }
+        // Beyond it: lost, saying by how much.
+        let p = series(20, 0.0413 * 1.3);
+        let v = c.judge(&p, now(&p), 0, None);
+        assert_eq!(v.state, OrbitState::Lost);
+        assert!(v.why.contains("+30 %"), "{}", v.why);
+        // Only the last 10 tilts count: a large early transient does not.
+        let mut p = series(20, 0.0413);
+        p[5].1 *= 3.0;
+        assert_eq!(c.judge(&p, now(&p), 0, None).state, OrbitState::Holds);
+        // Two tilts to the same side.
+        let mut p = series(20, 0.0413);
+        p[18].1 = -p[18].1;
+        assert!(c.judge(&p, now(&p), 0, None).why.contains("alternate"));
+        // Tilts that stopped coming.
+        let p = series(20, 0.0413);
+        let v = c.judge(&p, now(&p) + MAX_TILT_GAP, 0, None);
+        assert!(v.why.contains("no tilt for"), "{}", v.why);
+        // Safe mode or a fault.
+        assert_eq!(c.judge(&p, now(&p), 1, None).state, OrbitState::Lost);
+        let v = c.judge(&p, now(&p), 0, Some("contact loss"));
+        assert!(v.why.contains("contact loss"));
+        // Too early to say; and a run without any tilt for too long.
+        assert_eq!(
+            c.judge(&series(1, 0.04), 0.5, 0, None).state,
+            OrbitState::Pending
+        );
+        assert_eq!(c.judge(&[], 0.5, 0, None).state, OrbitState::Pending);
+        assert_eq!(c.judge(&[], 2.0, 0, None).state, OrbitState::Lost);
+    }
+}
