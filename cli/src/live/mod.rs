@@ -112,6 +112,12 @@ pub struct LiveArgs {
     /// periods old
     #[arg(long, default_value_t = tilting_plant::node::DEFAULT_MAX_AGE, value_name = "PERIODS")]
     pub max_age: u64,
+    /// The controller predicts the state over the round-trip delay (its --predict): `auto`
+    /// (the default value) estimates the delay from the ages in the plant's status, or give it
+    /// in seconds, in [0, 60]
+    #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
+          value_parser = tilting_controller::predict::parse_predict)]
+    pub predict: Option<tilting_controller::predict::Predict>,
 }
 
 /// Largest `--max-age` (periods), as the plant allows.
@@ -459,6 +465,15 @@ async fn live(
             &[plant_port, my_port],
         ));
         ctl_args.extend(LawArgs::controller_flags(&reference));
+        match args.predict {
+            Some(tilting_controller::predict::Predict::Estimated) => {
+                ctl_args.extend(["--predict".into(), "auto".into()]);
+            }
+            Some(tilting_controller::predict::Predict::Given(d)) => {
+                ctl_args.extend(["--predict".into(), d.to_string()]);
+            }
+            None => {}
+        }
         controller = Some(Child::spawn(
             "controller",
             &bins.controller,
