@@ -175,10 +175,16 @@ pub fn accelerations_t(p: &Params, mode: Mode, tm: &Terms, tau: f64) -> (f64, f6
         _ => {
             let (m11, m12, m22) = tm.m;
             let (h1, h2) = tm.h;
-            let det = m11 * m22 - m12 * m12;
+            // The reciprocal first: it depends on the mass matrix alone, so the division
+            // runs while the bias terms are still being computed instead of after them (the
+            // right-hand side is a chain of dependent stages, latency-bound).
+            let inv_det = 1.0 / (m11 * m22 - m12 * m12);
             let r1 = -h1;
             let r2 = tau - h2;
-            ((m22 * r1 - m12 * r2) / det, (m11 * r2 - m12 * r1) / det)
+            (
+                (m22 * r1 - m12 * r2) * inv_det,
+                (m11 * r2 - m12 * r1) * inv_det,
+            )
         }
     }
 }
@@ -206,7 +212,7 @@ pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, tm: &Terms, v: f64) -> f64
         _ => {
             let (m11, m12, m22) = tm.m;
             let (h1, h2) = tm.h;
-            let add = -(m12 * v + h1) / m11;
+            let add = -(m12 * v + h1) * (1.0 / m11); // reciprocal first, as above
             m12 * add + m22 * v + h2
         }
     }

@@ -463,7 +463,7 @@ impl Plant {
         let fy = vertical_force_t(p, self.mode, x, tr, xd[2], xd[3]);
         match self.mode {
             Mode::Flat => {
-                let tau = p.m_l * p.l * (p.l * xd[3] + p.g * x[1].cos());
+                let tau = p.m_l * p.l * (p.l * xd[3] + p.g * tr.cb);
                 [p.f * fy + tau, p.f * fy - tau, fy, 1.0]
             }
             m => {
@@ -475,7 +475,7 @@ impl Plant {
 
     /// The shared terms of the current `(mode, x)`: from the cache when they were computed at
     /// this very state (the end of the last step), else computed now and cached.
-    #[inline]
+    #[inline(always)]
     fn terms_here(&mut self) -> Terms {
         let key = [
             self.x[0].to_bits(),
@@ -484,7 +484,15 @@ impl Plant {
             self.x[3].to_bits(),
         ];
         if let Some((m, k, tm)) = &self.terms {
-            if *m == self.mode && *k == key {
+            // Compared word by word: an array comparison is compiled to 16-byte loads of the
+            // key just written by 8-byte stores, a store-forwarding stall that cost about 6 %
+            // of the held path (perf annotate).
+            if *m == self.mode
+                && k[0] == key[0]
+                && k[1] == key[1]
+                && k[2] == key[2]
+                && k[3] == key[3]
+            {
                 return *tm;
             }
         }
@@ -681,19 +689,32 @@ impl Plant {
             // inner stages take theirs from these by the angle-sum formulas.
             let tm0 = self.terms_here();
             let base = std::cell::Cell::new((self.x, tm0.trig));
-            let f5 = |t: f64, x: &State, end: bool| {
+            // Inlined into the stepper's six call sites: as a called function its results went
+            // through memory, and each stage waits on the one before (measured +17 % on the held path).
+            let mut f5 = same(
+                #[inline(always)]
+                |t: f64, x: &State, end: bool| {
+                    evals.set(evals.get() + 1);
+                    let tm = if end {
+                        Terms::new(&p, mode, x)
+                    } else {
+                        let (x0, tr0) = base.get();
+                        Terms::from_trig(&p, mode, x, Trig::near(x, &x0, &tr0))
+                    };
+                    let tau = tau_of.torque_t(t, mode, x, &p, &tm);
+                    let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
+                    (State::new(x[2], x[3], add, bdd), tm)
+                },
+            );
+            // DOP853's right-hand side (its steps, dense output and event location): the
+            // library's sines and cosines everywhere.
+            let mut f = |t: f64, x: &State| {
                 evals.set(evals.get() + 1);
-                let tm = if end {
-                    Terms::new(&p, mode, x)
-                } else {
-                    let (x0, tr0) = base.get();
-                    Terms::from_trig(&p, mode, x, Trig::near(x, &x0, &tr0))
-                };
+                let tm = Terms::new(&p, mode, x);
                 let tau = tau_of.torque_t(t, mode, x, &p, &tm);
                 let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
-                (State::new(x[2], x[3], add, bdd), tm)
+                State::new(x[2], x[3], add, bdd)
             };
-            let mut f = |t: f64, x: &State| f5(t, x, true).0;
             evals.set(evals.get() + 1);
             let tau0 = tau_of.torque_t(self.t, mode, &self.x, &p, &tm0);
             let (add, bdd) = accelerations_t(&p, mode, &tm0, tau0);
@@ -723,7 +744,7 @@ impl Plant {
                 {
                     let tr = *trig_here.get_or_insert_with(|| Trig::new(&self.x));
                     base.set((self.x, tr));
-                    let s = self.short.step(&mut &f5, self.t, &self.x, &f0, t_target)?;
+                    let s = self.short.step(&mut f5, self.t, &self.x, &f0, t_target)?;
                     let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig);
                     if !(0..NG).any(|i| crossed(g0[i], g1[i])) {
                         self.t = s.t1;
@@ -852,6 +873,13 @@ impl Plant {
         }
         Ok(())
     }
+}
+
+/// `f` itself: lets a closure carry `#[inline(always)]` (an attribute on a closure in a `let` is
+/// not stable Rust, one on a call argument is).
+#[inline(always)]
+fn same<F>(f: F) -> F {
+    f
 }
 
 /// Did event `e` fire between two successive values? Each fires when it reaches zero from
