@@ -111,8 +111,8 @@ pub struct PlantArgs {
     /// Start at once instead of waiting for a controller (its liveliness token or an answer)
     #[arg(long)]
     pub no_wait: bool,
-    /// Lockstep clock: publish an extra state at each mode transition (same `seq` as its
-    /// period, its own time) and switch to its answer at once
+    /// Publish an extra state at each mode transition (same `seq` as its period, its own time)
+    /// and switch to its answer at once (real time: if it comes within half a period)
     #[arg(long)]
     pub sample_on_event: bool,
     /// Realtime clock: busy-wait this long before each deadline (µs)
@@ -193,10 +193,6 @@ impl PlantArgs {
         }
         let imperfect = self.imperfections()?;
         if self.sample_on_event {
-            anyhow::ensure!(
-                self.clock == ClockMode::Lockstep,
-                "--sample-on-event is implemented for --clock lockstep only"
-            );
             anyhow::ensure!(
                 self.network.impairment(self.max_age)?.is_none() && !imperfect.has_hardware(),
                 "--sample-on-event is not combined with emulated links (--delay ...) or the \

@@ -67,6 +67,8 @@ pub(super) struct Loop {
     pub(super) seq: u64,
     /// Extra states published at mode transitions (`--sample-on-event`).
     pub(super) extra_states: u64,
+    /// Answers to extra states taken into force.
+    pub(super) extra_answers: u64,
     /// When it was published (ns).
     pub(super) t_pub: u64,
     pub(super) status_state: u8,
@@ -479,23 +481,41 @@ impl Loop {
         Ok(last)
     }
 
-    /// `--sample-on-event` (lockstep, perfect robot): integrates to `t_next` (s) with `tau`
-    /// (N m), stopping at each mode transition to publish the state there (the period's `seq`,
-    /// the transition's time) and switch to its answer, as `simulate --sample-on-event` does
-    /// over a perfect link. Without an answer within `--lockstep-timeout-ms` the torque in force
-    /// stays.
+    /// `--sample-on-event` (perfect robot, no emulated links): integrates to `t_next` (s) with
+    /// `tau` (N m), stopping at each mode transition to publish the state there (the period's
+    /// `seq`, the transition's time) and switch to its answer, as `simulate --sample-on-event`
+    /// does over a perfect link. Without an answer within `--lockstep-timeout-ms` (lockstep) or
+    /// half a period (real time) the torque in force stays.
+    ///
+    /// In real time the plant integrates each period when it ends, so the transition lies up to
+    /// one period in the wall-clock past when its state leaves; the answer then acts from the
+    /// transition's instant of plant time, as in lockstep, and the next periodic state leaves
+    /// later by the round trip (at most half a period).
     fn advance_sampling_events(&mut self, mut tau: f64, t_next: f64) -> Result<(), Fault> {
-        let timeout = Duration::from_millis(self.args.lockstep_timeout_ms);
+        let timeout = match self.args.clock {
+            ClockMode::Lockstep => Duration::from_millis(self.args.lockstep_timeout_ms),
+            ClockMode::Realtime => Duration::from_secs_f64(0.5 * self.h),
+        };
         while self
             .plant
             .advance_held_to_event(tau, t_next, &mut self.obs)?
         {
             self.measured = None;
+            if self.args.clock == ClockMode::Realtime {
+                // The periodic answer in force (or a late one, superseded by the answer to
+                // come) still sits in the inbox: the wait below must not take it for the
+                // answer to the extra state, which carries the same `seq`.
+                let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
+                if inbox.is_some_and(|(c, _)| c.seq <= self.seq) {
+                    *inbox = None;
+                }
+            }
             let t = self.t_pub;
             self.publish_state();
             self.t_pub = t;
             self.extra_states += 1;
             if let Some((cmd, _)) = self.wait_fresh(timeout) {
+                self.extra_answers += 1;
                 self.rec(|r| r.torque(&cmd));
                 tau = cmd.tau;
                 if self.args.torque_limit > 0.0 {
@@ -664,6 +684,8 @@ impl Loop {
             torques_late: self.torques_late,
             torques_lost: self.torques_lost,
             torques_applied: self.torques_applied,
+            extra_states: self.extra_states,
+            extra_answers: self.extra_answers,
             network: self.hold.as_ref().map(|h| h.stats().clone()),
             link: self.link.as_ref().map(|l| l.stats()),
             age_periods: Some(Window {

@@ -182,6 +182,7 @@ async fn run_async(
         record,
         seq: 0,
         extra_states: 0,
+        extra_answers: 0,
         t_pub: 0,
         status_state: Status::STARTING,
         fault: String::new(),

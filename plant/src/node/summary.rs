@@ -108,6 +108,13 @@ pub struct PlantSummary {
     /// Torque commands taken into force (the torque channel of an MCAP `--record`).
     #[serde(default)]
     pub torques_applied: u64,
+    /// Extra states published at mode transitions (`--sample-on-event`).
+    #[serde(default)]
+    pub extra_states: u64,
+    /// Answers to extra states taken into force (in real time, those that came within half a
+    /// period).
+    #[serde(default)]
+    pub extra_answers: u64,
     /// What the emulated links did, in lockstep with `--delay` ...
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub network: Option<tilting_link::NetStats>,
