@@ -225,6 +225,58 @@ pub fn plant_args(robot: &str, port: u16, extra: &[&str]) -> Vec<String> {
     v
 }
 
+/// Runs `tilting simulate --json ARGS` (the arguments given in full: control period, duration,
+/// flags), asserting it succeeded: the final state `(alpha, beta, alpha_dot, beta_dot)` and the
+/// whole report.
+pub fn simulate_json(args: &[&str]) -> (Vec<f64>, serde_json::Value) {
+    let out = Command::new(bin("tilting"))
+        .args(["simulate", "--json"])
+        .args(args)
+        .output()
+        .expect("run tilting simulate");
+    assert!(
+        out.status.success(),
+        "simulate {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("simulate's JSON");
+    let x = v["final"]["x"]
+        .as_array()
+        .expect("final.x")
+        .iter()
+        .map(|x| x.as_f64().expect("a number"))
+        .collect();
+    (x, v)
+}
+
+/// Starts a plant (`plant_args` with `plant_extra`) and a controller node connecting to it
+/// (`peer_args` with `ctl_extra`) in `dir`, waits up to 60 s for the plant to end (it must
+/// succeed), stops the controller and returns both summaries.
+pub fn run_loop(
+    dir: &Path,
+    robot: &str,
+    port: u16,
+    plant_extra: &[&str],
+    ctl_extra: &[&str],
+) -> (PlantSummary, ControllerSummary) {
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(robot, port, plant_extra),
+        dir,
+    );
+    let mut ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &peer_args(robot, port, ctl_extra),
+        dir,
+    );
+    let status = plant.expect_exit(Duration::from_secs(60));
+    assert!(status.success(), "plant: {status}\n{}", plant.logs());
+    ctl.interrupt(Duration::from_secs(10));
+    (plant.plant_summary(), ctl.controller_summary())
+}
+
 /// Arguments of a controller (or any peer) connecting to `port` for `robot`, followed by
 /// `extra`.
 pub fn peer_args(robot: &str, port: u16, extra: &[&str]) -> Vec<String> {

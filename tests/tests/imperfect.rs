@@ -33,31 +33,9 @@ const IMPERFECT: [&str; 18] = [
 ];
 
 fn simulate_final(extra: &[&str]) -> (Vec<f64>, serde_json::Value) {
-    let out = std::process::Command::new(bin("tilting"))
-        .args([
-            "simulate",
-            "--json",
-            "--control-period",
-            "0.001",
-            "--duration",
-            "2",
-        ])
-        .args(extra)
-        .output()
-        .expect("run simulate");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let x = v["final"]["x"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    (x, v)
+    let mut args = vec!["--control-period", "0.001", "--duration", "2"];
+    args.extend(extra);
+    simulate_json(&args)
 }
 
 /// Lockstep plant with every imperfection and a lossy, delayed link against `simulate` with the
@@ -69,26 +47,9 @@ fn lockstep_with_imperfections_equals_simulate_with_the_same_flags() {
     let mut flags: Vec<&str> = IMPERFECT.to_vec();
     flags.extend(["--torque-delay", "0.001", "--loss", "0.02"]);
     let dir = Scratch::new("lockstep-imperfect");
-    let port = free_port();
-    let robot = robot("lockimp");
     let mut extra = vec!["--clock", "lockstep", "--duration", "2"];
     extra.extend(&flags);
-    let mut plant = Proc::spawn(
-        "plant",
-        &bin("tilting-plant"),
-        &plant_args(&robot, port, &extra),
-        dir.path(),
-    );
-    let mut ctl = Proc::spawn(
-        "controller",
-        &bin("tilting-controller"),
-        &peer_args(&robot, port, &[]),
-        dir.path(),
-    );
-    let status = plant.expect_exit(Duration::from_secs(60));
-    assert!(status.success(), "plant: {status}\n{}", plant.logs());
-    ctl.interrupt(Duration::from_secs(10));
-    let summary = plant.plant_summary();
+    let (summary, _) = run_loop(dir.path(), &robot("lockimp"), free_port(), &extra, &[]);
     assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
     assert_eq!(summary.time, 2.0);
 

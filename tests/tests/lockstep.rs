@@ -79,29 +79,12 @@ fn lockstep_run_equals_offline_simulation() {
 
     // And the offline `simulate` command itself, with the same control period: the same final
     // state, bit for bit.
-    let out = std::process::Command::new(bin("tilting"))
-        .args([
-            "simulate",
-            "--json",
-            "--control-period",
-            &PERIOD.to_string(),
-            "--duration",
-            &DURATION.to_string(),
-        ])
-        .output()
-        .expect("run tilting simulate");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let sim_x: Vec<f64> = report["final"]["x"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let (sim_x, report) = simulate_json(&[
+        "--control-period",
+        &PERIOD.to_string(),
+        "--duration",
+        &DURATION.to_string(),
+    ]);
     assert_eq!(report["final"]["t"].as_f64().unwrap(), DURATION);
     assert_eq!(sim_x, x, "simulate --control-period vs the lockstep run");
 }
@@ -213,63 +196,21 @@ fn a_predicting_controller_in_lockstep_equals_simulate_with_the_same_flags() {
 /// `net` and `ctl`, and compares the final states bit for bit and the network counters.
 fn lockstep_equals_simulate(name: &str, net: &[&str], ctl_flags: &[&str]) {
     let dir = Scratch::new(name);
-    let port = free_port();
-    let robot = robot(name);
     let mut extra = vec!["--clock", "lockstep", "--duration", "2"];
     extra.extend(net);
-    let mut plant = Proc::spawn(
-        "plant",
-        &bin("tilting-plant"),
-        &plant_args(&robot, port, &extra),
-        dir.path(),
-    );
-    let mut ctl = Proc::spawn(
-        "controller",
-        &bin("tilting-controller"),
-        &peer_args(&robot, port, ctl_flags),
-        dir.path(),
-    );
-    let status = plant.expect_exit(Duration::from_secs(60));
-    assert!(status.success(), "plant: {status}\n{}", plant.logs());
-    ctl.interrupt(Duration::from_secs(10));
+    let (summary, c) = run_loop(dir.path(), &robot(name), free_port(), &extra, ctl_flags);
     if !ctl_flags.is_empty() {
-        let p = ctl
-            .controller_summary()
-            .prediction
-            .expect("the prediction counters");
+        let p = c.prediction.expect("the prediction counters");
         assert!(p.predictions > 1000 && p.fallbacks == 0, "{p:?}");
     }
-    let summary = plant.plant_summary();
     let got_net = summary
         .network
         .clone()
         .expect("the plant's network counters");
-
-    let out = std::process::Command::new(bin("tilting"))
-        .args([
-            "simulate",
-            "--json",
-            "--control-period",
-            "0.001",
-            "--duration",
-            "2",
-        ])
-        .args(net)
-        .args(ctl_flags)
-        .output()
-        .expect("run simulate");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let want_x: Vec<f64> = v["final"]["x"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let mut args = vec!["--control-period", "0.001", "--duration", "2"];
+    args.extend(net);
+    args.extend(ctl_flags);
+    let (want_x, v) = simulate_json(&args);
     eprintln!("network: {got_net:?}");
     assert!(got_net.torques_late > 0, "{got_net:?}");
     if net.contains(&"--loss") {
@@ -287,30 +228,13 @@ fn lockstep_equals_simulate(name: &str, net: &[&str], ctl_flags: &[&str]) {
 /// `tilting simulate --sample-on-event` over `seconds` at 100 Hz: its final state and its
 /// controller's sample count (periodic and extra states).
 fn simulate_sampling_on_events(seconds: &str) -> (Vec<f64>, u64) {
-    let out = std::process::Command::new(bin("tilting"))
-        .args([
-            "simulate",
-            "--json",
-            "--control-period",
-            "0.01",
-            "--duration",
-            seconds,
-            "--sample-on-event",
-        ])
-        .output()
-        .expect("run simulate");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let x = v["final"]["x"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let (x, v) = simulate_json(&[
+        "--control-period",
+        "0.01",
+        "--duration",
+        seconds,
+        "--sample-on-event",
+    ]);
     (x, v["stats"]["controller_samples"].as_u64().unwrap())
 }
 
@@ -318,26 +242,9 @@ fn simulate_sampling_on_events(seconds: &str) -> (Vec<f64>, u64) {
 /// controller node: the plant's and the controller's summaries.
 fn sampling_on_events_run(name: &str, clock_args: &[&str]) -> (PlantSummary, ControllerSummary) {
     let dir = Scratch::new(name);
-    let port = free_port();
-    let robot = robot(name);
     let mut extra = vec!["--duration", "2", "--rate", "100", "--sample-on-event"];
     extra.extend_from_slice(clock_args);
-    let mut plant = Proc::spawn(
-        "plant",
-        &bin("tilting-plant"),
-        &plant_args(&robot, port, &extra),
-        dir.path(),
-    );
-    let mut ctl = Proc::spawn(
-        "controller",
-        &bin("tilting-controller"),
-        &peer_args(&robot, port, &[]),
-        dir.path(),
-    );
-    let status = plant.expect_exit(Duration::from_secs(60));
-    assert!(status.success(), "plant: {status}\n{}", plant.logs());
-    ctl.interrupt(Duration::from_secs(10));
-    (plant.plant_summary(), ctl.controller_summary())
+    run_loop(dir.path(), &robot(name), free_port(), &extra, &[])
 }
 
 /// The plant in lockstep with `--sample-on-event` publishes an extra state at each mode

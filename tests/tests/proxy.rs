@@ -49,24 +49,14 @@ fn over_a_delaying_proxy_the_loop_matches_the_emulator() {
         "the torques did not cross the proxy: {through} bytes"
     );
 
-    let out = std::process::Command::new(bin("tilting"))
-        .args([
-            "simulate",
-            "--json",
-            "--control-period",
-            "0.001",
-            "--duration",
-            "5",
-        ])
-        .args(["--delay", "0.001"])
-        .output()
-        .expect("run simulate");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (_, v) = simulate_json(&[
+        "--control-period",
+        "0.001",
+        "--duration",
+        "5",
+        "--delay",
+        "0.001",
+    ]);
     let hist: Vec<u64> = serde_json::from_value(v["network"]["age_histogram"].clone()).unwrap();
     let emulated_age = hist
         .iter()
