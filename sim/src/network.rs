@@ -39,7 +39,7 @@
 use serde::Serialize;
 use tilting_controller::Predictor;
 use tilting_plant::imperfect::Hardware;
-use tilting_plant::{Fault, Observer, Plant, TorqueLaw};
+use tilting_plant::{Fault, Mode, Observer, Plant, State, TorqueLaw};
 
 pub use tilting_link::Impairment;
 pub use tilting_link::NetStats;
@@ -94,6 +94,23 @@ fn take_arrived(
     }
 }
 
+/// The controller's answer to the state `x` in `mode` sampled at `t` (s): the law at the state
+/// `predictor` forecasts for the answer's arrival, or at `x` itself without prediction.
+/// `periodic`: a sample on the period grid (else an extra state at an event).
+fn answer<L: TorqueLaw>(
+    predictor: &mut Option<Predictor>,
+    law: &L,
+    t: f64,
+    mode: Mode,
+    x: &State,
+    periodic: bool,
+) -> f64 {
+    match predictor {
+        Some(p) => p.answer(law, t, mode, x, periodic),
+        None => law.torque(t, mode, x),
+    }
+}
+
 /// [`crate::closed_loop::run_sampled`] over the links of `imp`: the zero-order hold with the
 /// controller `law` at `period` (s) up to `t_end` (s), torques chosen by
 /// [`tilting_link::ImpairedHold`], with the options `opts`. The controller sees the state
@@ -139,10 +156,7 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
             }
         }
         let (mode, x) = (plant.mode(), hw.measure(plant));
-        let mut tau = hold.step(k, t_k, || match &mut predictor {
-            Some(p) => p.answer(law, t_k, mode, &x, true),
-            None => law.torque(t_k, mode, &x),
-        });
+        let mut tau = hold.step(k, t_k, || answer(&mut predictor, law, t_k, mode, &x, true));
         samples += 1;
         let next = (k + 1) as f64 * period;
         let t_next = if next >= t_end - 1e-9 * period {
@@ -174,10 +188,8 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
                     }
                     Ok(true) => {
                         let (t_e, m, xe) = (plant.time(), plant.mode(), hw.measure(plant));
-                        let sent = hold.send_extra(t_e, || match &mut predictor {
-                            Some(p) => p.answer(law, t_e, m, &xe, false),
-                            None => law.torque(t_e, m, &xe),
-                        });
+                        let sent = hold
+                            .send_extra(t_e, || answer(&mut predictor, law, t_e, m, &xe, false));
                         samples += 1;
                         if let Some((r, tau_e)) = sent {
                             pending.push((k, r, tau_e));
