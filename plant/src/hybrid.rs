@@ -690,7 +690,8 @@ impl Plant {
             let tm0 = self.terms_here();
             let base = std::cell::Cell::new((self.x, tm0.trig));
             // Inlined into the stepper's six call sites: as a called function its results went
-            // through memory, and each stage waits on the one before (measured +17 % on the held path).
+            // through memory, and each stage waits on the one before (measured: +17 % on the
+            // held path).
             let mut f5 = same(
                 #[inline(always)]
                 |t: f64, x: &State, end: bool| {

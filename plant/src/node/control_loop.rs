@@ -501,10 +501,11 @@ impl Loop {
             .advance_held_to_event(tau, t_next, &mut self.obs)?
         {
             self.measured = None;
-            if self.args.clock == ClockMode::Realtime {
-                // The periodic answer in force (or a late one, superseded by the answer to
-                // come) still sits in the inbox: the wait below must not take it for the
-                // answer to the extra state, which carries the same `seq`.
+            {
+                // An answer to this period's state may still sit in the inbox (in real time the
+                // one in force, read without taking it; in lockstep a second answer to a
+                // re-published state): the wait below must not take it for the answer to the
+                // extra state, which carries the same `seq`.
                 let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
                 if inbox.is_some_and(|(c, _)| c.seq <= self.seq) {
                     *inbox = None;
