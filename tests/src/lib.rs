@@ -3,7 +3,7 @@
 //!
 //! - The binaries of other packages are not available as `CARGO_BIN_EXE_*` here: [`bin`] finds
 //!   them in the profile directory next to the test executable (`target/release/deps/..`) and,
-//!   once per test binary, runs `cargo build --release` of the node binaries and the front door
+//!   once per test binary, runs `cargo build --release --workspace --bins` (the README's build)
 //!   so they are never stale (set `TILTING_TESTS_NO_BUILD=1` to skip that and use what is
 //!   there).
 //! - [`Proc`]: a child process started by the product's own supervisor
@@ -53,18 +53,10 @@ pub fn bin(name: &str) -> PathBuf {
         }
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let status = Command::new(cargo)
-            .args([
-                "build",
-                "--release",
-                "-p",
-                "tilting-plant",
-                "-p",
-                "tilting-controller",
-                "-p",
-                "tilting-planner",
-                "-p",
-                "tilting",
-            ])
+            // The README's build (every binary of the workspace): with the workspace-hack crate
+            // every build resolves the same features, so after `cargo test --workspace` this
+            // compiles nothing but the binaries `cargo test` did not link.
+            .args(["build", "--release", "--workspace", "--bins"])
             .current_dir(workspace_root())
             .status()
             .expect("cannot run cargo build");
