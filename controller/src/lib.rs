@@ -148,7 +148,7 @@ impl ComputedTorque {
     #[inline(always)]
     fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let v = self.acceleration_t(t, mode, x, tr);
-        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, tr, v);
+        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v);
         match self.cfg.torque_limit {
             Some(l) => tau.clamp(-l, l),
             None => tau,

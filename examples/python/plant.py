@@ -93,8 +93,23 @@ def unpack_torque(payload):
 
 
 class Params:
-    def __init__(self, m_f=1.0, m_l=1.0, l=2.0, f=0.5, g=9.81):
+    """The paper's point masses, plus the hardware terms of docs/model.md ("A plant that looks
+    like hardware"): the arm's centre of mass at l_c (None: the tip) with its inertia i_l, a
+    rotor j_m behind the gear ratio n_g, viscous friction b_v. Coulomb friction (tau_c) is not
+    in this example: it needs stick/slip events (the Rust plant has them)."""
+
+    KEYS = ("m_f", "m_l", "l", "f", "g", "l_c", "i_l", "j_m", "n_g", "b_v")
+
+    def __init__(
+        self, m_f=1.0, m_l=1.0, l=2.0, f=0.5, g=9.81, l_c=None, i_l=0.0, j_m=0.0, n_g=1.0, b_v=0.0
+    ):
         self.m_f, self.m_l, self.l, self.f, self.g = m_f, m_l, l, f, g
+        self.lc = l if l_c is None else l_c
+        self.i_l, self.j_m, self.n_g, self.b_v = i_l, j_m, n_g, b_v
+        self.has_inertia = i_l != 0.0 or j_m != 0.0
+        # The spins' share of the mass matrix (kg m^2): the arm turns with alpha + beta, the
+        # rotor with alpha + n_g beta.
+        self.i11, self.i12, self.i22 = i_l + j_m, i_l + n_g * j_m, i_l + n_g * n_g * j_m
 
     def signed_f(self, mode):
         """+f seen from the left pivot (and flat), -f from the right pivot."""
@@ -106,24 +121,32 @@ class Params:
 
         with open(path, "rb") as fh:
             d = tomllib.load(fh)
-        unknown = set(d) - {"m_f", "m_l", "l", "f", "g"}
+        unknown = set(d) - set(Params.KEYS)
         if unknown:
             raise SystemExit(f"--params {path}: unknown keys {sorted(unknown)}")
         p = Params(**{k: float(v) for k, v in d.items()})
-        for k in ("m_f", "m_l", "l", "f", "g"):
+        for k in ("m_f", "m_l", "l", "f", "g", "n_g"):
             v = getattr(p, k)
             if not (math.isfinite(v) and v > 0.0):
                 raise SystemExit(f"--params {path}: {k} = {v}; allowed: finite and > 0")
+        for k in ("i_l", "j_m", "b_v"):
+            v = getattr(p, k)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise SystemExit(f"--params {path}: {k} = {v}; allowed: finite and >= 0")
+        if not (math.isfinite(p.lc) and 0.0 < p.lc <= p.l):
+            raise SystemExit(f"--params {path}: l_c = {p.lc}; allowed: finite, > 0 and <= l")
         return p
 
 
 def mass_matrix(p, mode, beta):
     """(M11, M12, M22) of the tilted double pendulum about the pivot."""
-    sf = p.signed_f(mode)
+    sf, lc = p.signed_f(mode), p.lc
     cb = math.cos(beta)
-    m11 = p.m_f * sf * sf + p.m_l * (sf * sf + 2.0 * sf * p.l * cb + p.l * p.l)
-    m12 = p.m_l * p.l * (p.l + sf * cb)
-    m22 = p.m_l * p.l * p.l
+    m11 = p.m_f * sf * sf + p.m_l * (sf * sf + 2.0 * sf * lc * cb + lc * lc)
+    m12 = p.m_l * lc * (lc + sf * cb)
+    m22 = p.m_l * lc * lc
+    if p.has_inertia:  # skipped, not added as zeros: the paper's numbers stay the same bits
+        return m11 + p.i11, m12 + p.i12, m22 + p.i22
     return m11, m12, m22
 
 
@@ -134,20 +157,28 @@ def bias(p, mode, x):
     sb = math.sin(beta)
     cab = math.cos(alpha + beta)
     h1 = (
-        -p.m_l * sf * p.l * sb * (2.0 * ad * bd + bd * bd)
+        -p.m_l * sf * p.lc * sb * (2.0 * ad * bd + bd * bd)
         + (p.m_f + p.m_l) * p.g * sf * math.cos(alpha)
-        + p.m_l * p.g * p.l * cab
+        + p.m_l * p.g * p.lc * cab
     )
-    h2 = p.m_l * p.l * (sf * sb * ad * ad + p.g * cab)
+    h2 = p.m_l * p.lc * (sf * sb * ad * ad + p.g * cab)
     return h1, h2
 
 
-def accelerations(p, mode, x, tau):
-    """Forward dynamics: (alpha_ddot, beta_ddot) under the joint torque tau (N m)."""
+def net_torque(p, bd, tau):
+    """The net joint torque on the arm: the motor's tau less the viscous friction b_v beta_dot."""
+    return tau - p.b_v * bd if p.b_v != 0.0 else tau
+
+
+def accelerations(p, mode, x, motor_tau):
+    """Forward dynamics: (alpha_ddot, beta_ddot) under the motor torque (N m), friction included."""
     beta = x[1]
+    tau = net_torque(p, x[3], motor_tau)
     if mode == FLAT:
-        # tau = m_l l (l beta_ddot + g cos beta), the plate does not move.
-        return 0.0, (tau / (p.m_l * p.l) - p.g * math.cos(beta)) / p.l
+        # tau = M22 beta_ddot + m_l g l_c cos beta, the plate does not move.
+        if p.has_inertia:
+            return 0.0, (tau - p.m_l * p.lc * p.g * math.cos(beta)) / mass_matrix(p, FLAT, beta)[2]
+        return 0.0, (tau / (p.m_l * p.lc) - p.g * math.cos(beta)) / p.lc
     m11, m12, m22 = mass_matrix(p, mode, beta)
     h1, h2 = bias(p, mode, x)
     # M [alpha_ddot, beta_ddot]^T = [-h1, tau - h2]^T (the plate row has no torque).
@@ -169,7 +200,7 @@ def vertical_force(p, mode, x, add, bdd):
     sf = p.signed_f(mode)
     yf_dd = sf * (math.cos(alpha) * add - math.sin(alpha) * ad * ad)
     w = ad + bd
-    yl_dd = yf_dd + p.l * (math.cos(alpha + beta) * (add + bdd) - math.sin(alpha + beta) * w * w)
+    yl_dd = yf_dd + p.lc * (math.cos(alpha + beta) * (add + bdd) - math.sin(alpha + beta) * w * w)
     return p.m_f * (p.g + yf_dd) + p.m_l * (p.g + yl_dd)
 
 
@@ -180,10 +211,12 @@ def energy(p, mode, x):
     sa, ca = math.sin(alpha), math.cos(alpha)
     sab, cab = math.sin(alpha + beta), math.cos(alpha + beta)
     y_f = sf * sa
-    y_l = y_f + p.l * sab
+    y_l = y_f + p.lc * sab
     vf = (-sf * ad * sa, sf * ad * ca)
-    vl = (vf[0] - p.l * (ad + bd) * sab, vf[1] + p.l * (ad + bd) * cab)
+    vl = (vf[0] - p.lc * (ad + bd) * sab, vf[1] + p.lc * (ad + bd) * cab)
     kinetic = 0.5 * (p.m_f * (vf[0] ** 2 + vf[1] ** 2) + p.m_l * (vl[0] ** 2 + vl[1] ** 2))
+    if p.has_inertia:  # the arm's and the rotor's spins
+        kinetic += 0.5 * (p.i_l * (ad + bd) ** 2 + p.j_m * (ad + p.n_g * bd) ** 2)
     return kinetic + p.g * (p.m_f * y_f + p.m_l * y_l)
 
 
@@ -196,19 +229,33 @@ def impact_gain(p, law, mode, beta):
         m11, m12, _ = mass_matrix(p, mode, beta)
         return m11 / m12
     # "striking-edge": the rocking-block law, angular momentum about the edge that hits.
-    return (p.m_l * p.l**2 - (p.m_f + p.m_l) * sf * sf) / (
-        p.m_l * p.l * (p.l - sf * math.cos(beta))
-    )
+    num, den = p.m_l * p.lc**2, p.m_l * p.lc * (p.lc - sf * math.cos(beta))
+    if p.has_inertia:  # the spins' momentum about the striking edge
+        num, den = num + p.i11, den + p.i12
+    return (num - (p.m_f + p.m_l) * sf * sf) / den
 
 
 def torque_for_beta_ddot(p, mode, x, v):
-    """Computed torque: the joint torque that makes beta_ddot = v in `mode` (safe mode)."""
+    """Computed torque: the motor torque that makes beta_ddot = v in `mode` (safe mode),
+    friction compensated."""
     if mode == FLAT:
-        return p.m_l * p.l * (p.l * v + p.g * math.cos(x[1]))
-    m11, m12, m22 = mass_matrix(p, mode, x[1])
-    h1, h2 = bias(p, mode, x)
-    alpha_ddot = -(m12 * v + h1) / m11
-    return m12 * alpha_ddot + m22 * v + h2
+        if p.has_inertia:
+            tau = mass_matrix(p, FLAT, x[1])[2] * v + p.m_l * p.lc * p.g * math.cos(x[1])
+        else:
+            tau = p.m_l * p.lc * (p.lc * v + p.g * math.cos(x[1]))
+    else:
+        m11, m12, m22 = mass_matrix(p, mode, x[1])
+        h1, h2 = bias(p, mode, x)
+        alpha_ddot = -(m12 * v + h1) / m11
+        tau = m12 * alpha_ddot + m22 * v + h2
+    return tau + p.b_v * x[3] if p.b_v != 0.0 else tau
+
+
+def plate_torque(p, beta, bdd):
+    """The torque the arm and the rotor put on the flat plate (N m), from the arm's
+    acceleration: m_l l_c (l_c beta_ddot + g cos beta) + (i_l + n_g j_m) beta_ddot."""
+    t = p.m_l * p.lc * (p.lc * bdd + p.g * math.cos(beta))
+    return t + p.i12 * bdd if p.has_inertia else t
 
 
 # ---------------------------------------------------------------------------------------------
@@ -288,6 +335,8 @@ class HybridPlant:
         p = self.p
         fy = vertical_force(p, self.mode, x, xd[2], xd[3])
         if self.mode == FLAT:
+            if p.has_inertia or p.b_v != 0.0:
+                tau = plate_torque(p, x[1], xd[3])  # what the plate feels (docs/model.md)
             return (p.f * fy + tau, p.f * fy - tau, fy, 1.0)
         s = self.sign()
         return (s * x[0], s * x[2], fy, self.fall_angle - s * x[0])
@@ -466,9 +515,30 @@ def self_test():
         m11, m12, m22 = mass_matrix(p, mode, x[1])
         sf = p.signed_f(mode)
         e = 0.5 * (m11 * x[2] ** 2 + 2 * m12 * x[2] * x[3] + m22 * x[3] ** 2) + p.g * (
-            (p.m_f + p.m_l) * sf * math.sin(x[0]) + p.m_l * p.l * math.sin(x[0] + x[1])
+            (p.m_f + p.m_l) * sf * math.sin(x[0]) + p.m_l * p.lc * math.sin(x[0] + x[1])
         )
         assert abs(e - energy(p, mode, x)) < 1e-12 * abs(e), (mode, e)
+
+    # The hardware terms (docs/model.md): the same identity with the arm's centre of mass off
+    # the tip, its inertia and a geared rotor; passive motion with them conserves energy; viscous
+    # friction dissipates b_v beta_dot^2 (trapezoid rule on the 1e-4 s steps: O(dt^2), 1e-7 J).
+    hw = Params(l_c=1.4, i_l=0.25, j_m=0.002, n_g=9.0)
+    for mode, x in ((LEFT, (0.1, 1.7, -0.3, 0.2)), (RIGHT, (-0.2, 1.4, 0.5, -0.6))):
+        m11, m12, m22 = mass_matrix(hw, mode, x[1])
+        sf = hw.signed_f(mode)
+        e = 0.5 * (m11 * x[2] ** 2 + 2 * m12 * x[2] * x[3] + m22 * x[3] ** 2) + hw.g * (
+            (hw.m_f + hw.m_l) * sf * math.sin(x[0]) + hw.m_l * hw.lc * math.sin(x[0] + x[1])
+        )
+        assert abs(e - energy(hw, mode, x)) < 1e-12 * abs(e), (mode, e)
+    for q, tol in ((hw, 1e-9), (Params(l_c=1.4, i_l=0.25, j_m=0.002, n_g=9.0, b_v=0.3), 1e-7)):
+        for mode, x in ((LEFT, (0.3, 1.0, 0.0, 4.0)), (FLAT, (0.0, 0.3, 0.0, 4.0))):
+            e0, lost, dt = energy(q, mode, x), 0.0, 1e-4
+            for _ in range(10000):
+                x1 = rk4(q, mode, 0.0, x, dt, rhs(q, mode, x, 0.0))
+                lost += 0.5 * dt * q.b_v * (x[3] ** 2 + x1[3] ** 2)
+                x = x1
+            err = abs(e0 - energy(q, mode, x) - lost)
+            assert err < tol * max(1.0, abs(e0)) and (q.b_v == 0.0 or lost > 0.5), (mode, err, lost)
 
     # Passive tilting (tau = 0) conserves energy: the integrator on the tilted equations, a
     # whirling double pendulum for 2 s at the default step (no switching: a passive plate falls).

@@ -4,6 +4,12 @@
 //! State `x = (alpha, beta, alpha_dot, beta_dot)` in rad and rad/s; torque `tau` in N m on the arm
 //! joint, positive accelerating `beta` positively. Tilted equations are those of a double
 //! pendulum about the pivot; the right tilt is the left one with `f -> -f`.
+//!
+//! Two torques at the joint: the motor's `tau` (what a controller commands) and the net joint
+//! torque `tau_j = tau - b_v beta_dot` (the motor's less the friction). The rigid-body functions
+//! ending in `_t` ([`accelerations_t`]) take the net torque; the others ([`accelerations`],
+//! [`rhs`], [`torque_for_beta_ddot`], [`support_margins`], ...) take the motor's and apply the
+//! friction themselves. With the paper's parameters the two are the same number.
 
 use crate::{Mode, Params, State};
 
@@ -134,10 +140,17 @@ pub fn mass_matrix(p: &Params, mode: Mode, beta: f64) -> (f64, f64, f64) {
 #[inline(always)]
 fn mass_matrix_cb(p: &Params, mode: Mode, cb: f64) -> (f64, f64, f64) {
     let sf = mode.signed_f(p.f);
-    let m11 = p.m_f * sf * sf + p.m_l * (sf * sf + 2.0 * sf * p.l * cb + p.l * p.l);
-    let m12 = p.m_l * p.l * (p.l + sf * cb);
-    let m22 = p.m_l * p.l * p.l;
-    (m11, m12, m22)
+    let l = p.lc();
+    let m11 = p.m_f * sf * sf + p.m_l * (sf * sf + 2.0 * sf * l * cb + l * l);
+    let m12 = p.m_l * l * (l + sf * cb);
+    let m22 = p.m_l * l * l;
+    // Skipped, not added as zeros, for point masses: the paper's numbers stay the same bits.
+    if p.has_inertia() {
+        let (i11, i12, i22) = p.inertia();
+        (m11 + i11, m12 + i12, m22 + i22)
+    } else {
+        (m11, m12, m22)
+    }
 }
 
 /// Coriolis, centrifugal and gravity terms `(h1, h2)` of a tilted mode (N m).
@@ -150,26 +163,52 @@ pub fn bias(p: &Params, mode: Mode, x: &State) -> (f64, f64) {
 fn bias_t(p: &Params, mode: Mode, x: &State, tr: &Trig) -> (f64, f64) {
     let (ad, bd) = (x[2], x[3]);
     let sf = mode.signed_f(p.f);
-    let ml = p.m_l;
-    let h1 = -ml * sf * p.l * tr.sb * (2.0 * ad * bd + bd * bd)
+    let (ml, l) = (p.m_l, p.lc());
+    let h1 = -ml * sf * l * tr.sb * (2.0 * ad * bd + bd * bd)
         + p.total_mass() * p.g * sf * tr.ca
-        + ml * p.g * p.l * tr.cab;
-    let h2 = ml * p.l * (sf * tr.sb * ad * ad + p.g * tr.cab);
+        + ml * p.g * l * tr.cab;
+    let h2 = ml * l * (sf * tr.sb * ad * ad + p.g * tr.cab);
     (h1, h2)
 }
 
-/// Accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under torque `tau`.
+/// Accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under the motor torque `tau`, friction
+/// included.
 #[inline(always)]
 pub fn accelerations(p: &Params, mode: Mode, x: &State, tau: f64) -> (f64, f64) {
-    accelerations_t(p, mode, &Terms::new(p, mode, x), tau)
+    joint_accelerations(p, mode, x, &Terms::new(p, mode, x), tau)
 }
 
 /// [`accelerations`] with the shared terms already at hand.
 #[inline(always)]
-pub fn accelerations_t(p: &Params, mode: Mode, tm: &Terms, tau: f64) -> (f64, f64) {
+pub fn joint_accelerations(p: &Params, mode: Mode, x: &State, tm: &Terms, tau: f64) -> (f64, f64) {
+    accelerations_t(p, mode, tm, net_torque(p, x[3], tau))
+}
+
+/// The net joint torque `tau_j` (N m) on the arm: the motor torque `tau` less the viscous
+/// friction `b_v beta_dot` at the arm rate `bd` (rad/s).
+#[inline(always)]
+pub fn net_torque(p: &Params, bd: f64, tau: f64) -> f64 {
+    // Skipped for no friction: the paper's numbers stay the same bits.
+    if p.b_v != 0.0 {
+        tau - p.b_v * bd
+    } else {
+        tau
+    }
+}
+
+/// The rigid-body accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under the net joint torque
+/// `tau_j` (N m; friction not included, see [`net_torque`]), with the shared terms at hand.
+#[inline(always)]
+pub fn accelerations_t(p: &Params, mode: Mode, tm: &Terms, tau_j: f64) -> (f64, f64) {
+    let tau = tau_j;
     match mode {
+        Mode::Flat if p.has_inertia() => {
+            let l = p.lc();
+            (0.0, (tau - p.m_l * l * p.g * tm.trig.cb) / tm.m.2)
+        }
         Mode::Flat => {
-            let bdd = (tau / (p.m_l * p.l) - p.g * tm.trig.cb) / p.l;
+            let l = p.lc();
+            let bdd = (tau / (p.m_l * l) - p.g * tm.trig.cb) / l;
             (0.0, bdd)
         }
         _ => {
@@ -196,25 +235,38 @@ pub fn rhs(p: &Params, mode: Mode, x: &State, tau: f64) -> State {
     State::new(x[2], x[3], add, bdd)
 }
 
-/// The torque (N m) that gives `beta_ddot = v` (rad/s^2) in `mode` at state `x`: the
-/// computed-torque (inverse dynamics) map. In a tilted mode `alpha_ddot` is eliminated with the
-/// first (unactuated) row of the equations of motion.
+/// The motor torque (N m) that gives `beta_ddot = v` (rad/s^2) in `mode` at state `x`: the
+/// computed-torque (inverse dynamics) map, friction compensated. In a tilted mode
+/// `alpha_ddot` is eliminated with the first (unactuated) row of the equations of motion.
 #[inline(always)]
 pub fn torque_for_beta_ddot(p: &Params, mode: Mode, x: &State, v: f64) -> f64 {
-    torque_for_beta_ddot_t(p, mode, &Terms::new(p, mode, x), v)
+    torque_for_beta_ddot_t(p, mode, x, &Terms::new(p, mode, x), v)
 }
 
-/// [`torque_for_beta_ddot`] with the shared terms already at hand.
+/// [`torque_for_beta_ddot`] with the shared terms of `x` already at hand.
 #[inline(always)]
-pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, tm: &Terms, v: f64) -> f64 {
-    match mode {
-        Mode::Flat => p.m_l * p.l * (p.l * v + p.g * tm.trig.cb),
+pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, x: &State, tm: &Terms, v: f64) -> f64 {
+    let tau_j = match mode {
+        Mode::Flat => {
+            let l = p.lc();
+            if p.has_inertia() {
+                tm.m.2 * v + p.m_l * l * p.g * tm.trig.cb
+            } else {
+                p.m_l * l * (l * v + p.g * tm.trig.cb)
+            }
+        }
         _ => {
             let (m11, m12, m22) = tm.m;
             let (h1, h2) = tm.h;
             let add = -(m12 * v + h1) * (1.0 / m11); // reciprocal first, as above
             m12 * add + m22 * v + h2
         }
+    };
+    // The friction the motor must overcome (skipped for none: the same bits).
+    if p.b_v != 0.0 {
+        tau_j + p.b_v * x[3]
+    } else {
+        tau_j
     }
 }
 
@@ -227,12 +279,13 @@ pub fn energy_t(p: &Params, mode: Mode, x: &State, tm: &Terms) -> f64 {
     let (m11, m12, m22) = tm.m;
     let sf = mode.signed_f(p.f);
     let t = 0.5 * (m11 * ad * ad + 2.0 * m12 * ad * bd + m22 * bd * bd);
-    let v = p.g * (p.total_mass() * sf * tm.trig.sa + p.m_l * p.l * tm.trig.sab);
+    let v = p.g * (p.total_mass() * sf * tm.trig.sa + p.m_l * p.lc() * tm.trig.sab);
     t + v
 }
 
 /// Vertical ground (or pivot) reaction force `F_y` (N) given the accelerations: the total
-/// weight plus the masses times their vertical accelerations.
+/// weight plus the masses times the vertical accelerations of their centres (the plate's and
+/// the arm's at `l_c`).
 #[inline(always)]
 pub fn vertical_force(p: &Params, mode: Mode, x: &State, add: f64, bdd: f64) -> f64 {
     let (a, b, ad, bd) = (x[0], x[1], x[2], x[3]);
@@ -240,7 +293,7 @@ pub fn vertical_force(p: &Params, mode: Mode, x: &State, add: f64, bdd: f64) -> 
     let (sa, ca) = a.sin_cos();
     let (sab, cab) = (a + b).sin_cos();
     let yf_dd = sf * (ca * add - sa * ad * ad);
-    let yl_dd = yf_dd + p.l * (cab * (add + bdd) - sab * (ad + bd) * (ad + bd));
+    let yl_dd = yf_dd + p.lc() * (cab * (add + bdd) - sab * (ad + bd) * (ad + bd));
     p.total_mass() * p.g + p.m_f * yf_dd + p.m_l * yl_dd
 }
 
@@ -252,18 +305,49 @@ pub fn vertical_force_t(p: &Params, mode: Mode, x: &State, tr: &Trig, add: f64, 
     let (ad, bd) = (x[2], x[3]);
     let sf = mode.signed_f(p.f);
     let yf_dd = sf * (tr.ca * add - tr.sa * ad * ad);
-    let yl_dd = yf_dd + p.l * (tr.cab * (add + bdd) - tr.sab * (ad + bd) * (ad + bd));
+    let yl_dd = yf_dd + p.lc() * (tr.cab * (add + bdd) - tr.sab * (ad + bd) * (ad + bd));
     p.total_mass() * p.g + p.m_f * yf_dd + p.m_l * yl_dd
 }
 
-/// Flat-mode support margins `(s_left, s_right)` (N m) for torque `tau`: `s_left = r_z F_y` and
-/// `s_right = (2 f - r_z) F_y`, with `r_z` the ZMP. Both are positive while the ZMP lies inside
-/// the support `[0, 2 f]`; the plate tilts left when `s_left` reaches 0 and right when
-/// `s_right` does. Written without the division so that they stay smooth when `F_y` is small.
+/// Flat-mode support margins `(s_left, s_right)` (N m) for the motor torque `tau`: `s_left =
+/// r_z F_y` and `s_right = (2 f - r_z) F_y`, with `r_z` the ZMP. Both are positive while the ZMP
+/// lies inside the support `[0, 2 f]`; the plate tilts left when `s_left` reaches 0 and right
+/// when `s_right` does. Written without the division so that they stay smooth when `F_y` is
+/// small. They are `f F_y +- tau_z` with `tau_z` the [`plate_torque`].
 #[inline(always)]
 pub fn support_margins(p: &Params, x: &State, tau: f64) -> (f64, f64) {
-    let fy = flat_vertical_force(p, x, tau);
-    (p.f * fy + tau, p.f * fy - tau)
+    let (fy, tz) = flat_loads(p, x, tau);
+    (p.f * fy + tz, p.f * fy - tz)
+}
+
+/// The flat plate's loads under the motor torque `tau`: the vertical ground force `F_y` (N)
+/// and the [`plate_torque`] `tau_z` (N m).
+#[inline(always)]
+fn flat_loads(p: &Params, x: &State, tau: f64) -> (f64, f64) {
+    let (_, bdd) = accelerations(p, Mode::Flat, x, tau);
+    let fy = vertical_force(p, Mode::Flat, x, 0.0, bdd);
+    let tz = if p.has_inertia() || p.b_v != 0.0 {
+        plate_torque(p, x[1].cos(), bdd)
+    } else {
+        tau // the same number for point masses without friction, and the same bits as before
+    };
+    (fy, tz)
+}
+
+/// The torque `tau_z` (N m) the arm and the rotor exert on the flat plate about the joint (as
+/// a moment about the plate's centre: counter-clockwise on the arm's side), from the cosine of
+/// the arm angle `cb` and the arm's acceleration `bdd` (rad/s^2): the moment needed to turn the
+/// arm's centre of mass and spin the arm and the rotor, `tau_z = m_l l_c (l_c beta_ddot + g cos
+/// beta) + (i_l + n_g j_m) beta_ddot`. For point masses it is the net joint torque.
+#[inline(always)]
+pub fn plate_torque(p: &Params, cb: f64, bdd: f64) -> f64 {
+    let l = p.lc();
+    let t = p.m_l * l * (l * bdd + p.g * cb);
+    if p.has_inertia() {
+        t + p.inertia().1 * bdd
+    } else {
+        t
+    }
 }
 
 /// Flat-mode vertical ground force `F_y` (N) under torque `tau`.
@@ -273,8 +357,9 @@ pub fn flat_vertical_force(p: &Params, x: &State, tau: f64) -> f64 {
     vertical_force(p, Mode::Flat, x, 0.0, bdd)
 }
 
-/// Zero moment point `r_z = M_z / F_y` (m, world x) of the flat plate under torque `tau`.
+/// Zero moment point `r_z = M_z / F_y` (m, world x) of the flat plate under the motor torque
+/// `tau`.
 pub fn zmp(p: &Params, x: &State, tau: f64) -> f64 {
-    let fy = flat_vertical_force(p, x, tau);
-    p.f + tau / fy
+    let (fy, tz) = flat_loads(p, x, tau);
+    p.f + tz / fy
 }

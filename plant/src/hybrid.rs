@@ -6,7 +6,7 @@
 //! networked controller: [`Plant::advance_held`]) or with a torque law evaluated inside the
 //! right-hand side ([`Plant::advance_continuous`], the paper's setting).
 
-use crate::dynamics::{accelerations_t, rhs, vertical_force_t, Terms, Trig};
+use crate::dynamics::{joint_accelerations, plate_torque, rhs, vertical_force_t, Terms, Trig};
 use crate::ode::{Dop853, Dopri5, OdeError, OdeStats, Tolerance};
 use crate::{ConfigError, ImpactLaw, Mode, Params, State};
 
@@ -463,7 +463,9 @@ impl Plant {
         let fy = vertical_force_t(p, self.mode, x, tr, xd[2], xd[3]);
         match self.mode {
             Mode::Flat => {
-                let tau = p.m_l * p.l * (p.l * xd[3] + p.g * tr.cb);
+                // The torque the plate feels, from the arm's acceleration (the motor's less
+                // the friction, for point masses).
+                let tau = plate_torque(p, tr.cb, xd[3]);
                 [p.f * fy + tau, p.f * fy - tau, fy, 1.0]
             }
             m => {
@@ -554,7 +556,7 @@ impl Plant {
             }
             // The right-hand side at the current state (its terms are usually cached).
             let tm = self.terms_here();
-            let (add, bdd) = accelerations_t(&self.cfg.params, self.mode, &tm, tau);
+            let (add, bdd) = joint_accelerations(&self.cfg.params, self.mode, &self.x, &tm, tau);
             let xd = State::new(self.x[2], self.x[3], add, bdd);
             self.rhs_evals += 1;
             let g = self.events_t(&self.x, &xd, &tm.trig);
@@ -703,7 +705,7 @@ impl Plant {
                         Terms::from_trig(&p, mode, x, Trig::near(x, &x0, &tr0))
                     };
                     let tau = tau_of.torque_t(t, mode, x, &p, &tm);
-                    let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
+                    let (add, bdd) = joint_accelerations(&p, mode, x, &tm, tau);
                     (State::new(x[2], x[3], add, bdd), tm)
                 },
             );
@@ -713,12 +715,12 @@ impl Plant {
                 evals.set(evals.get() + 1);
                 let tm = Terms::new(&p, mode, x);
                 let tau = tau_of.torque_t(t, mode, x, &p, &tm);
-                let (add, bdd) = accelerations_t(&p, mode, &tm, tau);
+                let (add, bdd) = joint_accelerations(&p, mode, x, &tm, tau);
                 State::new(x[2], x[3], add, bdd)
             };
             evals.set(evals.get() + 1);
             let tau0 = tau_of.torque_t(self.t, mode, &self.x, &p, &tm0);
-            let (add, bdd) = accelerations_t(&p, mode, &tm0, tau0);
+            let (add, bdd) = joint_accelerations(&p, mode, &self.x, &tm0, tau0);
             let mut f0 = State::new(self.x[2], self.x[3], add, bdd);
             let mut g0 = self.events_t(&self.x, &f0, &tm0.trig);
             // The sines and cosines at the current state, when known.

@@ -17,8 +17,9 @@ pub enum ImpactLaw {
     #[default]
     Paper,
     /// The textbook rocking-block law: angular momentum about the edge that strikes the ground,
-    /// `c = (m_l l^2 - (m_f + m_l) f^2) / (m_l l (l - f cos beta))` (with `f -> -f` from the
-    /// right).
+    /// `c = (m_l l_c^2 + I11 - (m_f + m_l) f^2) / (m_l l_c (l_c - f cos beta) + I12)` (with
+    /// `f -> -f` from the right; `I11 = i_l + j_m`, `I12 = i_l + n_g j_m`, zero for the paper's
+    /// point masses).
     StrikingEdge,
 }
 
@@ -40,8 +41,15 @@ impl ImpactLaw {
                 m11 / m12
             }
             ImpactLaw::StrikingEdge => {
-                (p.m_l * p.l * p.l - p.total_mass() * p.f * p.f)
-                    / (p.m_l * p.l * (p.l - sf * beta.cos()))
+                let l = p.lc();
+                let (mut num, mut den) = (p.m_l * l * l, p.m_l * l * (l - sf * beta.cos()));
+                // Skipped for point masses: the paper's numbers stay the same bits.
+                if p.has_inertia() {
+                    let (i11, i12, _) = p.inertia();
+                    num += i11;
+                    den += i12;
+                }
+                (num - p.total_mass() * p.f * p.f) / den
             }
         }
     }

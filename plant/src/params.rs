@@ -34,23 +34,57 @@ pub enum ConfigError {
     },
 }
 
-/// Masses, lengths and gravity of the tilting system (SI units).
+/// Masses, lengths, gravity, the arm's and motor's inertias and the joint's friction (SI units).
 ///
 /// A foot plate of length `2 f` with a point mass `m_f` at its centre, and an arm of length `l`
-/// mounted at the plate centre with a point mass `m_l` at its tip. The defaults are the paper's.
+/// mounted at the plate centre with its mass `m_l` at the distance `l_c` from the joint (the tip
+/// unless given) and the rotational inertia `i_l` about that centre of mass; a motor on the
+/// plate whose rotor (inertia `j_m`) turns `n_g` times per turn of the joint; viscous friction
+/// (`b_v`) at the joint. The defaults are the paper's: point masses, no
+/// motor, no friction. The hardware terms are left out of the TOML and JSON forms while they
+/// keep their defaults, so the paper's parameters serialize as before. `docs/model.md` gives
+/// the equations.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Params {
     /// Foot plate mass `m_f` (kg).
     pub m_f: f64,
-    /// Arm tip mass `m_l` (kg).
+    /// Arm mass `m_l` (kg).
     pub m_l: f64,
-    /// Arm length `l` (m).
+    /// Arm length `l` (m): the joint to the tip.
     pub l: f64,
     /// Half the foot plate length `f` (m); the support is `[0, 2 f]`.
     pub f: f64,
     /// Gravitational acceleration `g` (m/s^2).
     pub g: f64,
+    /// Distance `l_c` (m) from the joint to the arm's centre of mass, along the arm; `None`
+    /// (the default) for the tip, `l` ([`Params::lc`] gives the value).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub l_c: Option<f64>,
+    /// The arm's rotational inertia `i_l` (kg m^2) about its centre of mass; 0 (the default)
+    /// for a point mass.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub i_l: f64,
+    /// The motor rotor's rotational inertia `j_m` (kg m^2) about its axis; 0 (the default) for
+    /// no motor inertia. The stator is fixed to the plate at the joint.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub j_m: f64,
+    /// Gear ratio `n_g` (1): rotor turns relative to the plate per turn of `beta`; default 1
+    /// (direct drive). Only `j_m` feels it.
+    #[serde(skip_serializing_if = "is_one")]
+    pub n_g: f64,
+    /// Viscous friction coefficient `b_v` (N m s/rad) at the joint: a torque `-b_v beta_dot`
+    /// on the arm; default 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub b_v: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
 }
 
 impl Default for Params {
@@ -61,12 +95,19 @@ impl Default for Params {
             l: 2.0,
             f: 0.5,
             g: 9.81,
+            l_c: None,
+            i_l: 0.0,
+            j_m: 0.0,
+            n_g: 1.0,
+            b_v: 0.0,
         }
     }
 }
 
 impl Params {
-    /// Checks that every value is finite and strictly positive.
+    /// Checks every value, naming the first bad one: the masses, lengths and `g` finite and
+    /// `> 0`; `l_c` in `(0, l]`; `n_g` finite and `> 0`; the inertias and friction coefficients
+    /// finite and `>= 0`.
     pub fn validate(&self) -> Result<(), ConfigError> {
         for (field, v) in [
             ("m_f", self.m_f),
@@ -74,8 +115,21 @@ impl Params {
             ("l", self.l),
             ("f", self.f),
             ("g", self.g),
+            ("n_g", self.n_g),
         ] {
             positive(field, v)?;
+        }
+        if let Some(lc) = self.l_c {
+            if !(lc.is_finite() && lc > 0.0 && lc <= self.l) {
+                return Err(ConfigError::OutOfRange {
+                    field: "l_c",
+                    value: format!("{lc}"),
+                    allowed: "finite, > 0 and <= l (the centre of mass lies on the arm)",
+                });
+            }
+        }
+        for (field, v) in [("i_l", self.i_l), ("j_m", self.j_m), ("b_v", self.b_v)] {
+            non_negative(field, v)?;
         }
         Ok(())
     }
@@ -106,6 +160,33 @@ impl Params {
     /// Total mass `m_f + m_l` (kg).
     pub fn total_mass(&self) -> f64 {
         self.m_f + self.m_l
+    }
+
+    /// Distance `l_c` (m) from the joint to the arm's centre of mass: `l` unless set.
+    #[inline(always)]
+    pub fn lc(&self) -> f64 {
+        match self.l_c {
+            Some(v) => v,
+            None => self.l,
+        }
+    }
+
+    /// Does any rotational inertia (`i_l` or `j_m`) add to the point masses' mass matrix?
+    #[inline(always)]
+    pub fn has_inertia(&self) -> bool {
+        self.i_l != 0.0 || self.j_m != 0.0
+    }
+
+    /// The rotational inertias' share of the mass matrix `(I11, I12, I22)` (kg m^2): the arm's
+    /// `i_l` turns with `alpha + beta`, the rotor's `j_m` with `alpha + n_g beta`, so
+    /// `I11 = i_l + j_m`, `I12 = i_l + n_g j_m`, `I22 = i_l + n_g^2 j_m`.
+    #[inline(always)]
+    pub fn inertia(&self) -> (f64, f64, f64) {
+        (
+            self.i_l + self.j_m,
+            self.i_l + self.n_g * self.j_m,
+            self.i_l + self.n_g * self.n_g * self.j_m,
+        )
     }
 }
 

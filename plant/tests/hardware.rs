@@ -1,0 +1,400 @@
+//! The hardware terms of the model (the arm's own inertia and an offset centre of mass, the
+//! rotor's inertia through a gear, joint friction) checked against truths they did not produce:
+//! the kinetic energy of the bodies written from the geometry (`kinematics`), Lagrange's
+//! equations by finite differences, conservation and dissipation laws, closed forms and the
+//! mirror symmetry.
+
+use std::f64::consts::{FRAC_PI_2, PI};
+use tilting_plant::dynamics::{accelerations, bias, mass_matrix, rhs, torque_for_beta_ddot, zmp};
+use tilting_plant::kinematics::{angular_momentum, energy, mirror, pivot, point_masses};
+use tilting_plant::ode::{Dop853, Tolerance};
+use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, Plant, SimConfig, State};
+
+/// A robot unlike the paper's point masses: the centre of mass 0.6 m short of the tip, an arm
+/// inertia of 0.25 kg m^2 about it, a 2 g cm^2-class rotor behind a 9:1 gear.
+fn hw() -> Params {
+    Params {
+        l_c: Some(1.4),
+        i_l: 0.25,
+        j_m: 0.002,
+        n_g: 9.0,
+        ..Params::default()
+    }
+}
+
+/// [`hw`] with viscous friction at the joint.
+fn hw_viscous(b_v: f64) -> Params {
+    Params { b_v, ..hw() }
+}
+
+struct Rng(u64);
+impl Rng {
+    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        lo + (hi - lo) * ((self.0 >> 11) as f64 / (1u64 << 53) as f64)
+    }
+}
+
+fn random_state(rng: &mut Rng, mode: Mode) -> State {
+    let (a, ad) = match mode {
+        Mode::Flat => (0.0, 0.0),
+        Mode::Left => (rng.uniform(0.0, 1.2), rng.uniform(-2.0, 2.0)),
+        Mode::Right => (-rng.uniform(0.0, 1.2), rng.uniform(-2.0, 2.0)),
+    };
+    State::new(a, rng.uniform(0.3, PI - 0.3), ad, rng.uniform(-2.0, 2.0))
+}
+
+/// Kinetic energy (J) at configuration `(a, b)` with rates `(ad, bd)`, from the geometric
+/// energy of `kinematics` (which knows nothing of the mass matrix).
+fn kinetic(p: &Params, mode: Mode, a: f64, b: f64, ad: f64, bd: f64) -> f64 {
+    energy(p, mode, &State::new(a, b, ad, bd)) - energy(p, mode, &State::new(a, b, 0.0, 0.0))
+}
+
+/// The mass matrix as the Hessian of the kinetic energy in the rates (exact for a quadratic
+/// form, up to rounding).
+fn hessian(p: &Params, mode: Mode, a: f64, b: f64) -> (f64, f64, f64) {
+    let t10 = kinetic(p, mode, a, b, 1.0, 0.0);
+    let t01 = kinetic(p, mode, a, b, 0.0, 1.0);
+    let t11 = kinetic(p, mode, a, b, 1.0, 1.0);
+    (2.0 * t10, t11 - t10 - t01, 2.0 * t01)
+}
+
+#[test]
+fn mass_matrix_is_the_hessian_of_the_kinetic_energy() {
+    let p = hw();
+    let mut rng = Rng(0x5eed);
+    for mode in [Mode::Left, Mode::Right] {
+        for _ in 0..200 {
+            let x = random_state(&mut rng, mode);
+            let (h11, h12, h22) = hessian(&p, mode, x[0], x[1]);
+            let (m11, m12, m22) = mass_matrix(&p, mode, x[1]);
+            // Differences of energies of about 30 J: rounding near 1e-14 J.
+            for (h, m) in [(h11, m11), (h12, m12), (h22, m22)] {
+                assert!((h - m).abs() < 1e-12, "{mode}: {h} vs {m}");
+            }
+        }
+    }
+    // The point-mass terms alone would miss the rotational ones by I22 = 0.412 kg m^2.
+    let (_, _, m22) = mass_matrix(&p, Mode::Left, 1.0);
+    assert!((m22 - (1.4 * 1.4 + 0.25 + 81.0 * 0.002)).abs() < 1e-14);
+}
+
+#[test]
+fn bias_terms_follow_from_lagranges_equations_by_finite_differences() {
+    // h = M_dot q_dot - dT/dq + dV/dq, every term by central differences of the geometric
+    // energy: truncation O(d^2) ~ 1e-10, rounding ~ 1e-14 J / d ~ 1e-9; 1e-6 leaves room.
+    let p = hw();
+    let d = 1e-5;
+    let mut rng = Rng(4242);
+    for mode in [Mode::Left, Mode::Right] {
+        for _ in 0..100 {
+            let x = random_state(&mut rng, mode);
+            let (a, b, ad, bd) = (x[0], x[1], x[2], x[3]);
+            let t = |a: f64, b: f64| kinetic(&p, mode, a, b, ad, bd);
+            let v = |a: f64, b: f64| energy(&p, mode, &State::new(a, b, 0.0, 0.0));
+            let (mp, mm) = (
+                hessian(&p, mode, a + d * ad, b + d * bd),
+                hessian(&p, mode, a - d * ad, b - d * bd),
+            );
+            let md = (
+                (mp.0 - mm.0) / (2.0 * d),
+                (mp.1 - mm.1) / (2.0 * d),
+                (mp.2 - mm.2) / (2.0 * d),
+            );
+            let dt_da = (t(a + d, b) - t(a - d, b)) / (2.0 * d);
+            let dt_db = (t(a, b + d) - t(a, b - d)) / (2.0 * d);
+            let dv_da = (v(a + d, b) - v(a - d, b)) / (2.0 * d);
+            let dv_db = (v(a, b + d) - v(a, b - d)) / (2.0 * d);
+            let h1 = md.0 * ad + md.1 * bd - dt_da + dv_da;
+            let h2 = md.1 * ad + md.2 * bd - dt_db + dv_db;
+            let (b1, b2) = bias(&p, mode, &x);
+            assert!(
+                (h1 - b1).abs() < 1e-6 * (1.0 + b1.abs()),
+                "{mode}: {h1} vs {b1}"
+            );
+            assert!(
+                (h2 - b2).abs() < 1e-6 * (1.0 + b2.abs()),
+                "{mode}: {h2} vs {b2}"
+            );
+        }
+    }
+}
+
+/// Integrates `mode`'s equations with `tau = 0` for `t_end` seconds without any event, and
+/// returns the end state and `int b_v beta_dot^2 dt` (J) by 5-point Gauss-Legendre quadrature
+/// on each step's dense output.
+fn passive_flow(p: &Params, mode: Mode, x0: State, t_end: f64) -> (State, f64) {
+    let mut f = |_t: f64, x: &State| rhs(p, mode, x, 0.0);
+    let mut st = Dop853::new(Tolerance::default());
+    let (mut t, mut x) = (0.0, x0);
+    let mut f0 = f(t, &x);
+    let mut dissipated = 0.0;
+    let nodes = [
+        (0.0, 128.0 / 225.0),
+        (-0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
+        (0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
+        (-0.906_179_845_938_664, 0.236_926_885_056_189_1),
+        (0.906_179_845_938_664, 0.236_926_885_056_189_1),
+    ];
+    while t < t_end {
+        let s = st.step(&mut f, t, &x, &f0, t_end).unwrap();
+        let dense = st.dense(&mut f, &s);
+        let (mid, half) = (0.5 * (s.t0 + s.t1), 0.5 * (s.t1 - s.t0));
+        for (u, w) in nodes {
+            let bd = dense.eval(mid + half * u)[3];
+            dissipated += half * w * p.b_v * bd * bd;
+        }
+        t = s.t1;
+        x = s.y1;
+        f0 = *s.f1();
+    }
+    (x, dissipated)
+}
+
+#[test]
+fn passive_motion_with_arm_and_rotor_inertia_conserves_energy() {
+    let p = hw();
+    for (mode, x0) in [
+        (Mode::Left, State::new(0.4, 1.2, 0.0, 0.5)),
+        (Mode::Right, State::new(-0.3, 2.0, 0.3, -0.2)),
+        (Mode::Left, State::new(0.1, FRAC_PI_2, 1.0, -1.0)),
+        // The plate held flat: the arm a pendulum (here whirling over the top).
+        (Mode::Flat, State::new(0.0, 0.3, 0.0, 4.0)),
+    ] {
+        let (x1, _) = passive_flow(&p, mode, x0, 10.0);
+        let (e0, e1) = (energy(&p, mode, &x0), energy(&p, mode, &x1));
+        // As for the point masses (plant/tests/physics.rs): 1e-9 relative over 10 s.
+        assert!(((e1 - e0) / e0).abs() < 1e-9, "{mode}: E0 {e0} E1 {e1}");
+        // Not a trivial motion: the arm turned.
+        assert!((x1[1] - x0[1]).abs() > 0.1 || (x1[3] - x0[3]).abs() > 0.1);
+    }
+}
+
+#[test]
+fn viscous_friction_dissipates_b_beta_dot_squared() {
+    // dE/dt = -b_v beta_dot^2 with tau = 0: the energy lost over 5 s equals the integral along
+    // the trajectory. Both sides carry the integrator's error (1e-10 relative of E ~ 30 J) and
+    // the quadrature's (far below): 1e-8 J.
+    let p = hw_viscous(0.3);
+    for (mode, x0) in [
+        (Mode::Left, State::new(0.4, 1.2, 0.0, 0.5)),
+        (Mode::Right, State::new(-0.3, 2.0, 0.3, -0.2)),
+        (Mode::Flat, State::new(0.0, 0.3, 0.0, 4.0)),
+    ] {
+        let (x1, w) = passive_flow(&p, mode, x0, 5.0);
+        let (e0, e1) = (energy(&p, mode, &x0), energy(&p, mode, &x1));
+        assert!(w > 0.5, "{mode}: little dissipation ({w} J), a weak test");
+        assert!(
+            (e0 - e1 - w).abs() < 1e-8,
+            "{mode}: lost {} J, dissipated {w} J",
+            e0 - e1
+        );
+    }
+}
+
+#[test]
+fn gravity_compensated_arm_with_viscous_friction_decays_exponentially() {
+    // Flat, tau = m_l g l_c cos(beta) cancels gravity: J beta_ddot = -b_v beta_dot with
+    // J = m_l l_c^2 + i_l + n_g^2 j_m, so beta_dot = w0 exp(-b t / J) and beta = beta0 +
+    // w0 J / b (1 - exp(-b t / J)). The plant runs the hybrid simulator (the plate stays
+    // flat: the ZMP moves by tau / F_y < 0.25 m); its error is near its tolerance (1e-10).
+    let p = hw_viscous(0.5);
+    let lc = 1.4;
+    let j = p.m_l * lc * lc + p.i_l + p.n_g * p.n_g * p.j_m;
+    let (b0, w0) = (FRAC_PI_2 - 0.3, 0.1);
+    let law = move |_t: f64, _m: Mode, x: &State| p.m_l * p.g * lc * x[1].cos();
+    let mut plant = Plant::new(
+        SimConfig {
+            params: p,
+            ..SimConfig::default()
+        },
+        0.0,
+        Mode::Flat,
+        State::new(0.0, b0, 0.0, w0),
+    )
+    .unwrap();
+    for k in 1..=20 {
+        let t = 0.2 * k as f64;
+        plant.advance_continuous(&law, t, &mut ()).unwrap();
+        let x = plant.state();
+        let e = (-p.b_v * t / j).exp();
+        assert_eq!(plant.mode(), Mode::Flat);
+        assert!(
+            (x[3] - w0 * e).abs() < 1e-10,
+            "t {t}: {} vs {}",
+            x[3],
+            w0 * e
+        );
+        let beta = b0 + w0 * j / p.b_v * (1.0 - e);
+        assert!((x[1] - beta).abs() < 1e-10, "t {t}: {} vs {beta}", x[1]);
+    }
+}
+
+#[test]
+fn hanging_arm_in_the_plant_loses_what_viscous_friction_dissipates() {
+    // The hybrid plant under a held zero torque, the arm hanging below the flat plate (the ZMP
+    // stays near the centre): E(t) - E(0) = -int b_v beta_dot^2 dt, the integral by Simpson's
+    // rule on samples every 1 ms (error ~ h^4, far below the integrator's 1e-9 J).
+    let p = hw_viscous(0.5);
+    let x0 = State::new(0.0, -FRAC_PI_2 + 0.3, 0.0, 0.0);
+    let cfg = SimConfig {
+        params: p,
+        ..SimConfig::default()
+    };
+    let mut plant = Plant::new(cfg, 0.0, Mode::Flat, x0).unwrap();
+    let h = 2e-3;
+    let mut w = 0.0;
+    let bd2 = |pl: &Plant| p.b_v * pl.state()[3] * pl.state()[3];
+    let mut prev = bd2(&plant);
+    for k in 0..1500 {
+        let t0 = h * k as f64;
+        plant.advance_held(0.0, t0 + 0.5 * h, &mut ()).unwrap();
+        let mid = bd2(&plant);
+        plant.advance_held(0.0, t0 + h, &mut ()).unwrap();
+        let end = bd2(&plant);
+        w += h / 6.0 * (prev + 4.0 * mid + end);
+        prev = end;
+    }
+    assert_eq!(plant.transitions(), 0, "the plate stayed flat");
+    let (e0, e1) = (
+        energy(&p, Mode::Flat, &x0),
+        energy(&p, Mode::Flat, &plant.state()),
+    );
+    assert!(w > 0.2, "little dissipation: {w} J");
+    assert!(
+        (e0 - e1 - w).abs() < 1e-8,
+        "lost {} J, dissipated {w} J",
+        e0 - e1
+    );
+}
+
+#[test]
+fn the_mirror_image_of_a_motion_is_a_motion_with_inertia_and_friction() {
+    let p = hw_viscous(0.3);
+    let mut rng = Rng(99);
+    for (from, to) in [(Mode::Left, Mode::Right), (Mode::Flat, Mode::Flat)] {
+        for _ in 0..300 {
+            let x = random_state(&mut rng, from);
+            let tau = rng.uniform(-30.0, 30.0);
+            let d = rhs(&p, from, &x, tau);
+            let dm = rhs(&p, to, &mirror(&x), -tau);
+            for i in 0..4 {
+                assert!(
+                    (dm[i] + d[i]).abs() < 1e-12 * (1.0 + d[i].abs()),
+                    "{from} {i}"
+                );
+            }
+            let (e, em) = (energy(&p, from, &x), energy(&p, to, &mirror(&x)));
+            assert!((e - em).abs() < 1e-12 * e.abs());
+        }
+    }
+}
+
+#[test]
+fn impact_laws_keep_their_angular_momentum_with_inertia() {
+    // The paper's law keeps the momentum about the pivot edge, the striking-edge law about the
+    // other edge; both with the arm's and the rotor's spin counted (kinematics).
+    let p = hw();
+    let mut rng = Rng(7);
+    for from in [Mode::Left, Mode::Right] {
+        let other = if from == Mode::Left {
+            Mode::Right
+        } else {
+            Mode::Left
+        };
+        for _ in 0..100 {
+            let mut x = random_state(&mut rng, from);
+            x[0] = 0.0;
+            for (law, about) in [
+                (ImpactLaw::Paper, pivot(&p, from)),
+                (ImpactLaw::StrikingEdge, pivot(&p, other)),
+            ] {
+                let xp = law.apply(&p, from, &x);
+                let l0 = angular_momentum(&p, from, &x, about);
+                let l1 = angular_momentum(&p, Mode::Flat, &xp, about);
+                assert!((l1 - l0).abs() < 1e-12 * (1.0 + l0.abs()), "{law:?} {from}");
+            }
+        }
+    }
+}
+
+#[test]
+fn zmp_of_the_resting_plate_is_the_centre_of_mass_with_an_offset_arm() {
+    let p = hw_viscous(0.4);
+    for i in 0..50 {
+        let beta = 0.2 + (PI - 0.4) * i as f64 / 49.0;
+        let x = State::new(0.0, beta, 0.0, 0.0);
+        let tau = torque_for_beta_ddot(&p, Mode::Flat, &x, 0.0);
+        let q = point_masses(&p, Mode::Flat, &x);
+        let com_x = (p.m_f * q.foot.x + p.m_l * q.arm.x) / p.total_mass();
+        assert!((zmp(&p, &x, tau) - com_x).abs() < 1e-14, "beta {beta}");
+        // The tip is not the centre of mass here.
+        assert!((q.tip - q.arm).norm() > 0.5);
+    }
+}
+
+#[test]
+fn computed_torque_is_the_inverse_of_the_dynamics_with_friction() {
+    let p = hw_viscous(0.3);
+    let mut rng = Rng(31337);
+    for mode in [Mode::Flat, Mode::Left, Mode::Right] {
+        for _ in 0..200 {
+            let x = random_state(&mut rng, mode);
+            let v = rng.uniform(-30.0, 30.0);
+            let tau = torque_for_beta_ddot(&p, mode, &x, v);
+            let (_, bdd) = accelerations(&p, mode, &x, tau);
+            assert!(
+                (bdd - v).abs() < 1e-10 * (1.0 + v.abs()),
+                "{mode}: {bdd} vs {v}"
+            );
+            // The friction is really compensated: without it the torque is off by b_v beta_dot.
+            let rigid = torque_for_beta_ddot(&hw(), mode, &x, v);
+            assert!((tau - rigid - 0.3 * x[3]).abs() < 1e-10 * (1.0 + tau.abs()));
+        }
+    }
+}
+
+#[test]
+fn the_papers_parameters_serialize_as_before() {
+    // The hardware keys are left out at their defaults: a saved paper parameter file, and every
+    // JSON that embeds the parameters, keeps its five keys.
+    let text = toml::to_string(&Params::default()).unwrap();
+    let keys: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.split('=').next())
+        .map(str::trim)
+        .collect();
+    assert_eq!(keys, ["m_f", "m_l", "l", "f", "g"], "{text}");
+    // And a hardware file round-trips.
+    let p = hw_viscous(0.1);
+    assert_eq!(
+        Params::from_toml_str(&toml::to_string(&p).unwrap()).unwrap(),
+        p
+    );
+}
+
+#[test]
+fn bad_hardware_values_are_refused_with_the_field_and_its_range() {
+    for (text, field, range) in [
+        ("i_l = -0.1", "i_l", ">= 0"),
+        ("j_m = -1e-3", "j_m", ">= 0"),
+        ("b_v = -0.5", "b_v", ">= 0"),
+        ("n_g = 0.0", "n_g", "> 0"),
+        ("l_c = 2.5", "l_c", "<= l"),
+        ("l_c = 0.0", "l_c", "> 0"),
+        ("b_v = nan", "b_v", "finite"),
+    ] {
+        match Params::from_toml_str(text) {
+            Err(e @ ConfigError::OutOfRange { field: f, .. }) => {
+                assert_eq!(f, field, "{text}");
+                let msg = e.to_string();
+                assert!(msg.contains(field) && msg.contains(range), "{text}: {msg}");
+            }
+            other => panic!("{text}: {other:?}"),
+        }
+    }
+    // A longer arm makes room for the centre of mass.
+    assert!(Params::from_toml_str("l = 3.0\nl_c = 2.5").is_ok());
+}
