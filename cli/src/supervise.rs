@@ -23,10 +23,6 @@ use std::time::{Duration, Instant};
 pub const PLANT_BIN: &str = "tilting-plant";
 /// File name of the controller node binary.
 pub const CONTROLLER_BIN: &str = "tilting-controller";
-/// File name of the planner node binary.
-pub const PLANNER_BIN: &str = "tilting-planner";
-/// File name of the front door.
-pub const FRONT_BIN: &str = "tilting";
 /// File name of the zenoh router of a secure deployment.
 pub const ROUTER_BIN: &str = "tilting-router";
 
@@ -247,11 +243,6 @@ impl Child {
         };
         self.status = Some(s);
         (s, true)
-    }
-
-    /// The file that holds stdout.
-    pub fn stdout_path(&self) -> &Path {
-        &self.stdout
     }
 
     /// The file that holds stderr.

@@ -223,7 +223,10 @@ impl ModeEvent {
 }
 
 /// Plant health and counters, published by the plant at a low rate; variable size.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+///
+/// [`Status::default`] is a plant that is starting: every counter and statistic zero, mode
+/// flat, no fault (a valid message).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Status {
     /// `seq` of the last published [`PlantState`].
     pub seq: u64,
@@ -440,31 +443,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_default_status_is_a_valid_starting_plant() {
+        let s = Status::default();
+        assert!(s.validate().is_ok());
+        assert_eq!(
+            (s.state, s.mode, s.fault.as_str()),
+            (Status::STARTING, 0, "")
+        );
+        assert_eq!(crate::codec::encode(&s).len(), Status::MIN_SIZE);
+    }
+
+    #[test]
     fn set_fault_truncates_on_char_boundary() {
         let mut s = Status {
-            seq: 0,
-            time: 0.0,
             state: Status::FAULTED,
-            mode: 0,
-            tilts: 0,
-            steps: 0,
-            torques_received: 0,
-            torques_dropped: 0,
-            torques_stale: 0,
-            deadline_misses: 0,
-            watchdog_trips: 0,
-            jitter_p50_us: 0.0,
-            jitter_p99_us: 0.0,
-            max_overrun_us: 0.0,
-            latency_p50_us: 0.0,
-            latency_p99_us: 0.0,
-            torques_late: 0,
-            torques_lost: 0,
-            torques_reordered: 0,
-            age_p50: 0.0,
-            age_p99: 0.0,
-            age_max: 0.0,
-            fault: String::new(),
+            ..Status::default()
         };
         s.set_fault("short");
         assert_eq!(s.fault, "short");

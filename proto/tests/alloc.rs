@@ -50,26 +50,14 @@ fn status_bytes_with_declared_len(len: u64) -> Vec<u8> {
         seq: 1,
         time: 0.5,
         state: Status::RUNNING,
-        mode: 0,
-        tilts: 0,
         steps: 10,
         torques_received: 10,
-        torques_dropped: 0,
-        torques_stale: 0,
-        deadline_misses: 0,
-        watchdog_trips: 0,
         jitter_p50_us: 1.0,
         jitter_p99_us: 2.0,
         max_overrun_us: 3.0,
         latency_p50_us: 4.0,
         latency_p99_us: 5.0,
-        torques_late: 0,
-        torques_lost: 0,
-        torques_reordered: 0,
-        age_p50: 0.0,
-        age_p99: 0.0,
-        age_max: 0.0,
-        fault: String::new(),
+        ..Status::default()
     };
     let mut b = codec::encode(&s);
     assert_eq!(b.len(), Status::MIN_SIZE);

@@ -99,22 +99,12 @@ mod tests {
             tilts: 3,
             steps: 1000,
             torques_received: 1000,
-            torques_dropped: 0,
-            torques_stale: 0,
             deadline_misses: 2,
-            watchdog_trips: 0,
             jitter_p50_us: 1.0,
             jitter_p99_us: 2.0,
-            max_overrun_us: 0.0,
             latency_p50_us: 40.0,
             latency_p99_us: 90.0,
-            torques_late: 0,
-            torques_lost: 0,
-            torques_reordered: 0,
-            age_p50: 0.0,
-            age_p99: 0.0,
-            age_max: 0.0,
-            fault: String::new(),
+            ..Status::default()
         };
         let v = RecordView {
             peaks: [(0.2, 0.04), (0.6, -0.041)].into_iter().collect(),
