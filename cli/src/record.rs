@@ -30,29 +30,15 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use tilting_plant::node::csv::RowWriter;
 use tilting_proto::{encode, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
+use tilting_record::trace::{
+    EVENTS_CSV, EVENTS_HEADER, RUN_MCAP, STATE_CSV, STATE_HEADER, TORQUE_CSV, TORQUE_HEADER,
+};
 use tilting_record::Recorder as McapRecorder;
-use tilting_sim::closed_loop::{EventRecord, Sample};
 use tilting_sim::Scenario;
-use tilting_viz::plot::{plot_trace, Trace};
+use tilting_viz::plot::plot_trace;
 
-/// Names of the files in the output directory.
-pub const STATE_CSV: &str = "state.csv";
-/// See [`STATE_CSV`].
-pub const TORQUE_CSV: &str = "torque.csv";
-/// See [`STATE_CSV`].
-pub const EVENTS_CSV: &str = "events.csv";
-/// The figure.
+/// The figure of a live run, beside the recording.
 pub const RUN_PNG: &str = "run.png";
-/// The MCAP recording.
-pub const RUN_MCAP: &str = "run.mcap";
-
-/// Header of `state.csv`: the state columns of every CSV of the project.
-pub const STATE_HEADER: &str = tilting_plant::node::STATE_COLUMNS;
-/// Header of `torque.csv`.
-pub const TORQUE_HEADER: &str = "seq,tau";
-/// Header of `events.csv`.
-pub const EVENTS_HEADER: &str = "t,from,to,alpha_before,beta_before,alpha_dot_before,\
-beta_dot_before,alpha_after,beta_after,alpha_dot_after,beta_dot_after";
 
 /// Capacity of the channel to the writer thread (messages): about 20 s of a 1 kHz loop.
 const CHANNEL: usize = 1 << 15;
@@ -412,113 +398,6 @@ fn finish_peak(tilt: &Option<Tilt>, peaks: &mut VecDeque<(f64, f64)>) {
 /// Points kept for the figure, about.
 const PLOT_POINTS: u64 = 20_000;
 
-/// The states and events of a recording, as a trajectory for plots and animations.
-#[derive(Debug, Clone, Default)]
-pub struct RecordedTrace {
-    /// States, decimated to about the number asked (mode changes always kept, and the last).
-    pub samples: Vec<Sample>,
-    /// Every mode transition.
-    pub events: Vec<EventRecord>,
-    /// Plant time of the last state, s.
-    pub end: f64,
-    /// The file was not closed normally (see `tilting_record::Recording::truncation`).
-    pub truncated: bool,
-}
-
-/// Reads the states and events of the MCAP recording at `path`, keeping about `max_points`
-/// states (every state for `None`).
-pub fn load_trace(path: &Path, max_points: Option<u64>) -> Result<RecordedTrace> {
-    load_window(path, max_points, Window::default())
-}
-
-/// The part of a recording to read (plant time, s).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Window {
-    /// First time kept.
-    pub start: Option<f64>,
-    /// Last time kept.
-    pub end: Option<f64>,
-    /// Keep only this many seconds before the end of the recording.
-    pub tail: Option<f64>,
-}
-
-/// [`load_trace`] of the states in `w` only (memory bounded by the window).
-pub fn load_window(path: &Path, max_points: Option<u64>, w: Window) -> Result<RecordedTrace> {
-    let run = tilting_record::read(path)?;
-    let states = run.count(Topic::State);
-    if states == 0 {
-        return Err(anyhow!(
-            "{} holds no plant state: nothing to draw",
-            path.display()
-        ));
-    }
-    let last = run.span().map_or(0.0, |s| s.1);
-    let t0 = match (w.start, w.tail) {
-        (Some(a), Some(t)) => a.max(last - t),
-        (Some(a), None) => a,
-        (None, Some(t)) => last - t,
-        (None, None) => f64::NEG_INFINITY,
-    };
-    let t1 = w.end.unwrap_or(f64::INFINITY);
-    let stride = max_points.map_or(1, |m| states.div_ceil(m.max(1)).max(1));
-    let mut out = RecordedTrace {
-        samples: Vec::with_capacity((states / stride + 1024).min(1 << 22) as usize),
-        truncated: !run.complete(),
-        ..RecordedTrace::default()
-    };
-    let mut last_mode = None;
-    let mut last: Option<Sample> = None;
-    // States to skip before the next kept one.
-    let mut skip = 0u64;
-    for e in run.messages() {
-        match e.topic {
-            Topic::State => {
-                let s: PlantState = tilting_proto::decode(&e.wire)?;
-                if s.time < t0 || s.time > t1 {
-                    continue;
-                }
-                let mode = s.mode()?;
-                let sample = Sample {
-                    t: s.time,
-                    mode,
-                    x: [s.alpha, s.beta, s.alpha_dot, s.beta_dot],
-                };
-                if skip == 0 || last_mode != Some(mode) {
-                    out.samples.push(sample);
-                }
-                skip = if skip == 0 { stride - 1 } else { skip - 1 };
-                last_mode = Some(mode);
-                last = Some(sample);
-            }
-            Topic::Event => {
-                let ev: ModeEvent = tilting_proto::decode(&e.wire)?;
-                let (from, to) = ev.modes()?;
-                out.events.push(EventRecord {
-                    t: ev.time,
-                    from,
-                    to,
-                    x_before: ev.x_before,
-                    x_after: ev.x_after,
-                });
-            }
-            _ => {}
-        }
-    }
-    if let (Some(l), Some(p)) = (last, out.samples.last()) {
-        if p.t < l.t {
-            out.samples.push(l);
-        }
-    }
-    out.end = last.map_or(0.0, |l| l.t);
-    if out.samples.is_empty() {
-        return Err(anyhow!(
-            "{} holds no plant state in the window asked for",
-            path.display()
-        ));
-    }
-    Ok(out)
-}
-
 /// Draws `alpha(t)` and `beta(t)` of the recording `run.mcap` in `dir` into `png` (via
 /// [`plot_trace`]), decimated to about 20 000 points (mode changes are always kept).
 /// `scenario` gives the gains and the control period for the title; `stopped_early` marks an
@@ -529,16 +408,18 @@ pub fn plot_recording(
     scenario: &Scenario,
     stopped_early: bool,
 ) -> Result<()> {
-    let tr = load_trace(&dir.join(RUN_MCAP), Some(PLOT_POINTS))?;
+    let run = tilting_record::load(
+        &dir.join(RUN_MCAP),
+        tilting_record::Window::default(),
+        Some(PLOT_POINTS),
+    )?;
     let sc = Scenario {
-        duration: tr.end.max(1e-3),
+        duration: run.trace.end.max(1e-3),
         ..scenario.clone()
     };
-    let trace = Trace {
-        samples: &tr.samples,
-        events: &tr.events,
-        end: tr.end,
-        stopped_early: stopped_early || tr.truncated,
+    let trace = tilting_record::Trace {
+        stopped_early: stopped_early || run.truncated,
+        ..run.trace
     };
     plot_trace(png, &sc, &trace)
 }
@@ -649,7 +530,9 @@ mod tests {
             ),
             (101, 100, 2)
         );
-        let tr = load_trace(&dir.join(RUN_MCAP), None).unwrap();
+        let tr = tilting_record::load(&dir, Default::default(), None)
+            .unwrap()
+            .trace;
         assert_eq!((tr.samples.len(), tr.events.len()), (101, 2));
         assert_eq!(tr.end, 0.105);
         let png = dir.join(RUN_PNG);

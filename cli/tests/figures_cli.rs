@@ -1,12 +1,13 @@
 //! Runs the built `tilting figures` binary: the quick preview writes the five PNGs,
 //! `--only` and `--json` select and report, and a bad `--out` or figure number fails clearly.
 
-use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output};
+use tilting::commands::figures::FiguresReport;
+use tilting_viz::figures::Summary;
 
 mod common;
-use common::{TempDir, BIN};
+use common::{Scratch, BIN};
 
 const PNG_MAGIC: &[u8] = b"\x89PNG\r\n\x1a\n";
 
@@ -40,7 +41,7 @@ fn assert_png(path: &Path) {
 
 #[test]
 fn quick_run_writes_all_five_figures() {
-    let dir = TempDir::new("all");
+    let dir = Scratch::new("all");
     // A directory that does not exist yet is created.
     let out = dir.path().join("nested").join("figs");
     let o = figures(&["--quick", "--out", &out.to_string_lossy()]);
@@ -56,22 +57,27 @@ fn quick_run_writes_all_five_figures() {
 
 #[test]
 fn only_and_json_select_and_report() {
-    let dir = TempDir::new("only");
+    let dir = Scratch::new("only");
     let o = figures(&["--quick", "--json", "--only", "8,5", "--out", &dir.arg()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let v: Value = serde_json::from_slice(&o.stdout).expect("stdout is one JSON object");
-    let figs = v["figures"].as_array().expect("a figures array");
-    let numbers: Vec<u64> = figs.iter().filter_map(|f| f["figure"].as_u64()).collect();
-    assert_eq!(numbers, vec![5, 8], "{v}");
-    assert!(v["failed"].as_array().is_some_and(|f| f.is_empty()), "{v}");
+    let v: FiguresReport = serde_json::from_slice(&o.stdout).expect("stdout is the report");
+    let numbers: Vec<u8> = v.figures.iter().map(|f| f.figure).collect();
+    assert_eq!(numbers, vec![5, 8], "{v:?}");
+    assert!(v.failed.is_empty(), "{v:?}");
+    assert_eq!(v.out, dir.path());
     // Fig. 5: four panels with the solved frequencies, in the tilting band at A = 0.33.
-    let panels = figs[0]["summary"]["panels"].as_array().expect("panels");
-    assert_eq!(panels.len(), 4);
-    let omegas: Vec<f64> = panels.iter().filter_map(|p| p["omega"].as_f64()).collect();
+    let Summary::Fig5(fig5) = &v.figures[0].summary else {
+        panic!("not Fig. 5's summary: {:?}", v.figures[0].summary)
+    };
+    assert_eq!(fig5.panels.len(), 4);
+    let omegas: Vec<f64> = fig5.panels.iter().map(|p| p.omega).collect();
     assert!(omegas.windows(2).all(|w| w[0] < w[1]), "{omegas:?}");
     assert!(omegas.iter().all(|w| (1.7..2.2).contains(w)), "{omegas:?}");
     // Fig. 8: the period doubling near the paper's k = 1925.
-    let k_star = figs[1]["summary"]["k_star"].as_f64().expect("k* found");
+    let Summary::Fig8(fig8) = &v.figures[1].summary else {
+        panic!("not Fig. 8's summary: {:?}", v.figures[1].summary)
+    };
+    let k_star = fig8.k_star.expect("k* found");
     assert!((k_star - 1925.0).abs() < 10.0, "k* = {k_star}");
     assert_png(&dir.path().join("fig5.png"));
     assert_png(&dir.path().join("fig8.png"));
@@ -82,7 +88,7 @@ fn only_and_json_select_and_report() {
 
 #[test]
 fn out_that_is_a_file_is_rejected() {
-    let dir = TempDir::new("file");
+    let dir = Scratch::new("file");
     let file = dir.path().join("not-a-dir.png");
     std::fs::write(&file, b"x").expect("cannot write a temp file");
     let o = figures(&["--quick", "--out", &file.to_string_lossy()]);
@@ -98,7 +104,7 @@ fn out_that_is_a_file_is_rejected() {
 
 #[test]
 fn unknown_figure_is_rejected() {
-    let dir = TempDir::new("nine");
+    let dir = Scratch::new("nine");
     for bad in ["9", "4,9", "x"] {
         let o = figures(&["--quick", "--only", bad, "--out", &dir.arg()]);
         assert_eq!(o.status.code(), Some(2), "--only {bad}: {}", stderr(&o));

@@ -7,11 +7,11 @@ use serde_json::Value;
 use std::process::Command;
 
 mod common;
-use common::{TempDir, BIN};
+use common::{Scratch, BIN};
 
 #[test]
 fn a_small_map_with_its_criteria_and_plot() {
-    let dir = TempDir::new("margins");
+    let dir = Scratch::new("margins");
     let png = dir.path().join("m.png");
     let o = Command::new(BIN)
         .args([
@@ -89,7 +89,7 @@ fn bad_lists_name_the_flag_and_the_range() {
 /// drawn beside the first, and bad lists are refused naming the flag and the range.
 #[test]
 fn robot_maps_with_their_ranges_and_plot() {
-    let dir = TempDir::new("margins-robot");
+    let dir = Scratch::new("margins-robot");
     let png = dir.path().join("m.png");
     let o = Command::new(BIN)
         .args([

@@ -1,11 +1,13 @@
 //! Runs the built `tilting simulate` binary: JSON shape and content, usage and
 //! configuration errors, the plot, and the convergence of the sampled coupling.
 
-use serde_json::Value;
 use std::process::{Command, Output};
+use tilting_plant::Mode;
+use tilting_sim::closed_loop::Coupling;
+use tilting_sim::SimulationReport;
 
 mod common;
-use common::{TempDir, BIN};
+use common::{Scratch, BIN};
 
 fn simulate(args: &[&str]) -> Output {
     Command::new(BIN)
@@ -19,72 +21,71 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// Runs with `--json`, checks success, and parses stdout as exactly one JSON value.
-fn simulate_json(args: &[&str]) -> Value {
+/// Runs with `--json`, checks success, and reads stdout as exactly one report; the report
+/// written back is the same JSON (no field is lost or renamed on the way).
+fn simulate_json(args: &[&str]) -> SimulationReport {
     let mut all = vec!["--json"];
     all.extend_from_slice(args);
     let o = simulate(&all);
     assert!(o.status.success(), "{args:?}: {}", stderr(&o));
-    let text = String::from_utf8(o.stdout).expect("stdout is UTF-8");
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("not one JSON object: {e}\n{text}"))
+    report(&o.stdout)
 }
 
-fn state4(v: &Value) -> [f64; 4] {
-    let a = v.as_array().expect("a state is an array");
-    assert_eq!(a.len(), 4, "{v}");
-    std::array::from_fn(|i| a[i].as_f64().expect("a state holds numbers"))
+fn report(stdout: &[u8]) -> SimulationReport {
+    let text = std::str::from_utf8(stdout).expect("stdout is UTF-8");
+    let r: SimulationReport =
+        serde_json::from_str(text).unwrap_or_else(|e| panic!("not one report: {e}\n{text}"));
+    let raw: serde_json::Value = serde_json::from_str(text).expect("JSON");
+    assert_eq!(serde_json::to_value(&r).expect("serialises"), raw);
+    r
 }
 
 #[test]
 fn json_report_of_the_default_orbit() {
     let r = simulate_json(&["--duration", "5"]);
-    let obj = r.as_object().unwrap();
-    for key in ["events", "tilt_peaks", "final", "fault", "stats"] {
-        assert!(obj.contains_key(key), "missing {key}: {r}");
-    }
-    assert!(r["fault"].is_null(), "{}", r["fault"]);
-    assert_eq!(r["final"]["t"].as_f64(), Some(5.0));
-    assert!(["flat", "left", "right"].contains(&r["final"]["mode"].as_str().unwrap()));
-    state4(&r["final"]["x"]);
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    assert_eq!(r.final_state.t, 5.0);
 
     // Transitions chain (each starts in the mode the previous one ended in), starting from the
     // initial left tilt, and the tilts alternate: left -> flat -> right -> flat -> left ...
-    let events = r["events"].as_array().unwrap();
-    assert!(events.len() >= 20, "{} events in 5 s", events.len());
-    let mut mode = "left".to_string();
-    let mut tilts = vec![mode.clone()];
+    assert!(r.events.len() >= 20, "{} events in 5 s", r.events.len());
+    let mut mode = Mode::Left;
+    let mut tilts = vec![mode];
     let mut t_prev = 0.0;
-    for e in events {
-        let (from, to) = (e["from"].as_str().unwrap(), e["to"].as_str().unwrap());
-        assert_eq!(from, mode, "{e}");
-        assert_ne!(from, to);
-        let t = e["t"].as_f64().unwrap();
-        assert!(t >= t_prev && t <= 5.0, "{e}");
-        t_prev = t;
-        let (xb, xa) = (state4(&e["x_before"]), state4(&e["x_after"]));
-        if to == "flat" {
+    for e in &r.events {
+        assert_eq!(e.from, mode, "{e:?}");
+        assert_ne!(e.from, e.to);
+        assert!(e.t >= t_prev && e.t <= 5.0, "{e:?}");
+        t_prev = e.t;
+        let (xb, xa) = (e.x_before, e.x_after);
+        if e.to == Mode::Flat {
             // Landing: the plate comes to rest, beta is continuous.
-            assert_eq!((xa[0], xa[2]), (0.0, 0.0), "{e}");
+            assert_eq!((xa[0], xa[2]), (0.0, 0.0), "{e:?}");
             assert_eq!(xb[1], xa[1]);
         } else {
-            assert_eq!(from, "flat", "{e}");
-            assert_eq!(xb, xa, "a tilt start keeps the state: {e}");
-            tilts.push(to.to_string());
+            assert_eq!(e.from, Mode::Flat, "{e:?}");
+            assert_eq!(xb, xa, "a tilt start keeps the state: {e:?}");
+            tilts.push(e.to);
         }
-        mode = to.to_string();
+        mode = e.to;
     }
     for w in tilts.windows(2) {
         assert_ne!(w[0], w[1], "tilts must alternate: {tilts:?}");
     }
-    assert_eq!(r["final"]["mode"].as_str().unwrap(), mode);
+    assert_eq!(r.final_state.mode, mode);
 
-    let peaks = r["tilt_peaks"].as_array().unwrap();
-    assert_eq!(peaks.len(), r["stats"]["tilts"].as_u64().unwrap() as usize);
-    for (p, m) in peaks.iter().zip(&tilts) {
-        assert_eq!(p["mode"].as_str().unwrap(), m);
-        let a = p["alpha"].as_f64().unwrap();
-        assert!(if m == "left" { a > 0.0 } else { a < 0.0 }, "{p}");
-        assert!(p["t"].as_f64().unwrap() <= 5.0);
+    assert_eq!(r.tilt_peaks.len() as u64, r.stats.tilts);
+    for (p, &m) in r.tilt_peaks.iter().zip(&tilts) {
+        assert_eq!(p.mode, m);
+        assert!(
+            if m == Mode::Left {
+                p.alpha > 0.0
+            } else {
+                p.alpha < 0.0
+            },
+            "{p:?}"
+        );
+        assert!(p.t <= 5.0);
     }
 }
 
@@ -170,7 +171,7 @@ fn invalid_flags_exit_2_and_name_the_field() {
 
 #[test]
 fn invalid_files_exit_2_and_name_the_field() {
-    let dir = TempDir::new("invalid-files");
+    let dir = Scratch::new("invalid-files");
     let unknown = dir.file("unknown.toml", "duration = 3\nduraton = 4\n");
     let bad_value = dir.file("bad.toml", "kd = -2\n");
     let bad_table = dir.file("bad_table.toml", "[params]\nl = 0\n");
@@ -205,7 +206,7 @@ fn invalid_files_exit_2_and_name_the_field() {
 
 #[test]
 fn files_and_flags_stack() {
-    let dir = TempDir::new("stack");
+    let dir = Scratch::new("stack");
     let sc = dir.file(
         "s.toml",
         "duration = 3\nk = 0\ncontrol_period = 0.001\n[params]\ng = 9.81\n",
@@ -213,9 +214,9 @@ fn files_and_flags_stack() {
     let params = dir.file("p.toml", "m_l = 1.0\n");
     // The flag wins over the file; k = 0 from the file needs no energy.
     let r = simulate_json(&["--scenario", &sc, "--params", &params, "--duration", "1.5"]);
-    assert_eq!(r["final"]["t"].as_f64(), Some(1.5));
-    assert_eq!(r["stats"]["coupling"].as_str(), Some("sampled"));
-    assert_eq!(r["stats"]["controller_samples"].as_u64(), Some(1500));
+    assert_eq!(r.final_state.t, 1.5);
+    assert_eq!(r.stats.coupling, Coupling::Sampled);
+    assert_eq!(r.stats.controller_samples, 1500);
 }
 
 #[test]
@@ -233,16 +234,16 @@ fn a_physics_fault_is_reported_with_exit_code_0() {
         "2",
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
-    let fault = r["fault"].as_str().expect("a fault");
+    let r = report(&o.stdout);
+    let fault = r.fault.expect("a fault").to_string();
     assert!(fault.contains("fall"), "{fault}");
-    assert!(r["final"]["t"].as_f64().unwrap() < 2.0);
+    assert!(r.final_state.t < 2.0);
     assert!(stderr(&o).contains("fall"));
 }
 
 #[test]
 fn plot_writes_a_png() {
-    let dir = TempDir::new("plot");
+    let dir = Scratch::new("plot");
     let png = dir.path().join("out.png");
     let o = simulate(&["--duration", "2", "--plot", png.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -253,9 +254,9 @@ fn plot_writes_a_png() {
 
 fn first_landing(period: &str) -> f64 {
     let r = simulate_json(&["--duration", "1", "--control-period", period]);
-    let e = &r["events"][0];
-    assert_eq!(e["to"].as_str(), Some("flat"), "{e}");
-    e["t"].as_f64().unwrap()
+    let e = &r.events[0];
+    assert_eq!(e.to, Mode::Flat, "{e:?}");
+    e.t
 }
 
 #[test]

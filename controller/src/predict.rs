@@ -23,7 +23,7 @@ const GRID_TOL: f64 = 1e-9;
 const MAX_SENT: usize = 65_536;
 
 /// Where a predicting controller gets the delay from (`--predict auto|SECONDS`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Predict {
     /// A given round-trip delay (s).

@@ -5,7 +5,7 @@
 
 use crate::orbit::{self, OrbitProblem, OrbitSolution};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use tilting_controller::{ComputedTorque, ControlConfig};
 use tilting_plant::{Mode, Observer, Plant, SimConfig, TiltPeak};
@@ -60,6 +60,9 @@ pub enum RowFault {
         /// End of the window (s).
         to: f64,
     },
+    /// A fault read back from a report's JSON, which carries its message text only.
+    #[error("{0}")]
+    Reported(String),
 }
 
 impl Serialize for Row {
@@ -75,6 +78,43 @@ impl Serialize for Row {
         }
         st.serialize_field("fault", &self.fault.as_ref().map(RowFault::to_string))?;
         st.end()
+    }
+}
+
+/// Reads the JSON [`Row`] serialises to (a fault as [`RowFault::Reported`]).
+impl<'de> Deserialize<'de> for Row {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        /// `period` in JSON: a number, `"irregular"` or `null`.
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Period {
+            Of(usize),
+            Irregular(String),
+        }
+        #[derive(Deserialize)]
+        struct Json {
+            k: f64,
+            peaks: Vec<f64>,
+            period: Option<Period>,
+            fault: Option<String>,
+        }
+        let j = Json::deserialize(d)?;
+        let period = match j.period {
+            Some(Period::Of(p)) => Some(p),
+            Some(Period::Irregular(s)) if s == "irregular" => None,
+            Some(Period::Irregular(s)) => {
+                return Err(serde::de::Error::custom(format!(
+                    "period {s:?}: expected a number, \"irregular\" or null"
+                )))
+            }
+            None => None,
+        };
+        Ok(Row {
+            k: j.k,
+            peaks: j.peaks,
+            period,
+            fault: j.fault.map(RowFault::Reported),
+        })
     }
 }
 
@@ -316,6 +356,19 @@ mod tests {
         assert_eq!(faulted["period"], serde_json::Value::Null);
         // The fault travels as its message.
         assert_eq!(faulted["fault"], "no tilt between t = 10 s and 20 s");
+        // And reads back: the same JSON, the fault as its message.
+        for v in [j(row(Some(2), None)), j(row(None, None)), faulted.clone()] {
+            let back: super::Row = serde_json::from_value(v.clone()).unwrap();
+            assert_eq!(j(back), v);
+        }
+        let back: super::Row = serde_json::from_value(faulted).unwrap();
+        assert_eq!(
+            back.fault,
+            Some(super::RowFault::Reported(
+                "no tilt between t = 10 s and 20 s".into()
+            ))
+        );
+        assert_eq!(back.period, None);
     }
 
     #[test]

@@ -5,11 +5,11 @@
 
 use crate::orbit::{self, OrbitProblem, OrbitSolution};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tilting_plant::{ImpactLaw, Params};
 
 /// One grid cell.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Cell {
     /// Stiffness gain `K_P` (1/s^2).
     pub kp: f64,

@@ -14,7 +14,7 @@
 //! whose eigenvalues are the Floquet multipliers reported here.
 
 use nalgebra::{Matrix2, Matrix3, Matrix4, SVector, Vector3, Vector4};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
 use tilting_controller::{ComputedTorque, ControlConfig};
 use tilting_plant::dynamics::rhs;
@@ -73,7 +73,7 @@ impl OrbitProblem {
 }
 
 /// One periodic orbit.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct OrbitSolution {
     /// `beta(0) - pi/2` at the start of the left tilt (rad).
     pub beta0: f64,

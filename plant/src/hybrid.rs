@@ -104,11 +104,29 @@ pub enum Fault {
     /// The integrator failed.
     #[error("integrator: {0}")]
     Integrator(#[from] OdeError),
+    /// A fault read back from a report: reports carry a fault as its message text
+    /// ([`Fault`]'s serde form), so reading one gives this variant with the message.
+    #[error("{0}")]
+    Reported(String),
+}
+
+/// A fault serialises as its message text (the JSON of every report).
+impl serde::Serialize for Fault {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+/// A fault's message text reads back as [`Fault::Reported`], which displays as the same text.
+impl<'de> serde::Deserialize<'de> for Fault {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        String::deserialize(d).map(Fault::Reported)
+    }
 }
 
 impl Fault {
     /// A short name of the kind of fault: `contact loss`, `fall`, `Zeno guard`,
-    /// `non-finite torque` or `integrator failure`.
+    /// `non-finite torque`, `integrator failure` or `reported fault`.
     pub fn kind(&self) -> &'static str {
         match self {
             Fault::ContactLoss { .. } => "contact loss",
@@ -116,6 +134,7 @@ impl Fault {
             Fault::Zeno { .. } => "Zeno guard",
             Fault::NonFiniteTorque { .. } => "non-finite torque",
             Fault::Integrator(_) => "integrator failure",
+            Fault::Reported(_) => "reported fault",
         }
     }
 
@@ -126,7 +145,7 @@ impl Fault {
             | Fault::Fall { t, .. }
             | Fault::Zeno { t, .. }
             | Fault::NonFiniteTorque { t, .. } => Some(t),
-            Fault::Integrator(_) => None,
+            Fault::Integrator(_) | Fault::Reported(_) => None,
         }
     }
 }

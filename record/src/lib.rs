@@ -19,6 +19,9 @@
 //! with SIGKILL leaves a file readable up to its last chunk ([`read`] reports it as
 //! truncated). A file closed normally has the summary section (chunk index and statistics).
 //!
+//! A run's trajectory ([`Trace`]) is loaded from a recording, or from a live run's CSV files,
+//! by [`load`] ([`trace`]).
+//!
 //! ```
 //! use tilting_proto::{encode, Keys, TorqueCommand, PlantState, Topic};
 //! use tilting_record::{read, Recorder};
@@ -42,10 +45,12 @@
 
 pub mod reader;
 pub mod schema;
+pub mod trace;
 pub mod writer;
 
 pub use reader::{read, Entry, ReadError, Recording};
 pub use tilting_proto::Topic;
+pub use trace::{load, EventRecord, LoadError, Loaded, Sample, Trace, Window};
 pub use writer::{Recorder, FLUSH_INTERVAL};
 
 /// `message_encoding` of the channels.

@@ -10,10 +10,13 @@
 
 use crate::network::{run_sampled_over, Impairment, LoopOptions, NetStats};
 use crate::scenario::{Scenario, ScenarioError};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 use tilting_plant::imperfect::Imperfections;
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, TorqueLaw, Transition};
+/// The trajectory types are the recordings' ([`tilting_record::trace`]): a simulated run and a
+/// recorded one are drawn alike.
+pub use tilting_record::{EventRecord, Sample, Trace};
 
 /// The plant's default `--max-age` (periods), used for a loop with prediction or sampling on
 /// events over a perfect network.
@@ -37,24 +40,9 @@ pub struct SimOptions {
     pub imperfect: Option<Imperfections>,
 }
 
-/// A mode transition as reported.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct EventRecord {
-    /// Time (s).
-    pub t: f64,
-    /// Mode before.
-    pub from: Mode,
-    /// Mode after.
-    pub to: Mode,
-    /// State just before `(alpha, beta, alpha_dot, beta_dot)`.
-    pub x_before: [f64; 4],
-    /// State just after (the impact map applied for a landing).
-    pub x_after: [f64; 4],
-}
-
 /// The extreme tilt angle of one tilt: every completed tilt, and the last tilt of the run if
 /// it reached its peak before the end.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PeakRecord {
     /// Time of the extreme (s).
     pub t: f64,
@@ -65,7 +53,7 @@ pub struct PeakRecord {
 }
 
 /// The hybrid state at the end of the run.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FinalRecord {
     /// Time (s): the duration, or the time of the fault.
     pub t: f64,
@@ -75,11 +63,21 @@ pub struct FinalRecord {
     pub x: [f64; 4],
 }
 
+/// How the controller is coupled to the plant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Coupling {
+    /// The torque law inside the right-hand side (`control_period = 0`).
+    Continuous,
+    /// A zero-order hold every `control_period`.
+    Sampled,
+}
+
 /// Work counters and settings of the run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunStats {
     /// `continuous` or `sampled`.
-    pub coupling: &'static str,
+    pub coupling: Coupling,
     /// Zero-order-hold period (s); 0 for continuous.
     pub control_period: f64,
     /// Requested simulated time (s).
@@ -102,19 +100,9 @@ pub struct RunStats {
     pub wall_time_s: f64,
 }
 
-/// One recorded point of the trajectory (for plots).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Sample {
-    /// Time (s).
-    pub t: f64,
-    /// Mode.
-    pub mode: Mode,
-    /// State.
-    pub x: [f64; 4],
-}
-
-/// The result of [`simulate`]; serialises to the JSON of `simulate --json`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// The result of [`simulate`]; serialises to the JSON of `simulate --json`, and reads back
+/// from it (the fault then as [`Fault::Reported`], without the trajectory).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SimulationReport {
     /// Mode transitions in time order.
     pub events: Vec<EventRecord>,
@@ -125,7 +113,6 @@ pub struct SimulationReport {
     #[serde(rename = "final")]
     pub final_state: FinalRecord,
     /// The fault that ended the run early, if any (its message text in JSON).
-    #[serde(serialize_with = "fault_text")]
     pub fault: Option<Fault>,
     /// Work counters.
     pub stats: RunStats,
@@ -134,7 +121,7 @@ pub struct SimulationReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub network: Option<NetStats>,
     /// Prediction and sampling on events, if asked for.
-    #[serde(skip_serializing_if = "LoopOptions::is_plain")]
+    #[serde(default, skip_serializing_if = "LoopOptions::is_plain")]
     pub loop_options: LoopOptions,
     /// The robot's imperfections, for a run with any.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -144,16 +131,20 @@ pub struct SimulationReport {
     pub samples: Vec<Sample>,
 }
 
-/// A fault as its message text: the JSON of `simulate --json` carries the message.
-fn fault_text<S: serde::Serializer>(f: &Option<Fault>, s: S) -> Result<S::Ok, S::Error> {
-    match f {
-        Some(f) => s.collect_str(f),
-        None => s.serialize_none(),
+impl SimulationReport {
+    /// The run's trajectory (a copy of the samples and the events), for plots and animations.
+    pub fn trace(&self) -> Trace {
+        Trace {
+            samples: self.samples.clone(),
+            events: self.events.clone(),
+            end: self.final_state.t,
+            stopped_early: self.fault.is_some(),
+        }
     }
 }
 
 /// Collects events, peaks and (optionally) a decimated trajectory.
-struct Recorder {
+struct Collector {
     events: Vec<EventRecord>,
     peaks: Vec<PeakRecord>,
     samples: Option<Vec<Sample>>,
@@ -161,7 +152,7 @@ struct Recorder {
     min_dt: f64,
 }
 
-impl Recorder {
+impl Collector {
     fn push(&mut self, t: f64, mode: Mode, x: &State, force: bool) {
         if let Some(s) = &mut self.samples {
             if force || s.last().is_none_or(|l| t - l.t >= self.min_dt) {
@@ -175,7 +166,7 @@ impl Recorder {
     }
 }
 
-impl Observer for Recorder {
+impl Observer for Collector {
     fn transition(&mut self, ev: &Transition) {
         self.events.push(EventRecord {
             t: ev.t,
@@ -303,7 +294,7 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
             path: "initial state".into(),
             message: e.to_string(),
         })?;
-    let mut rec = Recorder {
+    let mut rec = Collector {
         events: Vec::new(),
         peaks: Vec::new(),
         samples: opts.record_samples.then(Vec::new),
@@ -427,9 +418,9 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
         imperfections: imperfect,
         stats: RunStats {
             coupling: if sc.is_sampled() {
-                "sampled"
+                Coupling::Sampled
             } else {
-                "continuous"
+                Coupling::Continuous
             },
             control_period: sc.control_period,
             duration: sc.duration,

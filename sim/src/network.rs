@@ -36,7 +36,7 @@
 //!
 //! With neither option the loop is the plain one above, bit for bit.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tilting_controller::Predictor;
 use tilting_plant::imperfect::Hardware;
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TorqueLaw};
@@ -51,10 +51,10 @@ pub const ESTIMATE_EVERY: u64 = 100;
 pub use tilting_controller::predict::Predict;
 
 /// Options of the sampled loop that change what it does.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct LoopOptions {
     /// Predict over the delay (`--predict`).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub predict: Option<Predict>,
     /// The plant sends an extra state at each mode transition (`--sample-on-event`).
     pub sample_on_event: bool,

@@ -21,12 +21,16 @@ use std::time::{Duration, Instant};
 
 pub mod proxy;
 pub mod recording;
+mod scratch;
+
+pub use scratch::Scratch;
 
 pub use tilting::supervise::endpoint;
 pub use tilting_controller::node::ControllerSummary;
 pub use tilting_net;
 pub use tilting_plant::node::{PlantSummary, RunResult};
 pub use tilting_proto;
+pub use tilting_sim::SimulationReport;
 pub use zenoh;
 
 /// The workspace root.
@@ -86,35 +90,6 @@ pub fn free_port() -> u16 {
 /// A unique robot name for one test (`{tag}_{pid}`).
 pub fn robot(tag: &str) -> String {
     format!("{tag}_{}", std::process::id())
-}
-
-/// A scratch directory for one test, removed on drop unless the test failed or
-/// `TILTING_TESTS_KEEP` is set (then it is kept for a look and its path printed).
-pub struct Scratch(Option<tempfile::TempDir>);
-
-impl Scratch {
-    /// A new empty directory named after `tag` under the system's temp directory.
-    pub fn new(tag: &str) -> Self {
-        let dir = tempfile::Builder::new()
-            .prefix(&format!("tilting-tests-{tag}-"))
-            .tempdir()
-            .expect("create scratch dir");
-        Self(Some(dir))
-    }
-    /// The directory.
-    pub fn path(&self) -> &Path {
-        self.0.as_ref().expect("present until drop").path()
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        if let Some(dir) = self.0.take() {
-            if std::env::var_os("TILTING_TESTS_KEEP").is_some() || std::thread::panicking() {
-                eprintln!("kept {}", dir.keep().display());
-            }
-        }
-    }
 }
 
 /// A child process of a test, started by the product's supervisor; killed when dropped.
@@ -218,9 +193,9 @@ pub fn plant_args(robot: &str, port: u16, extra: &[&str]) -> Vec<String> {
 }
 
 /// Runs `tilting simulate --json ARGS` (the arguments given in full: control period, duration,
-/// flags), asserting it succeeded: the final state `(alpha, beta, alpha_dot, beta_dot)` and the
-/// whole report.
-pub fn simulate_json(args: &[&str]) -> (Vec<f64>, serde_json::Value) {
+/// flags), asserting it succeeded: its report (`final_state.x` is the final state
+/// `[alpha, beta, alpha_dot, beta_dot]`).
+pub fn simulate_json(args: &[&str]) -> SimulationReport {
     let out = Command::new(bin("tilting"))
         .args(["simulate", "--json"])
         .args(args)
@@ -231,14 +206,7 @@ pub fn simulate_json(args: &[&str]) -> (Vec<f64>, serde_json::Value) {
         "simulate {args:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("simulate's JSON");
-    let x = v["final"]["x"]
-        .as_array()
-        .expect("final.x")
-        .iter()
-        .map(|x| x.as_f64().expect("a number"))
-        .collect();
-    (x, v)
+    serde_json::from_slice(&out.stdout).expect("simulate's report")
 }
 
 /// Starts a plant (`plant_args` with `plant_extra`) and a controller node connecting to it

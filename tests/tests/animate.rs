@@ -2,6 +2,7 @@
 //! directory, and a garbled recording refused with the file and the line.
 
 use std::process::Command;
+use tilting::commands::animate::{AnimateReport, AnimationFormat};
 use tilting_tests::bin;
 
 #[test]
@@ -23,10 +24,11 @@ fn animate_simulates_writes_a_gif_and_refuses_a_garbled_recording() {
         .expect("run tilting animate");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let report: AnimateReport = serde_json::from_slice(&out.stdout).unwrap();
     // 2 s at 10 frames per second, both ends included; the orbit lands about every 0.44 s.
-    assert_eq!(report["frames"], 21, "{report}");
-    assert!(report["flashed"].as_u64().unwrap() >= 4, "{report}");
+    assert_eq!(report.frames, 21, "{report:?}");
+    assert_eq!(report.format, AnimationFormat::Gif);
+    assert!(report.flashed >= 4, "{report:?}");
     let bytes = std::fs::read(&gif).unwrap();
     assert!(bytes.starts_with(b"GIF89a"));
     assert_eq!(&bytes[6..10], &[128, 2, 224, 1], "640 x 480 px");

@@ -32,7 +32,7 @@ const IMPERFECT: [&str; 18] = [
     "13",
 ];
 
-fn simulate_final(extra: &[&str]) -> (Vec<f64>, serde_json::Value) {
+fn simulate_final(extra: &[&str]) -> SimulationReport {
     let mut args = vec!["--control-period", "0.001", "--duration", "2"];
     args.extend(extra);
     simulate_json(&args)
@@ -53,15 +53,18 @@ fn lockstep_with_imperfections_equals_simulate_with_the_same_flags() {
     assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
     assert_eq!(summary.time, 2.0);
 
-    let (want_x, v) = simulate_final(&flags);
-    assert!(v["imperfections"].is_object(), "{}", v["imperfections"]);
+    let want = simulate_final(&flags);
+    assert!(want.imperfections.is_some(), "{want:?}");
+    let want_x = want.final_state.x;
     for (i, (g, w)) in summary.x.iter().zip(&want_x).enumerate() {
         assert_eq!(g.to_bits(), w.to_bits(), "component {i}: {g} vs {w}");
     }
-    let want_net: tilting_link::NetStats = serde_json::from_value(v["network"].clone()).unwrap();
-    assert_eq!(summary.network.as_ref(), Some(&want_net));
+    assert!(want.network.is_some());
+    assert_eq!(summary.network, want.network);
 
-    let (perfect_x, _) = simulate_final(&["--torque-delay", "0.001", "--loss", "0.02"]);
+    let perfect_x = simulate_final(&["--torque-delay", "0.001", "--loss", "0.02"])
+        .final_state
+        .x;
     let d = perfect_x
         .iter()
         .zip(&want_x)

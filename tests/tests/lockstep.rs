@@ -79,14 +79,18 @@ fn lockstep_run_equals_offline_simulation() {
 
     // And the offline `simulate` command itself, with the same control period: the same final
     // state, bit for bit.
-    let (sim_x, report) = simulate_json(&[
+    let report = simulate_json(&[
         "--control-period",
         &PERIOD.to_string(),
         "--duration",
         &DURATION.to_string(),
     ]);
-    assert_eq!(report["final"]["t"].as_f64().unwrap(), DURATION);
-    assert_eq!(sim_x, x, "simulate --control-period vs the lockstep run");
+    assert_eq!(report.final_state.t, DURATION);
+    assert_eq!(
+        report.final_state.x.to_vec(),
+        x,
+        "simulate --control-period vs the lockstep run"
+    );
 }
 
 /// Issue 8 part 6 for the plant node: its summary's `tilt_peaks` include the peak of the last
@@ -210,7 +214,8 @@ fn lockstep_equals_simulate(name: &str, net: &[&str], ctl_flags: &[&str]) {
     let mut args = vec!["--control-period", "0.001", "--duration", "2"];
     args.extend(net);
     args.extend(ctl_flags);
-    let (want_x, v) = simulate_json(&args);
+    let want = simulate_json(&args);
+    let want_x = want.final_state.x;
     eprintln!("network: {got_net:?}");
     assert!(got_net.torques_late > 0, "{got_net:?}");
     if net.contains(&"--loss") {
@@ -220,22 +225,21 @@ fn lockstep_equals_simulate(name: &str, net: &[&str], ctl_flags: &[&str]) {
     for (i, (g, w)) in summary.x.iter().zip(&want_x).enumerate() {
         assert_eq!(g.to_bits(), w.to_bits(), "component {i}: {g} vs {w}");
     }
-    let want_net: tilting_link::NetStats =
-        serde_json::from_value(v["network"].clone()).expect("simulate's network counters");
+    let want_net = want.network.expect("simulate's network counters");
     assert_eq!(got_net, want_net);
 }
 
 /// `tilting simulate --sample-on-event` over `seconds` at 100 Hz: its final state and its
 /// controller's sample count (periodic and extra states).
-fn simulate_sampling_on_events(seconds: &str) -> (Vec<f64>, u64) {
-    let (x, v) = simulate_json(&[
+fn simulate_sampling_on_events(seconds: &str) -> ([f64; 4], u64) {
+    let r = simulate_json(&[
         "--control-period",
         "0.01",
         "--duration",
         seconds,
         "--sample-on-event",
     ]);
-    (x, v["stats"]["controller_samples"].as_u64().unwrap())
+    (r.final_state.x, r.stats.controller_samples)
 }
 
 /// A 2 s run of the plant at 100 Hz with `--sample-on-event` and `clock_args` against a

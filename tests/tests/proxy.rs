@@ -49,7 +49,7 @@ fn over_a_delaying_proxy_the_loop_matches_the_emulator() {
         "the torques did not cross the proxy: {through} bytes"
     );
 
-    let (_, v) = simulate_json(&[
+    let v = simulate_json(&[
         "--control-period",
         "0.001",
         "--duration",
@@ -57,7 +57,12 @@ fn over_a_delaying_proxy_the_loop_matches_the_emulator() {
         "--delay",
         "0.001",
     ]);
-    let hist: Vec<u64> = serde_json::from_value(v["network"]["age_histogram"].clone()).unwrap();
+    let hist = v
+        .network
+        .as_ref()
+        .expect("network counters")
+        .age_histogram
+        .clone();
     let emulated_age = hist
         .iter()
         .enumerate()
@@ -73,17 +78,11 @@ fn over_a_delaying_proxy_the_loop_matches_the_emulator() {
     );
     assert_eq!(real.watchdog_trips, 0, "{real:?}");
 
-    let peaks: Vec<f64> = v["tilt_peaks"]
-        .as_array()
-        .unwrap()
+    let peaks: Vec<f64> = v.tilt_peaks.iter().map(|p| p.alpha).collect();
+    let emulated_tilts = v
+        .events
         .iter()
-        .map(|p| p["alpha"].as_f64().unwrap())
-        .collect();
-    let emulated_tilts = v["events"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["from"] == "flat")
+        .filter(|e| e.from == tilting_proto::Mode::Flat)
         .count() as u64;
     assert!(
         real.tilts.abs_diff(emulated_tilts) <= 1,

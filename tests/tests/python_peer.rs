@@ -26,6 +26,14 @@ fn script() -> PathBuf {
     workspace_root().join("examples/python/controller.py")
 }
 
+/// The part of controller.py's summary this test reads.
+#[derive(Debug, serde::Deserialize)]
+struct PyControllerSummary {
+    states_dropped: u64,
+    torques_not_finite: u64,
+    torques_published: u64,
+}
+
 #[test]
 fn python_controller_self_test() {
     if !python_runs("import struct") {
@@ -119,14 +127,12 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
     assert_eq!(summary.watchdog_trips, 0, "{summary:?}");
     let c_status = ctl.interrupt(Duration::from_secs(10));
     assert!(c_status.success(), "{}", ctl.logs());
-    let c_summary = ctl.summary_json();
-    eprintln!("controller.py summary: {c_summary}");
-    assert_eq!(c_summary["states_dropped"], 0, "{c_summary}");
-    assert_eq!(c_summary["torques_not_finite"], 0, "{c_summary}");
-    assert!(
-        c_summary["torques_published"].as_u64().unwrap() >= 1000,
-        "{c_summary}"
-    );
+    let c_summary: PyControllerSummary =
+        serde_json::from_value(ctl.summary_json()).expect("controller.py's summary");
+    eprintln!("controller.py summary: {c_summary:?}");
+    assert_eq!(c_summary.states_dropped, 0, "{c_summary:?}");
+    assert_eq!(c_summary.torques_not_finite, 0, "{c_summary:?}");
+    assert!(c_summary.torques_published >= 1000, "{c_summary:?}");
 
     let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());
     let want = offline(DURATION, PERIOD);

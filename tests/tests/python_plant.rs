@@ -40,6 +40,17 @@ fn script() -> PathBuf {
     workspace_root().join("examples/python/plant.py")
 }
 
+/// The part of plant.py's summary this test reads (its fields are named as the Rust plant's).
+#[derive(Debug, serde::Deserialize)]
+struct PyPlantSummary {
+    result: RunResult,
+    steps: u64,
+    deadline_misses: u64,
+    torques_dropped: u64,
+    torques_stale: u64,
+    watchdog_trips: u64,
+}
+
 #[test]
 fn python_plant_self_test() {
     if !python_runs("import struct") {
@@ -149,19 +160,19 @@ async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
         plant.logs(),
         ctl.logs()
     );
-    let summary = plant.summary_json();
-    eprintln!("plant.py summary: {summary}");
+    let summary: PyPlantSummary =
+        serde_json::from_value(plant.summary_json()).expect("plant.py's summary");
+    eprintln!("plant.py summary: {summary:?}");
     let n = (DURATION / PERIOD).round() as u64;
-    assert_eq!(summary["result"], "completed", "{summary}");
-    assert_eq!(summary["steps"], n, "{summary}");
-    for key in [
-        "deadline_misses",
-        "torques_dropped",
-        "torques_stale",
-        "watchdog_trips",
-    ] {
-        assert_eq!(summary[key], 0, "{key}: {summary}");
-    }
+    assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
+    assert_eq!(summary.steps, n, "{summary:?}");
+    let counters = [
+        summary.deadline_misses,
+        summary.torques_dropped,
+        summary.torques_stale,
+        summary.watchdog_trips,
+    ];
+    assert_eq!(counters, [0; 4], "{summary:?}");
     let c_status = ctl.interrupt(Duration::from_secs(10));
     assert!(c_status.success(), "{}", ctl.logs());
     let c_summary = ctl.controller_summary();

@@ -24,8 +24,31 @@ fn python_has_mcap() -> bool {
     python_runs("import mcap.stream_reader, zstandard")
 }
 
+/// What tests/python/check_mcap.py prints about a file.
+#[derive(Debug, serde::Deserialize)]
+struct PyCheck {
+    /// The file has its footer (closed normally).
+    complete: bool,
+    /// The channels by topic.
+    channels: BTreeMap<String, PyChannel>,
+    /// The states' `seq` are 0, 1, 2, ...
+    state_seq_consecutive: bool,
+}
+
+/// One channel as the Python reader sees it.
+#[derive(Debug, serde::Deserialize)]
+struct PyChannel {
+    message_encoding: String,
+    schema_encoding: String,
+    schema_name: String,
+    count: u64,
+    /// Every message has exactly the schema's required fields, of the schema's types.
+    fields_ok: bool,
+    last_log_time: Option<u64>,
+}
+
 /// The Python reader's view of `file` (see tests/python/check_mcap.py).
-fn python_check(file: &std::path::Path) -> serde_json::Value {
+fn python_check(file: &std::path::Path) -> PyCheck {
     let out = Command::new(python())
         .arg(workspace_root().join("tests/python/check_mcap.py"))
         .arg(file)
@@ -84,8 +107,8 @@ fn the_plants_recording_opens_in_the_python_mcap_reader_with_the_plants_counts()
     let summary = recorded_run(&dir, &robot, &file, "3");
     assert_eq!(summary.result, RunResult::Completed);
     let v = python_check(&file);
-    assert_eq!(v["complete"], true, "{v}");
-    let ch = &v["channels"];
+    assert!(v.complete, "{v:?}");
+    let ch = |key: &str| &v.channels[&format!("/tilting/{robot}/{key}")];
     let want: BTreeMap<&str, (&str, u64)> = BTreeMap::from([
         ("plant/state", ("tilting.PlantState", summary.steps + 1)),
         (
@@ -95,25 +118,22 @@ fn the_plants_recording_opens_in_the_python_mcap_reader_with_the_plants_counts()
         ("plant/event", ("tilting.ModeEvent", summary.transitions)),
     ]);
     for (key, (schema, count)) in &want {
-        let c = &ch[format!("/tilting/{robot}/{key}")];
-        assert_eq!(c["message_encoding"], "json", "{key}: {c}");
-        assert_eq!(c["schema_encoding"], "jsonschema", "{key}: {c}");
-        assert_eq!(c["schema_name"], *schema, "{key}: {c}");
-        assert_eq!(c["count"], *count, "{key}: {c}");
-        assert_eq!(c["fields_ok"], true, "{key}: {c}");
+        let c = ch(key);
+        assert_eq!(c.message_encoding, "json", "{key}: {c:?}");
+        assert_eq!(c.schema_encoding, "jsonschema", "{key}: {c:?}");
+        assert_eq!(c.schema_name, *schema, "{key}: {c:?}");
+        assert_eq!(c.count, *count, "{key}: {c:?}");
+        assert!(c.fields_ok, "{key}: {c:?}");
     }
     // 3 s of the orbit: about 7 tilts, two events each; every period applied a torque.
     assert!(summary.transitions >= 10, "{summary:?}");
     assert_eq!(summary.torques_applied, summary.steps);
-    let status = &ch[format!("/tilting/{robot}/plant/status")];
-    assert!(status["count"].as_u64().unwrap() >= 2, "{status}");
-    assert_eq!(status["fields_ok"], true);
+    let status = ch("plant/status");
+    assert!(status.count >= 2, "{status:?}");
+    assert!(status.fields_ok);
     // Log times are plant time: the last state at 3 s.
-    assert_eq!(
-        ch[format!("/tilting/{robot}/plant/state")]["last_log_time"],
-        3_000_000_000u64
-    );
-    assert_eq!(v["state_seq_consecutive"], true);
+    assert_eq!(ch("plant/state").last_log_time, Some(3_000_000_000));
+    assert!(v.state_seq_consecutive);
 }
 
 #[test]
@@ -164,12 +184,10 @@ fn a_plant_killed_mid_run_leaves_a_recording_readable_to_its_last_chunk() {
     plant.expect_exit(Duration::from_secs(5));
     ctl.interrupt(Duration::from_secs(10));
     let v = python_check(&file);
-    assert_eq!(v["complete"], false, "{v}");
-    let states = v["channels"][format!("/tilting/{robot}/plant/state")]["count"]
-        .as_u64()
-        .unwrap();
-    assert!(states > 1000, "{v}");
-    assert_eq!(v["state_seq_consecutive"], true, "{v}");
+    assert!(!v.complete, "{v:?}");
+    let states = v.channels[&format!("/tilting/{robot}/plant/state")].count;
+    assert!(states > 1000, "{v:?}");
+    assert!(v.state_seq_consecutive, "{v:?}");
     // Our reader agrees with the independent one.
     let run = tilting_record::read(&file).expect("opens");
     assert!(!run.complete());

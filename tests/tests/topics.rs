@@ -5,6 +5,7 @@
 
 use std::process::Command;
 use std::time::Duration;
+use tilting::commands::topics::{HzReport, InvalidPayload};
 use tilting_proto::{PlantState, TorqueCommand};
 use tilting_tests::*;
 
@@ -72,9 +73,12 @@ async fn echo_and_hz_look_at_a_running_loop() {
     client.session.put(key, vec![1u8, 2, 3]).await.unwrap();
     let o = echo.join().unwrap();
     let text = String::from_utf8(o.stdout).unwrap();
-    let invalid: Vec<&str> = text.lines().filter(|l| l.contains("\"invalid\"")).collect();
+    let invalid: Vec<InvalidPayload> = text
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect();
     assert_eq!(invalid.len(), 1, "{invalid:?}");
-    assert!(invalid[0].contains("TorqueCommand"), "{}", invalid[0]);
+    assert!(invalid[0].invalid.contains("TorqueCommand"), "{invalid:?}");
     let torques = text
         .lines()
         .filter(|l| serde_json::from_str::<TorqueCommand>(l).is_ok())
@@ -83,20 +87,15 @@ async fn echo_and_hz_look_at_a_running_loop() {
 
     // hz: two reports of the state and torque topics.
     let text = look(&["hz", "--topics", "state,torque", "--json", "--seconds", "2"]);
-    let last: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
+    let last: HzReport = serde_json::from_str(text.lines().last().unwrap()).unwrap();
     for (topic, size) in [("state", 49.0), ("torque", 16.0)] {
-        let t = last["topics"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|t| t["topic"] == topic)
-            .unwrap();
-        let rate = t["rate_hz"].as_f64().unwrap();
+        let t = last.topics.iter().find(|t| t.topic == topic).unwrap();
+        let rate = t.rate_hz;
         assert!(
             (700.0..1300.0).contains(&rate),
             "{topic}: {rate} Hz\n{text}"
         );
-        assert_eq!(t["bytes_per_msg"].as_f64().unwrap(), size, "{topic}");
+        assert_eq!(t.bytes_per_msg, Some(size), "{topic}");
     }
     let _ = client.session.close().await;
     assert!(ctl.interrupt(Duration::from_secs(10)).success());

@@ -370,7 +370,7 @@ const BOTTOM: i32 = 34;
 /// What every frame shares: the world-to-pixel map, the landings, the plant.
 struct Scene<'a> {
     params: Params,
-    trace: &'a Trace<'a>,
+    trace: &'a Trace,
     /// Landing times (s) and the striking edge (world, m), in time order.
     landings: Vec<(f64, [f64; 2])>,
     /// Plant time window during which a landing is flashed (s).
@@ -385,7 +385,7 @@ struct Scene<'a> {
 }
 
 impl<'a> Scene<'a> {
-    fn new(params: &Params, trace: &'a Trace<'a>, tl: &Timeline, opts: &Options) -> Self {
+    fn new(params: &Params, trace: &'a Trace, tl: &Timeline, opts: &Options) -> Self {
         let p = *params;
         // The bounding box of every pose in the window (with both edges and the arm upright
         // flat), so the camera stays still.
@@ -460,7 +460,7 @@ impl<'a> Scene<'a> {
     /// Draws the frame at plant time `t`; `true` when a landing is flashed.
     fn draw(&self, root: &DrawingArea<BitMapBackend, Shift>, t: f64) -> Result<bool> {
         let (mode, alpha, beta) =
-            state_at(self.trace.samples, t).ok_or_else(|| anyhow!("no samples"))?;
+            state_at(&self.trace.samples, t).ok_or_else(|| anyhow!("no samples"))?;
         let p = &self.params;
         let q = pose(p, mode, alpha, beta);
         let flash = self.flash_at(t);
@@ -699,8 +699,8 @@ mod tests {
             sample(4.0, Mode::Flat, 0.0, 1.0),
         ];
         let tr = Trace {
-            samples: &s,
-            events: &[],
+            samples: s.to_vec(),
+            events: Vec::new(),
             end: 4.0,
             stopped_early: false,
         };
@@ -734,7 +734,10 @@ mod tests {
         ] {
             assert!(timeline(&tr, &bad).is_err(), "{bad:?}");
         }
-        let none = Trace { samples: &[], ..tr };
+        let none = Trace {
+            samples: Vec::new(),
+            ..tr
+        };
         assert!(timeline(&none, &Options::default()).is_err());
     }
 
@@ -764,8 +767,8 @@ mod tests {
         };
         let events = [ev(Mode::Left, Mode::Flat), ev(Mode::Flat, Mode::Right)];
         let tr = Trace {
-            samples: &s,
-            events: &events,
+            samples: s,
+            events: events.to_vec(),
             end: 0.5,
             stopped_early: false,
         };

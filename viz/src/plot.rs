@@ -7,9 +7,12 @@ use plotters::style::FontStyle;
 use std::path::Path;
 use std::sync::OnceLock;
 use tilting_plant::Mode;
-use tilting_sim::closed_loop::{EventRecord, Sample};
 use tilting_sim::Scenario;
 use tilting_sim::SimulationReport;
+
+/// The trajectory a figure draws: an offline run's or a recording's (one type, the
+/// recordings').
+pub use tilting_sim::closed_loop::Trace;
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
@@ -57,26 +60,7 @@ pub fn padded_range(v: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
 /// Draws `alpha(t)` and `beta(t)` of an offline run (`simulate --plot`) in two stacked panels,
 /// with the transition times marked: vertical lines at tilt starts and at landings.
 pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> {
-    let trace = Trace {
-        samples: &r.samples,
-        events: &r.events,
-        end: r.final_state.t,
-        stopped_early: r.fault.is_some(),
-    };
-    plot_trace(path, sc, &trace)
-}
-
-/// A trajectory to draw: an offline run's or a live recording's.
-#[derive(Debug, Clone, Copy)]
-pub struct Trace<'a> {
-    /// The trajectory, in time order (decimated as the caller likes).
-    pub samples: &'a [Sample],
-    /// The mode transitions.
-    pub events: &'a [EventRecord],
-    /// Plant time at the end of the run (s).
-    pub end: f64,
-    /// The run ended before its planned duration (a fault, or a node that failed).
-    pub stopped_early: bool,
+    plot_trace(path, sc, &r.trace())
 }
 
 /// Draws a [`Trace`] as [`plot_run`] does; `sc` gives the gains, the coupling and the planned
@@ -135,7 +119,7 @@ pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
         // A landing and the re-tilt it triggers share one instant: landings are marked in the
         // lower half of the panel, tilt starts in the upper half, so both stay visible.
         let mut labelled = [false; 2];
-        for e in r.events {
+        for e in &r.events {
             let landing = e.to == Mode::Flat;
             let (color, y0, y1, label) = if landing {
                 (LANDING, lo, mid, "landing (tilted → flat), lower half")

@@ -4,13 +4,13 @@
 use super::ModelArgs;
 use anyhow::anyhow;
 use clap::Args;
-use serde_json::{json, Value};
+use serde::{Deserialize, Serialize};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tilting_planner::CommandError;
 use tilting_plant::Params;
-use tilting_viz::figures::{Figures, Settings, ALL};
+use tilting_viz::figures::{Figures, Settings, Summary, ALL};
 
 /// Flags of `tilting figures`.
 #[derive(Debug, Clone, Args)]
@@ -36,6 +36,36 @@ fn parse_figure(s: &str) -> Result<u8, String> {
             "no figure `{s}`: the figures are numbered 4 to 8 (e.g. --only 4,7)"
         )),
     }
+}
+
+/// What `tilting figures --json` prints (fields in the order of the JSON).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FiguresReport {
+    /// The figures that failed: `figN: why`.
+    pub failed: Vec<String>,
+    /// The figures drawn, in increasing number.
+    pub figures: Vec<FigureReport>,
+    /// The landing impact law.
+    pub impact: String,
+    /// The output directory.
+    pub out: PathBuf,
+    /// `--quick`: coarse grids and short runs.
+    pub quick: bool,
+    /// Wall-clock time of the whole command (s).
+    pub seconds: f64,
+}
+
+/// One figure drawn.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FigureReport {
+    /// Its number, 4 to 8.
+    pub figure: u8,
+    /// The PNG file.
+    pub path: PathBuf,
+    /// Wall-clock time of its computation and drawing (s).
+    pub seconds: f64,
+    /// What it shows.
+    pub summary: Summary,
 }
 
 /// `tilting figures`: the PNGs of the paper's Figs. 4 to 8.
@@ -73,27 +103,30 @@ pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
         let t0 = Instant::now();
         let r = ctx.draw(n, &bar);
         match r {
-            Ok(summary) => done.push(json!({
-                "figure": n,
-                "path": ctx.path(n).display().to_string(),
-                "seconds": t0.elapsed().as_secs_f64(),
-                "summary": summary,
-            })),
+            Ok(summary) => done.push(FigureReport {
+                figure: n,
+                path: ctx.path(n),
+                seconds: t0.elapsed().as_secs_f64(),
+                summary,
+            }),
             Err(e) => failed.push(format!("fig{n}: {e:#}")),
         }
     }
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
-    let report = json!({
-        "out": ctx.out.display().to_string(),
-        "quick": args.quick,
-        "impact": ctx.impact.as_str(),
-        "seconds": seconds,
-        "figures": done,
-        "failed": failed,
-    });
+    let report = FiguresReport {
+        out: ctx.out.clone(),
+        quick: args.quick,
+        impact: ctx.impact.as_str().to_owned(),
+        seconds,
+        figures: done,
+        failed,
+    };
     let text = if args.model.json {
-        format!("{report}\n")
+        format!(
+            "{}\n",
+            serde_json::to_string(&report).map_err(|e| CommandError::Failed(e.into()))?
+        )
     } else {
         human(&report)
     };
@@ -103,14 +136,14 @@ pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
             return Err(CommandError::Failed(anyhow!("cannot write to stdout: {e}")));
         }
     }
-    if failed.is_empty() {
+    if report.failed.is_empty() {
         Ok(())
     } else {
         Err(CommandError::Failed(anyhow!(
             "{} of {} figures failed: {}",
-            failed.len(),
+            report.failed.len(),
             which.len(),
-            failed.join("; ")
+            report.failed.join("; ")
         )))
     }
 }
@@ -147,23 +180,19 @@ fn progress(len: u64, json: bool) -> indicatif::ProgressBar {
     b
 }
 
-fn human(report: &Value) -> String {
+fn human(report: &FiguresReport) -> String {
     let mut s = format!(
         "figures written to {} in {:.1} s{}\n",
-        report["out"].as_str().unwrap_or(""),
-        report["seconds"].as_f64().unwrap_or(0.0),
-        if report["quick"].as_bool() == Some(true) {
-            " (quick preview)"
-        } else {
-            ""
-        }
+        report.out.display(),
+        report.seconds,
+        if report.quick { " (quick preview)" } else { "" }
     );
-    for f in report["figures"].as_array().into_iter().flatten() {
+    for f in &report.figures {
         s += &format!(
             "  {} ({:.1} s): {}\n",
-            f["path"].as_str().unwrap_or(""),
-            f["seconds"].as_f64().unwrap_or(0.0),
-            f["summary"]["text"].as_str().unwrap_or("")
+            f.path.display(),
+            f.seconds,
+            f.summary.text()
         );
     }
     s

@@ -168,7 +168,9 @@ pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
             n += 1;
             let line = match describe(args.topic, &bytes, args.json) {
                 Ok(l) => l,
-                Err(e) if args.json => serde_json::json!({ "invalid": e }).to_string(),
+                Err(invalid) if args.json => {
+                    serde_json::to_string(&InvalidPayload { invalid }).unwrap_or_default()
+                }
                 Err(e) => format!("invalid payload ({} bytes): {e}", bytes.len()),
             };
             print_stdout(&format!("{line}\n")).map_err(|e| anyhow!("{e}"))?;
@@ -310,25 +312,60 @@ pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
     .map_err(CommandError::Failed)
 }
 
+/// One report of `hz --json` (fields in the order of the JSON).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HzReport {
+    /// Seconds since the start.
+    pub t: f64,
+    /// One entry per topic watched, in the order asked.
+    pub topics: Vec<HzTopic>,
+}
+
+/// One topic in an [`HzReport`] (fields in the order of the JSON).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HzTopic {
+    /// Mean payload size over the whole run (bytes), `None` before the first message.
+    pub bytes_per_msg: Option<f64>,
+    /// Messages over the whole run.
+    pub count: u64,
+    /// Payloads that did not decode or validate, over the whole run.
+    pub invalid: u64,
+    /// Largest gap between two messages in the last interval (s), `None` for fewer than two.
+    pub max_gap_s: Option<f64>,
+    /// Message rate over the last interval (Hz).
+    pub rate_hz: f64,
+    /// The topic's name (`state`, `torque`, ...).
+    pub topic: String,
+}
+
+/// What `echo --json` prints for a payload that does not decode.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct InvalidPayload {
+    /// The codec's message, naming the message type and the field.
+    pub invalid: String,
+}
+
 /// One report: a table (or a JSON object) with the rate over the last interval, its largest
 /// gap, the message size and the totals.
 fn report(topics: &[Topic], stats: &[TopicStats], dt: f64, t: f64, json: bool) -> String {
     if json {
-        let v: Vec<serde_json::Value> = topics
-            .iter()
-            .zip(stats)
-            .map(|(tp, s)| {
-                serde_json::json!({
-                    "topic": tp.name(),
-                    "rate_hz": s.window as f64 / dt,
-                    "max_gap_s": if s.window > 1 { Some(s.window_max_gap) } else { None },
-                    "bytes_per_msg": if s.count > 0 { Some(s.bytes as f64 / s.count as f64) } else { None },
-                    "count": s.count,
-                    "invalid": s.invalid,
+        let r = HzReport {
+            t,
+            topics: topics
+                .iter()
+                .zip(stats)
+                .map(|(tp, s)| HzTopic {
+                    topic: tp.name().to_owned(),
+                    rate_hz: s.window as f64 / dt,
+                    max_gap_s: (s.window > 1).then_some(s.window_max_gap),
+                    bytes_per_msg: (s.count > 0).then(|| s.bytes as f64 / s.count as f64),
+                    count: s.count,
+                    invalid: s.invalid,
                 })
-            })
-            .collect();
-        return format!("{}\n", serde_json::json!({ "t": t, "topics": v }));
+                .collect(),
+        };
+        // Serialising numbers, options and strings cannot fail.
+        return format!("{}\n", serde_json::to_string(&r).unwrap_or_default());
     }
     let mut out = format!(
         "t {t:8.1} s | {:<9} | {:>9} | {:>10} | {:>9} | {:>9} | {:>7}\n",

@@ -88,8 +88,9 @@ pub use summary::{LinkEmulation, PlantSummary, RunResult, Window};
 
 /// The columns of a state row in every CSV the project writes (the plant's `--record`, the
 /// `state.csv` of `tilting live`): sample number, plant time (s), mode byte (0 flat, 1 left,
-/// 2 right), then `alpha, beta` (rad) and their rates (rad/s).
-pub const STATE_COLUMNS: &str = "seq,t,mode,alpha,beta,alpha_dot,beta_dot";
+/// 2 right), then `alpha, beta` (rad) and their rates (rad/s). Defined with the recordings'
+/// formats ([`tilting_record::trace::STATE_HEADER`]).
+pub const STATE_COLUMNS: &str = tilting_record::trace::STATE_HEADER;
 
 /// Exit code of a run that ended with a fault of the model.
 pub const EXIT_FAULT: u8 = 3;

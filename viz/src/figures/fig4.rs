@@ -25,7 +25,33 @@ struct Curve {
     points: Vec<Option<(f64, f64)>>,
 }
 
-pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
+/// What Fig. 4 shows (fields in the order of the JSON).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig4Summary {
+    /// The landing-offset curves.
+    pub curves: Vec<Fig4Curve>,
+    /// Pairs `(A, w)` of the no-tilt grid.
+    pub grid_pairs: usize,
+    /// Pairs of the grid whose ideal arm motion never tilts the plate.
+    pub no_tilt_pairs: usize,
+    /// One line of text.
+    pub text: String,
+}
+
+/// One landing-offset curve `t_l = T/2 + s t_t` of Fig. 4.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig4Curve {
+    /// `[A (rad), w (rad/s)]` of each amplitude with a solution.
+    pub points: Vec<[f64; 2]>,
+    /// The target `s`.
+    pub s: f64,
+    /// The `s` actually drawn (the target or the fallback `±0.98`).
+    pub s_drawn: f64,
+}
+
+pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig4Summary> {
     let p = ctx.params;
     // The no-tilt grid.
     let ga = gains::range(FIG4_A.0, FIG4_A.1, ctx.set.grid_a_step);
@@ -105,16 +131,19 @@ pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
             _ => String::new(),
         }
     );
-    Ok(json!({
-        "text": text,
-        "grid_pairs": cells.len(),
-        "no_tilt_pairs": no_tilt,
-        "curves": curves.iter().map(|c| json!({
-            "s": c.s,
-            "s_drawn": c.drawn,
-            "points": c.points.iter().flatten().map(|&(a, w)| [a, w]).collect::<Vec<_>>(),
-        })).collect::<Vec<_>>(),
-    }))
+    Ok(Fig4Summary {
+        text,
+        grid_pairs: cells.len(),
+        no_tilt_pairs: no_tilt,
+        curves: curves
+            .iter()
+            .map(|c| Fig4Curve {
+                s: c.s,
+                s_drawn: c.drawn,
+                points: c.points.iter().flatten().map(|&(a, w)| [a, w]).collect(),
+            })
+            .collect(),
+    })
 }
 
 fn draw_fig4(path: &Path, cells: &[(f64, f64, u8)], curves: &[Curve]) -> Result<()> {

@@ -54,7 +54,7 @@ pub(super) fn short_fault(f: &Fault) -> String {
     }
 }
 
-struct Fig5Panel {
+struct Panel {
     label: String,
     omega: f64,
     period: f64,
@@ -65,9 +65,37 @@ struct Fig5Panel {
     sim_max: f64,
 }
 
-pub(super) fn fig5(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
+/// What Fig. 5 shows (fields in the order of the JSON).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig5Summary {
+    /// The four panels.
+    pub panels: Vec<Fig5Panel>,
+    /// One line of text.
+    pub text: String,
+}
+
+/// One panel of Fig. 5: a planned sinusoid and the closed loop tracking it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig5Panel {
+    /// What ended the simulation early, if anything (its message in JSON).
+    pub fault: Option<Fault>,
+    /// The panel's label.
+    pub label: String,
+    /// Solved frequency `w` (rad/s).
+    pub omega: f64,
+    /// Period `2 pi / w` (s).
+    pub period: f64,
+    /// Largest planned tilt (rad).
+    pub planned_max_tilt: f64,
+    /// Largest simulated tilt (rad).
+    pub simulated_max_tilt: f64,
+}
+
+pub(super) fn fig5(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig5Summary> {
     let p = ctx.params;
-    let panels: Vec<Result<Fig5Panel>> = FIG5_S
+    let panels: Vec<Result<Panel>> = FIG5_S
         .par_iter()
         .enumerate()
         .map(|(i, &(s, frac))| {
@@ -97,7 +125,7 @@ pub(super) fn fig5(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
                     })
                     .collect();
                 let sim_max = tr.alpha.iter().fold(0.0f64, |m, a| m.max(a.abs()));
-                Ok(Fig5Panel {
+                Ok(Panel {
                     label: format!(
                         "{}) t_l = T/2 − t_t/{}",
                         (b'a' + i as u8) as char,
@@ -134,20 +162,23 @@ pub(super) fn fig5(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
         })
         .collect::<Vec<_>>()
         .join("; ");
-    Ok(json!({
-        "text": text,
-        "panels": panels.iter().map(|q| json!({
-            "label": q.label,
-            "omega": q.omega,
-            "period": q.period,
-            "planned_max_tilt": q.max_tilt,
-            "simulated_max_tilt": q.sim_max,
-            "fault": q.fault.as_ref().map(Fault::to_string),
-        })).collect::<Vec<_>>(),
-    }))
+    Ok(Fig5Summary {
+        text,
+        panels: panels
+            .iter()
+            .map(|q| Fig5Panel {
+                label: q.label.clone(),
+                omega: q.omega,
+                period: q.period,
+                planned_max_tilt: q.max_tilt,
+                simulated_max_tilt: q.sim_max,
+                fault: q.fault.clone(),
+            })
+            .collect(),
+    })
 }
 
-fn draw_fig5(path: &Path, panels: &[Fig5Panel]) -> Result<()> {
+fn draw_fig5(path: &Path, panels: &[Panel]) -> Result<()> {
     let root = BitMapBackend::new(path, (1600, 1100)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(
@@ -163,7 +194,7 @@ fn draw_fig5(path: &Path, panels: &[Fig5Panel]) -> Result<()> {
     Ok(())
 }
 
-fn draw_fig5_panel(area: &Area, q: &Fig5Panel) -> Result<()> {
+fn draw_fig5_panel(area: &Area, q: &Panel) -> Result<()> {
     let t_end = q.desired.last().map_or(1.0, |d| d.0);
     // Scaled to the plan: a run that falls leaves the frame (the fall is in the caption).
     let planned = q.desired.iter().fold(0.0f64, |m, d| m.max(d.1.abs()));

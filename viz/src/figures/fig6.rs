@@ -5,7 +5,17 @@ use super::*;
 // ---------------------------------------------------------------------------------------------
 // Fig. 6.
 
-pub(super) fn fig6(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
+/// What Fig. 6 shows (fields in the order of the JSON).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig6Summary {
+    /// The `(K_P, K_D)` grid with the orbits of each cell.
+    pub cells: Vec<gains::Cell>,
+    /// One line of text.
+    pub text: String,
+}
+
+pub(super) fn fig6(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig6Summary> {
     let (kps, kds) = (ctx.kps(), ctx.kds());
     let cells = gains::grid(ctx.params, ctx.impact, &kps, &kds, &|| bar.inc(1));
     let paper = orbit::find_all(&ctx.orbit_problem());
@@ -34,7 +44,7 @@ pub(super) fn fig6(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
             .first()
             .map_or("none".into(), |o| format!("{:.6} rad", o.max_tilt))
     );
-    Ok(json!({ "text": text, "cells": cells }))
+    Ok(Fig6Summary { text, cells })
 }
 
 fn draw_fig6(

@@ -6,14 +6,38 @@ use super::*;
 // ---------------------------------------------------------------------------------------------
 // Fig. 7.
 
-struct Fig7Run {
+struct Run {
     name: &'static str,
     color: RGBColor,
     trace: Trace,
     fault: Option<Fault>,
 }
 
-pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
+/// What Fig. 7 shows (fields in the order of the JSON).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig7Summary {
+    /// The unstable orbit.
+    pub orbit: OrbitSolution,
+    /// The runs: perturbed up, perturbed down, stabilised.
+    pub runs: Vec<Fig7Run>,
+    /// One line of text.
+    pub text: String,
+}
+
+/// One run of Fig. 7.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig7Run {
+    /// What ended the run early, if anything (its message in JSON).
+    pub fault: Option<Fault>,
+    /// The run's name.
+    pub name: String,
+    /// The extreme `alpha` of each tilt (rad).
+    pub peaks: Vec<f64>,
+}
+
+pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig7Summary> {
     let pb = ctx.orbit_problem();
     let o = orbit::smallest(&pb)
         .ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
@@ -58,10 +82,10 @@ pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
         ("k = 500, controlled", GREEN),
         ("k = 0, increasing", RED),
     ];
-    let runs: Vec<Fig7Run> = traces
+    let runs: Vec<Run> = traces
         .into_iter()
         .zip(names)
-        .map(|((trace, fault), (name, color))| Fig7Run {
+        .map(|((trace, fault), (name, color))| Run {
             name,
             color,
             trace,
@@ -95,22 +119,28 @@ pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
         })
         .collect::<Vec<_>>()
         .join("; ");
-    Ok(json!({
-        "text": format!("orbit max tilt {:.4} rad, E_av = {:.6} J; {text}", o.max_tilt, o.energy_avg),
-        "orbit": o,
-        "runs": runs.iter().map(|r| json!({
-            "name": r.name,
-            "peaks": r.trace.peaks.iter().map(|p| p.alpha).collect::<Vec<_>>(),
-            "fault": r.fault.as_ref().map(Fault::to_string),
-        })).collect::<Vec<_>>(),
-    }))
+    Ok(Fig7Summary {
+        text: format!(
+            "orbit max tilt {:.4} rad, E_av = {:.6} J; {text}",
+            o.max_tilt, o.energy_avg
+        ),
+        runs: runs
+            .iter()
+            .map(|r| Fig7Run {
+                name: r.name.to_owned(),
+                peaks: r.trace.peaks.iter().map(|p| p.alpha).collect(),
+                fault: r.fault.clone(),
+            })
+            .collect(),
+        orbit: o,
+    })
 }
 
 fn draw_fig7(
     path: &Path,
     o: &OrbitSolution,
     orbit_trace: &Trace,
-    runs: &[Fig7Run],
+    runs: &[Run],
     duration: f64,
 ) -> Result<()> {
     let root = BitMapBackend::new(path, (1600, 1250)).into_drawing_area();

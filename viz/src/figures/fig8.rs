@@ -7,7 +7,23 @@ use tilting_planner::bifurcation::RowFault;
 // ---------------------------------------------------------------------------------------------
 // Fig. 8.
 
-pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
+/// What Fig. 8 shows (fields in the order of the JSON).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fig8Summary {
+    /// `E_av` of the orbit the sweep starts from (J).
+    pub energy_avg: f64,
+    /// The first `k` of the sweep whose peaks are not of period 1, if any.
+    pub k_onset_observed: Option<f64>,
+    /// The `k` where the orbit loses stability, if in range.
+    pub k_star: Option<f64>,
+    /// The three time series.
+    pub series: Vec<bifurcation::Row>,
+    /// One line of text.
+    pub text: String,
+}
+
+pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig8Summary> {
     let pb = ctx.orbit_problem();
     let o = orbit::smallest(&pb)
         .ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
@@ -66,13 +82,13 @@ pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Value> {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    Ok(json!({
-        "text": text,
-        "k_star": k_star,
-        "k_onset_observed": onset,
-        "energy_avg": o.energy_avg,
-        "series": series,
-    }))
+    Ok(Fig8Summary {
+        text,
+        k_star,
+        k_onset_observed: onset,
+        energy_avg: o.energy_avg,
+        series,
+    })
 }
 
 fn draw_fig8(

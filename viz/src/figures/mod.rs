@@ -19,13 +19,19 @@ mod fig7;
 mod fig8;
 mod style;
 
+pub use fig4::{Fig4Curve, Fig4Summary};
+pub use fig5::{Fig5Panel, Fig5Summary};
+pub use fig6::Fig6Summary;
+pub use fig7::{Fig7Run, Fig7Summary};
+pub use fig8::Fig8Summary;
+
 use crate::plot::register_fonts;
 use anyhow::{anyhow, Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use rayon::prelude::*;
-use serde_json::{json, Value};
+use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 use style::{
@@ -192,17 +198,47 @@ impl Figures {
         OrbitProblem::new(self.params, self.impact, KP, KD)
     }
 
-    /// Computes and draws figure `n` (4 to 8) into [`Figures::path`], ticking `bar`; returns a
-    /// JSON summary with a one-line `text` and the figure's numbers.
-    pub fn draw(&self, n: u8, bar: &indicatif::ProgressBar) -> Result<Value> {
+    /// Computes and draws figure `n` (4 to 8) into [`Figures::path`], ticking `bar`; returns
+    /// its summary: a one-line `text` and the figure's numbers.
+    pub fn draw(&self, n: u8, bar: &indicatif::ProgressBar) -> Result<Summary> {
         register_fonts()?;
-        match n {
-            4 => fig4::fig4(self, bar),
-            5 => fig5::fig5(self, bar),
-            6 => fig6::fig6(self, bar),
-            7 => fig7::fig7(self, bar),
-            8 => fig8::fig8(self, bar),
-            _ => Err(anyhow!("no figure {n}: the figures are numbered 4 to 8")),
+        Ok(match n {
+            4 => Summary::Fig4(fig4::fig4(self, bar)?),
+            5 => Summary::Fig5(fig5::fig5(self, bar)?),
+            6 => Summary::Fig6(fig6::fig6(self, bar)?),
+            7 => Summary::Fig7(fig7::fig7(self, bar)?),
+            8 => Summary::Fig8(fig8::fig8(self, bar)?),
+            _ => return Err(anyhow!("no figure {n}: the figures are numbered 4 to 8")),
+        })
+    }
+}
+
+/// What [`Figures::draw`] reports about one figure. In JSON the figure's own object (the
+/// variant is not written; each figure's fields tell it apart when read back).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Summary {
+    /// Fig. 4.
+    Fig4(Fig4Summary),
+    /// Fig. 5.
+    Fig5(Fig5Summary),
+    /// Fig. 6.
+    Fig6(Fig6Summary),
+    /// Fig. 7.
+    Fig7(Fig7Summary),
+    /// Fig. 8.
+    Fig8(Fig8Summary),
+}
+
+impl Summary {
+    /// The one-line description of what the figure shows.
+    pub fn text(&self) -> &str {
+        match self {
+            Summary::Fig4(s) => &s.text,
+            Summary::Fig5(s) => &s.text,
+            Summary::Fig6(s) => &s.text,
+            Summary::Fig7(s) => &s.text,
+            Summary::Fig8(s) => &s.text,
         }
     }
 }
