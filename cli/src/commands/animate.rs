@@ -126,47 +126,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
             )));
         }
     }
-    let (out, gif) = match (&args.frames, &args.out) {
-        (Some(d), _) => {
-            // Frames of an earlier, longer render would join this one in a video.
-            let old = std::fs::read_dir(d).ok().and_then(|mut it| {
-                it.find_map(|e| {
-                    let name = e.ok()?.file_name().into_string().ok()?;
-                    (name.starts_with("frame_") && name.ends_with(".png")).then_some(name)
-                })
-            });
-            if let Some(name) = old {
-                return Err(usage(format!(
-                    "invalid `--frames` = {}: the directory already holds frames ({name}); \
-                     remove them or choose another directory",
-                    d.display()
-                )));
-            }
-            std::fs::create_dir_all(d)
-                .with_context(|| format!("cannot create the frame directory {}", d.display()))
-                .map_err(CommandError::Failed)?;
-            (d.clone(), false)
-        }
-        (None, o) => {
-            let o = o.clone().unwrap_or_else(|| PathBuf::from("robot.gif"));
-            if !o.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif")) {
-                return Err(usage(format!(
-                    "invalid `--out` = {}: must be a file name ending in .gif (or use --frames DIR)",
-                    o.display()
-                )));
-            }
-            if let Some(dir) = o.parent().filter(|d| !d.as_os_str().is_empty()) {
-                if !dir.is_dir() {
-                    return Err(usage(format!(
-                        "invalid `--out` = {}: the directory {} does not exist",
-                        o.display(),
-                        dir.display()
-                    )));
-                }
-            }
-            (o, true)
-        }
-    };
+    let (out, gif) = output(args)?;
     let opts = Options {
         fps: args.fps,
         speed: args.speed,
@@ -252,6 +212,52 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
             ));
         }
         s
+    })
+}
+
+/// Where `animate` writes, checked: `(the frame directory, false)` for `--frames` (created,
+/// refused if it already holds frames), else `(the GIF file, true)`.
+fn output(args: &AnimateArgs) -> Result<(PathBuf, bool), CommandError> {
+    Ok(match (&args.frames, &args.out) {
+        (Some(d), _) => {
+            // Frames of an earlier, longer render would join this one in a video.
+            let old = std::fs::read_dir(d).ok().and_then(|mut it| {
+                it.find_map(|e| {
+                    let name = e.ok()?.file_name().into_string().ok()?;
+                    (name.starts_with("frame_") && name.ends_with(".png")).then_some(name)
+                })
+            });
+            if let Some(name) = old {
+                return Err(usage(format!(
+                    "invalid `--frames` = {}: the directory already holds frames ({name}); \
+                     remove them or choose another directory",
+                    d.display()
+                )));
+            }
+            std::fs::create_dir_all(d)
+                .with_context(|| format!("cannot create the frame directory {}", d.display()))
+                .map_err(CommandError::Failed)?;
+            (d.clone(), false)
+        }
+        (None, o) => {
+            let o = o.clone().unwrap_or_else(|| PathBuf::from("robot.gif"));
+            if !o.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif")) {
+                return Err(usage(format!(
+                    "invalid `--out` = {}: must be a file name ending in .gif (or use --frames DIR)",
+                    o.display()
+                )));
+            }
+            if let Some(dir) = o.parent().filter(|d| !d.as_os_str().is_empty()) {
+                if !dir.is_dir() {
+                    return Err(usage(format!(
+                        "invalid `--out` = {}: the directory {} does not exist",
+                        o.display(),
+                        dir.display()
+                    )));
+                }
+            }
+            (o, true)
+        }
     })
 }
 
