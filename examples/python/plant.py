@@ -960,7 +960,9 @@ def main(argv=None):
         help="initial alpha,beta,alpha_dot,beta_dot (default: the start of the paper's orbit)",
     )
     ap.add_argument("--impact", choices=["paper", "striking-edge"], default="paper")
-    ap.add_argument("--params", help="TOML file with m_f, m_l, l, f, g (default the paper's)")
+    ap.add_argument(
+        "--params", help="TOML file with m_f, m_l, l, f, g, l_c, i_l, j_m, n_g, b_v (default the paper's)"
+    )
     ap.add_argument("--step", type=float, default=1e-4, help="largest RK4 step, s (default 1e-4)")
     ap.add_argument("--max-torque", type=float, default=116.5, help="refuse |tau| above, N m")
     ap.add_argument("--lockstep-timeout-ms", type=float, default=1000.0)

@@ -171,29 +171,103 @@ fn bias_t(p: &Params, mode: Mode, x: &State, tr: &Trig) -> (f64, f64) {
     (h1, h2)
 }
 
+/// The phase of the joint's Coulomb friction: what the friction torque is while it lasts.
+/// Without Coulomb friction (`tau_c = 0`) the joint is always [`Joint::Free`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Joint {
+    /// No Coulomb friction.
+    #[default]
+    Free,
+    /// Sliding with `beta_dot > 0`: the friction torque on the arm is `-tau_c`.
+    Forward,
+    /// Sliding with `beta_dot < 0`: the friction torque on the arm is `+tau_c`.
+    Backward,
+    /// Stuck: `beta_dot = 0` and the friction holds the arm to the plate (the arm and the plate
+    /// move as one body), taking whatever torque in `[-tau_c, tau_c]` that needs.
+    Stuck,
+}
+
+impl Joint {
+    /// The phase at state `x` under the motor torque `tau` (N m) (Karnopp's rule): sliding the
+    /// way `beta_dot` points; at `beta_dot = 0` stuck while the torque needed to hold the arm
+    /// ([`hold_torque`]) differs from `tau` by less than `tau_c`, else sliding the way the
+    /// excess pushes. `tm` are the shared terms of `x`.
+    #[inline(always)]
+    pub fn of(p: &Params, mode: Mode, x: &State, tm: &Terms, tau: f64) -> Joint {
+        if p.tau_c == 0.0 {
+            Joint::Free
+        } else if x[3] > 0.0 {
+            Joint::Forward
+        } else if x[3] < 0.0 {
+            Joint::Backward
+        } else {
+            let excess = tau - hold_torque(p, mode, tm);
+            if excess.abs() < p.tau_c {
+                Joint::Stuck
+            } else if excess > 0.0 {
+                Joint::Forward
+            } else {
+                Joint::Backward
+            }
+        }
+    }
+
+    /// A short name: `free`, `forward`, `backward` or `stuck`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Joint::Free => "free",
+            Joint::Forward => "forward",
+            Joint::Backward => "backward",
+            Joint::Stuck => "stuck",
+        }
+    }
+}
+
 /// Accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under the motor torque `tau`, friction
-/// included.
+/// included (Coulomb's by [`Joint::of`]).
 #[inline(always)]
 pub fn accelerations(p: &Params, mode: Mode, x: &State, tau: f64) -> (f64, f64) {
-    joint_accelerations(p, mode, x, &Terms::new(p, mode, x), tau)
+    let tm = Terms::new(p, mode, x);
+    joint_accelerations(p, mode, Joint::of(p, mode, x, &tm, tau), x, &tm, tau)
 }
 
-/// [`accelerations`] with the shared terms already at hand.
+/// [`accelerations`] in the joint phase `joint`, with the shared terms already at hand. Stuck,
+/// the arm and the plate move as one body (`beta_ddot = 0`; tilted, `M11 alpha_ddot = -h1`).
 #[inline(always)]
-pub fn joint_accelerations(p: &Params, mode: Mode, x: &State, tm: &Terms, tau: f64) -> (f64, f64) {
-    accelerations_t(p, mode, tm, net_torque(p, x[3], tau))
-}
-
-/// The net joint torque `tau_j` (N m) on the arm: the motor torque `tau` less the viscous
-/// friction `b_v beta_dot` at the arm rate `bd` (rad/s).
-#[inline(always)]
-pub fn net_torque(p: &Params, bd: f64, tau: f64) -> f64 {
-    // Skipped for no friction: the paper's numbers stay the same bits.
-    if p.b_v != 0.0 {
-        tau - p.b_v * bd
-    } else {
-        tau
+pub fn joint_accelerations(
+    p: &Params,
+    mode: Mode,
+    joint: Joint,
+    x: &State,
+    tm: &Terms,
+    tau: f64,
+) -> (f64, f64) {
+    match (joint, mode) {
+        (Joint::Stuck, Mode::Flat) => (0.0, 0.0),
+        (Joint::Stuck, _) => (-tm.h.0 / tm.m.0, 0.0),
+        _ => accelerations_t(p, mode, tm, net_torque(p, joint, x[3], tau)),
     }
+}
+
+/// The net joint torque `tau_j` (N m) on the arm while it slides (or is [`Joint::Free`]): the
+/// motor torque `tau` less the viscous friction `b_v beta_dot` at the arm rate `bd` (rad/s)
+/// and less the Coulomb friction `tau_c` the way it slides.
+#[inline(always)]
+pub fn net_torque(p: &Params, joint: Joint, bd: f64, tau: f64) -> f64 {
+    // Each term skipped when absent: the paper's numbers stay the same bits.
+    let tau = if p.b_v != 0.0 { tau - p.b_v * bd } else { tau };
+    match joint {
+        Joint::Forward => tau - p.tau_c,
+        Joint::Backward => tau + p.tau_c,
+        Joint::Free | Joint::Stuck => tau,
+    }
+}
+
+/// The net joint torque (N m) that holds the arm still relative to the plate (`beta_ddot = 0`)
+/// at the state whose shared terms are `tm`: what a stuck joint must transmit.
+#[inline(always)]
+pub fn hold_torque(p: &Params, mode: Mode, tm: &Terms) -> f64 {
+    rigid_torque(p, mode, tm, 0.0)
 }
 
 /// The rigid-body accelerations `(alpha_ddot, beta_ddot)` (rad/s^2) under the net joint torque
@@ -246,7 +320,31 @@ pub fn torque_for_beta_ddot(p: &Params, mode: Mode, x: &State, v: f64) -> f64 {
 /// [`torque_for_beta_ddot`] with the shared terms of `x` already at hand.
 #[inline(always)]
 pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, x: &State, tm: &Terms, v: f64) -> f64 {
-    let tau_j = match mode {
+    let tau_j = rigid_torque(p, mode, tm, v);
+    // The friction the motor must overcome (each skipped when absent: the same bits).
+    let tau = if p.b_v != 0.0 {
+        tau_j + p.b_v * x[3]
+    } else {
+        tau_j
+    };
+    if p.tau_c != 0.0 {
+        // Sliding, against the motion; from rest, against the commanded acceleration (then
+        // the excess over the hold torque is `M_s v + tau_c sign(v)`: it slides, and with
+        // `beta_ddot = v`). At rest with `v = 0` the joint sticks.
+        let s = if x[3] != 0.0 { x[3] } else { v };
+        if s > 0.0 {
+            return tau + p.tau_c;
+        } else if s < 0.0 {
+            return tau - p.tau_c;
+        }
+    }
+    tau
+}
+
+/// The net joint torque (N m) that gives `beta_ddot = v`: the rigid-body inverse dynamics.
+#[inline(always)]
+fn rigid_torque(p: &Params, mode: Mode, tm: &Terms, v: f64) -> f64 {
+    match mode {
         Mode::Flat => {
             let l = p.lc();
             if p.has_inertia() {
@@ -261,12 +359,6 @@ pub fn torque_for_beta_ddot_t(p: &Params, mode: Mode, x: &State, tm: &Terms, v: 
             let add = -(m12 * v + h1) * (1.0 / m11); // reciprocal first, as above
             m12 * add + m22 * v + h2
         }
-    };
-    // The friction the motor must overcome (skipped for none: the same bits).
-    if p.b_v != 0.0 {
-        tau_j + p.b_v * x[3]
-    } else {
-        tau_j
     }
 }
 
@@ -326,7 +418,7 @@ pub fn support_margins(p: &Params, x: &State, tau: f64) -> (f64, f64) {
 fn flat_loads(p: &Params, x: &State, tau: f64) -> (f64, f64) {
     let (_, bdd) = accelerations(p, Mode::Flat, x, tau);
     let fy = vertical_force(p, Mode::Flat, x, 0.0, bdd);
-    let tz = if p.has_inertia() || p.b_v != 0.0 {
+    let tz = if p.has_inertia() || p.b_v != 0.0 || p.tau_c != 0.0 {
         plate_torque(p, x[1].cos(), bdd)
     } else {
         tau // the same number for point masses without friction, and the same bits as before

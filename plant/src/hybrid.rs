@@ -6,8 +6,10 @@
 //! networked controller: [`Plant::advance_held`]) or with a torque law evaluated inside the
 //! right-hand side ([`Plant::advance_continuous`], the paper's setting).
 
-use crate::dynamics::{joint_accelerations, plate_torque, rhs, vertical_force_t, Terms, Trig};
-use crate::ode::{Dop853, Dopri5, OdeError, OdeStats, Tolerance};
+use crate::dynamics::{
+    hold_torque, joint_accelerations, plate_torque, vertical_force_t, Joint, Terms, Trig,
+};
+use crate::ode::{Dense, Dop853, Dopri5, OdeError, OdeStats, Tolerance};
 use crate::{ConfigError, ImpactLaw, Mode, Params, State};
 
 /// A torque law `tau(t, q, x)` (N m) evaluated inside the right-hand side. It must be a pure
@@ -44,6 +46,22 @@ pub struct Transition {
     pub x_before: State,
     /// State just after (the impact map applied for a landing).
     pub x_after: State,
+}
+
+/// A change of the joint's Coulomb-friction phase ([`Joint`]): the arm sticks to the plate or
+/// starts to slide. Not a mode transition: the plate's contact does not change.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointEvent {
+    /// Time of the event (s).
+    pub t: f64,
+    /// The plate's mode at the time.
+    pub mode: Mode,
+    /// Phase before.
+    pub from: Joint,
+    /// Phase after.
+    pub to: Joint,
+    /// The state (`beta_dot = 0` exactly when the arm sticks or starts from rest).
+    pub x: State,
 }
 
 /// The extreme tilt angle of one tilt: the largest `|alpha|` among the extremes of `alpha`
@@ -154,6 +172,8 @@ impl Fault {
 pub trait Observer {
     /// A mode transition happened.
     fn transition(&mut self, _ev: &Transition) {}
+    /// The joint stuck or started to slide (Coulomb friction only).
+    fn joint(&mut self, _ev: &JointEvent) {}
     /// A tilt ended (landing); this was its extreme angle. A run that ends inside a tilt gets
     /// that tilt's peak, if it was reached, from [`Plant::peak_in_progress`].
     fn tilt_peak(&mut self, _peak: &TiltPeak) {}
@@ -240,7 +260,7 @@ impl TorqueLaw for Held {
 }
 
 /// Number of event functions per mode.
-const NG: usize = 4;
+const NG: usize = 5;
 
 /// Event function slots. Each is positive inside the mode and fires when it reaches zero from
 /// above.
@@ -254,9 +274,13 @@ enum Ev {
     Contact,
     /// Tilted: fall angle.
     Fall,
+    /// The joint's friction phase ends: a sliding arm's `beta_dot` reaches 0 (`s beta_dot`,
+    /// `s` the sliding direction), or a stuck arm's torque leaves the friction band (`tau_c -
+    /// |tau - hold torque|`). Constant 1 without Coulomb friction.
+    Joint,
 }
 
-const EVS: [Ev; NG] = [Ev::A, Ev::B, Ev::Contact, Ev::Fall];
+const EVS: [Ev; NG] = [Ev::A, Ev::B, Ev::Contact, Ev::Fall, Ev::Joint];
 
 /// The hybrid plant: state, mode, clock and integrator memory.
 #[derive(Debug, Clone)]
@@ -285,6 +309,10 @@ pub struct Plant {
     stop_at_event: bool,
     /// Held-torque intervals may use the 5th-order stepper ([`Plant::set_short_steps`]).
     short_steps: bool,
+    /// The joint's Coulomb-friction phase.
+    joint: Joint,
+    /// Joint events (stick or slip) so far.
+    joint_events: u64,
 }
 
 impl Plant {
@@ -353,6 +381,14 @@ impl Plant {
             rhs_evals: 0,
             stop_at_event: false,
             short_steps: true,
+            // Provisional at rest: the first advance decides it under its torque.
+            joint: match (cfg.params.tau_c == 0.0, x[3]) {
+                (true, _) => Joint::Free,
+                (false, bd) if bd > 0.0 => Joint::Forward,
+                (false, bd) if bd < 0.0 => Joint::Backward,
+                _ => Joint::Stuck,
+            },
+            joint_events: 0,
         })
     }
 
@@ -405,6 +441,14 @@ impl Plant {
     /// Completed tilts (landings) so far.
     pub fn tilts(&self) -> u64 {
         self.tilts
+    }
+    /// The joint's Coulomb-friction phase ([`Joint::Free`] without Coulomb friction).
+    pub fn joint(&self) -> Joint {
+        self.joint
+    }
+    /// Joint events (the arm stuck or started to slide) so far.
+    pub fn joint_events(&self) -> u64 {
+        self.joint_events
     }
 
     /// The peak of the tilt in progress, if `alpha` has already passed an extreme in it: a peak
@@ -469,17 +513,36 @@ impl Plant {
 
     /// Event function values at state `x` with derivative `xd = f_q(x, tau)` in the current
     /// mode. Everything is read off `(x, xd)`: in the flat mode the torque is recovered from
-    /// `beta_ddot` by inverting the flat equation, so the torque law is not evaluated again.
+    /// `beta_ddot` by inverting the flat equation, so the torque law is not evaluated again;
+    /// only a stuck joint's band needs the motor torque, `tau()` (called only then).
     #[inline]
-    fn events(&self, x: &State, xd: &State) -> [f64; NG] {
-        self.events_t(x, xd, &Trig::new(x))
+    fn events(&self, x: &State, xd: &State, tau: impl FnOnce() -> f64) -> [f64; NG] {
+        self.events_t(x, xd, &Trig::new(x), tau)
     }
 
     /// [`Plant::events`] with the sines and cosines of `x` at hand.
     #[inline]
-    fn events_t(&self, x: &State, xd: &State, tr: &Trig) -> [f64; NG] {
+    fn events_t(&self, x: &State, xd: &State, tr: &Trig, tau: impl FnOnce() -> f64) -> [f64; NG] {
         let p = &self.cfg.params;
         let fy = vertical_force_t(p, self.mode, x, tr, xd[2], xd[3]);
+        let joint = match self.joint {
+            Joint::Free => 1.0,
+            Joint::Forward => x[3],
+            Joint::Backward => -x[3],
+            Joint::Stuck => {
+                let tm = Terms::from_trig(p, self.mode, x, *tr);
+                p.tau_c - (tau() - hold_torque(p, self.mode, &tm)).abs()
+            }
+        };
+        let [a, b, c, d] = self.events4(x, xd, tr, fy);
+        [a, b, c, d, joint]
+    }
+
+    /// The contact events: the flat support margins or the tilt's landing and extreme, the
+    /// contact force `fy` and the fall angle.
+    #[inline(always)]
+    fn events4(&self, x: &State, xd: &State, tr: &Trig, fy: f64) -> [f64; 4] {
+        let p = &self.cfg.params;
         match self.mode {
             Mode::Flat => {
                 // The torque the plate feels, from the arm's acceleration (the motor's less
@@ -545,6 +608,11 @@ impl Plant {
         self.mode = to;
         self.x = x_after;
         self.transitions += 1;
+        self.count_for_zeno()
+    }
+
+    /// Counts a transition or joint event at the current time for the Zeno guard.
+    fn count_for_zeno(&mut self) -> Result<(), Fault> {
         let n = self.recent.len();
         let oldest = self.recent[self.recent_next];
         self.recent[self.recent_next] = self.t;
@@ -568,6 +636,7 @@ impl Plant {
     ) -> Result<(), Fault> {
         // Each pass either leaves the plate flat, starts a consistent tilt, or records a tilt
         // that is undone at once; the Zeno guard ends a torque law that keeps doing the last.
+        self.settle_joint(tau_of, obs)?;
         while self.mode == Mode::Flat {
             let tau = tau_of.torque(self.t, self.mode, &self.x);
             if !tau.is_finite() {
@@ -575,10 +644,11 @@ impl Plant {
             }
             // The right-hand side at the current state (its terms are usually cached).
             let tm = self.terms_here();
-            let (add, bdd) = joint_accelerations(&self.cfg.params, self.mode, &self.x, &tm, tau);
+            let (add, bdd) =
+                joint_accelerations(&self.cfg.params, self.mode, self.joint, &self.x, &tm, tau);
             let xd = State::new(self.x[2], self.x[3], add, bdd);
             self.rhs_evals += 1;
-            let g = self.events_t(&self.x, &xd, &tm.trig);
+            let g = self.events_t(&self.x, &xd, &tm.trig, || tau);
             if g[2] <= 0.0 {
                 return Err(Fault::ContactLoss {
                     t: self.t,
@@ -593,8 +663,51 @@ impl Plant {
             } else {
                 break;
             }
+            self.settle_joint(tau_of, obs)?;
         }
         Ok(())
+    }
+
+    /// With Coulomb friction: decides the joint's phase at the current state under the current
+    /// torque ([`Joint::of`]) and records a change. Called wherever the torque or the state
+    /// jumps: at each advance's start, after every transition and joint event.
+    fn settle_joint<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        tau_of: &T,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        if self.cfg.params.tau_c == 0.0 {
+            return Ok(());
+        }
+        let tau = tau_of.torque(self.t, self.mode, &self.x);
+        if !tau.is_finite() {
+            return Err(Fault::NonFiniteTorque { t: self.t, tau });
+        }
+        let tm = Terms::new(&self.cfg.params, self.mode, &self.x);
+        let to = Joint::of(&self.cfg.params, self.mode, &self.x, &tm, tau);
+        if to == self.joint {
+            return Ok(());
+        }
+        let ev = JointEvent {
+            t: self.t,
+            mode: self.mode,
+            from: self.joint,
+            to,
+            x: self.x,
+        };
+        obs.joint(&ev);
+        self.joint = to;
+        self.joint_events += 1;
+        self.count_for_zeno()
+    }
+
+    /// The state's derivative in the current mode and joint phase under the torque `tau`.
+    fn rhs_here(&mut self, tau: f64) -> State {
+        let p = &self.cfg.params;
+        let tm = Terms::new(p, self.mode, &self.x);
+        let (add, bdd) = joint_accelerations(p, self.mode, self.joint, &self.x, &tm, tau);
+        self.rhs_evals += 1;
+        State::new(self.x[2], self.x[3], add, bdd)
     }
 
     /// Starts a tilt and checks that the torque law, evaluated in the tilted mode, really lifts
@@ -609,9 +722,9 @@ impl Plant {
         obs: &mut O,
     ) -> Result<(), Fault> {
         self.start_tilt(to, obs)?;
+        self.settle_joint(tau_of, obs)?;
         let tau = tau_of.torque(self.t, self.mode, &self.x);
-        let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
-        self.rhs_evals += 1;
+        let xd = self.rhs_here(tau);
         let s = if to == Mode::Left { 1.0 } else { -1.0 };
         // Below this the sign is round-off at a located switch (rad/s^2).
         if s * xd[2] < -1e-9 {
@@ -683,9 +796,7 @@ impl Plant {
             s * self.x[2] < 0.0
         } else {
             let tau = tau_of.torque(self.t, self.mode, &self.x);
-            let xd = rhs(&self.cfg.params, self.mode, &self.x, tau);
-            self.rhs_evals += 1;
-            s * xd[2] < 0.0
+            s * self.rhs_here(tau)[2] < 0.0
         };
         if into_ground {
             self.land(obs)?;
@@ -705,7 +816,7 @@ impl Plant {
     ) -> Result<(), Fault> {
         let p = *p;
         while self.t < t_target {
-            let mode = self.mode;
+            let (mode, joint) = (self.mode, self.joint);
             // The start of the current step and its sines and cosines: the 5th-order stepper's
             // inner stages take theirs from these by the angle-sum formulas.
             let tm0 = self.terms_here();
@@ -724,7 +835,7 @@ impl Plant {
                         Terms::from_trig(&p, mode, x, Trig::near(x, &x0, &tr0))
                     };
                     let tau = tau_of.torque_t(t, mode, x, &p, &tm);
-                    let (add, bdd) = joint_accelerations(&p, mode, x, &tm, tau);
+                    let (add, bdd) = joint_accelerations(&p, mode, joint, x, &tm, tau);
                     (State::new(x[2], x[3], add, bdd), tm)
                 },
             );
@@ -734,14 +845,14 @@ impl Plant {
                 evals.set(evals.get() + 1);
                 let tm = Terms::new(&p, mode, x);
                 let tau = tau_of.torque_t(t, mode, x, &p, &tm);
-                let (add, bdd) = joint_accelerations(&p, mode, x, &tm, tau);
+                let (add, bdd) = joint_accelerations(&p, mode, joint, x, &tm, tau);
                 State::new(x[2], x[3], add, bdd)
             };
             evals.set(evals.get() + 1);
             let tau0 = tau_of.torque_t(self.t, mode, &self.x, &p, &tm0);
-            let (add, bdd) = joint_accelerations(&p, mode, &self.x, &tm0, tau0);
+            let (add, bdd) = joint_accelerations(&p, mode, joint, &self.x, &tm0, tau0);
             let mut f0 = State::new(self.x[2], self.x[3], add, bdd);
-            let mut g0 = self.events_t(&self.x, &f0, &tm0.trig);
+            let mut g0 = self.events_t(&self.x, &f0, &tm0.trig, || tau0);
             // The sines and cosines at the current state, when known.
             let mut trig_here = Some(tm0.trig);
             let mut terminal = None;
@@ -767,8 +878,10 @@ impl Plant {
                     let tr = *trig_here.get_or_insert_with(|| Trig::new(&self.x));
                     base.set((self.x, tr));
                     let s = self.short.step(&mut f5, self.t, &self.x, &f0, t_target)?;
-                    let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig);
-                    if !(0..NG).any(|i| crossed(g0[i], g1[i])) {
+                    let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig, || {
+                        tau_of.torque_t(s.t1, mode, &s.y1, &p, &s.aux1)
+                    });
+                    if !(0..NG).any(|i| fires(i, g0[i], g1[i])) {
                         self.t = s.t1;
                         self.x = s.y1;
                         self.terms = Some((mode, s.y1.map(f64::to_bits).into(), s.aux1));
@@ -782,118 +895,147 @@ impl Plant {
                 }
                 let step = self.stepper.step(&mut f, self.t, &self.x, &f0, step_end)?;
                 let tr1 = Trig::new(&step.y1);
-                let g1 = self.events_t(&step.y1, step.f1(), &tr1);
-                let fired = (0..NG).filter(|&i| crossed(g0[i], g1[i]));
-                if fired.clone().next().is_none() {
-                    self.t = step.t1;
-                    self.x = step.y1;
-                    trig_here = Some(tr1);
-                    f0 = *step.f1();
-                    g0 = g1;
+                let g1 = self.events_t(&step.y1, step.f1(), &tr1, || {
+                    tau_of.torque(step.t1, mode, &step.y1)
+                });
+                let first = if (0..NG).any(|i| fires(i, g0[i], g1[i])) {
+                    let dense = self.stepper.dense(&mut f, &step);
+                    let first =
+                        self.first_event(&f, tau_of, &dense, (step.t0, &g0), (step.t1, &g1));
+                    first.map(|(tr, e)| (tr, e, dense.eval(tr)))
+                } else {
+                    None
+                };
+                if let Some((tr, e, x)) = first {
+                    self.t = tr;
+                    self.x = x;
                     obs.sample(self.t, mode, &self.x);
-                    continue;
+                    terminal = Some(e);
+                    break;
                 }
-                let dense = self.stepper.dense(&mut f, &step);
-                let mut roots = [(f64::INFINITY, Ev::A); NG];
-                let mut n_roots = 0;
-                for i in fired {
-                    let gi = |t: f64| {
-                        let x = dense.eval(t);
-                        let xd = if self.needs_derivative(i) {
-                            f(t, &x)
-                        } else {
-                            x
-                        };
-                        self.events(&x, &xd)[i]
-                    };
-                    let r = locate(&gi, step.t0, g0[i], step.t1, g1[i], self.cfg.event_tol);
-                    roots[n_roots] = (r, EVS[i]);
-                    n_roots += 1;
-                }
-                let roots = &mut roots[..n_roots];
-                roots.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let mut first_terminal = roots
-                    .iter()
-                    .find(|(_, e)| mode == Mode::Flat || *e != Ev::B)
-                    .copied();
-                // A landing located within the location width of another terminal event (the
-                // pivot force reaching zero as the plate lands, say) is taken as the landing:
-                // their order inside that width is round-off, and the impact resets the state.
-                if let Some((t_first, _)) = first_terminal.filter(|_| mode != Mode::Flat) {
-                    if let Some(&land) = roots
-                        .iter()
-                        .find(|(t, e)| *e == Ev::A && *t <= t_first + self.cfg.event_tol)
-                    {
-                        first_terminal = Some(land);
-                    }
-                }
-                for &(tr, e) in roots.iter() {
-                    if e == Ev::B && mode != Mode::Flat {
-                        if first_terminal.is_some_and(|(tt, _)| tt < tr) {
-                            continue;
-                        }
-                        let a = dense.eval(tr)[0];
-                        if self.extreme.is_none_or(|(_, old)| a.abs() > old.abs()) {
-                            self.extreme = Some((tr, a));
-                        }
-                    }
-                }
-                match first_terminal {
-                    Some((tr, e)) => {
-                        self.t = tr;
-                        self.x = dense.eval(tr);
-                        obs.sample(self.t, mode, &self.x);
-                        terminal = Some(e);
-                        break;
-                    }
-                    None => {
-                        self.t = step.t1;
-                        self.x = step.y1;
-                        trig_here = Some(tr1);
-                        f0 = *step.f1();
-                        g0 = g1;
-                        obs.sample(self.t, mode, &self.x);
-                    }
-                }
+                self.t = step.t1;
+                self.x = step.y1;
+                trig_here = Some(tr1);
+                f0 = *step.f1();
+                g0 = g1;
+                obs.sample(self.t, mode, &self.x);
             }
-            match (terminal, mode) {
-                (None, _) => {}
-                (Some(Ev::Contact), m) => {
-                    let tau = tau_of.torque(self.t, m, &self.x);
-                    let xd = rhs(&p, m, &self.x, tau);
-                    self.rhs_evals += 1;
-                    return Err(Fault::ContactLoss {
-                        t: self.t,
-                        mode: m,
-                        force: self.events(&self.x, &xd)[2],
-                    });
-                }
-                (Some(Ev::Fall), _) => {
-                    return Err(Fault::Fall {
-                        t: self.t,
-                        alpha: self.x[0],
-                        limit: self.cfg.fall_angle,
-                    });
-                }
-                (Some(Ev::A), Mode::Flat) => {
-                    self.start_tilt_checked(Mode::Left, tau_of, obs)?;
-                    self.settle(tau_of, obs)?;
-                }
-                (Some(Ev::B), Mode::Flat) => {
-                    self.start_tilt_checked(Mode::Right, tau_of, obs)?;
-                    self.settle(tau_of, obs)?;
-                }
-                (Some(Ev::A), _) => {
-                    self.land(obs)?;
-                    self.settle(tau_of, obs)?;
-                }
-                (Some(Ev::B), _) => unreachable!("alpha extremes are not terminal"),
-            }
-            if terminal.is_some() && self.stop_at_event {
+            let Some(e) = terminal else {
+                continue;
+            };
+            let transitions = self.transitions;
+            self.on_event(e, tau_of, obs)?;
+            // Stop at a mode transition (a joint event alone does not count).
+            if self.stop_at_event && self.transitions != transitions {
                 return Ok(());
             }
         }
         Ok(())
+    }
+
+    /// The first terminal event inside a DOP853 step over `[t0, t1]` in which some event
+    /// functions fired (`g0` to `g1`), located on the step's dense output; records the tilt's
+    /// extremes met before it. `None` when only extremes fired.
+    fn first_event<F: Fn(f64, &State) -> State, T: TorqueLaw + ?Sized>(
+        &mut self,
+        f: &F,
+        tau_of: &T,
+        dense: &Dense<4>,
+        (t0, g0): (f64, &[f64; NG]),
+        (t1, g1): (f64, &[f64; NG]),
+    ) -> Option<(f64, Ev)> {
+        let mode = self.mode;
+        let mut roots = [(f64::INFINITY, Ev::A); NG];
+        let mut n_roots = 0;
+        for i in (0..NG).filter(|&i| fires(i, g0[i], g1[i])) {
+            let gi = |t: f64| {
+                let x = dense.eval(t);
+                let xd = if self.needs_derivative(i) {
+                    f(t, &x)
+                } else {
+                    x
+                };
+                self.events(&x, &xd, || tau_of.torque(t, mode, &x))[i]
+            };
+            let r = locate(&gi, t0, g0[i], t1, g1[i], self.cfg.event_tol);
+            roots[n_roots] = (r, EVS[i]);
+            n_roots += 1;
+        }
+        let roots = &mut roots[..n_roots];
+        roots.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut first_terminal = roots
+            .iter()
+            .find(|(_, e)| mode == Mode::Flat || *e != Ev::B)
+            .copied();
+        // A landing located within the location width of another terminal event (the pivot
+        // force reaching zero as the plate lands, say) is taken as the landing: their order
+        // inside that width is round-off, and the impact resets the state.
+        if let Some((t_first, _)) = first_terminal.filter(|_| mode != Mode::Flat) {
+            if let Some(&land) = roots
+                .iter()
+                .find(|(t, e)| *e == Ev::A && *t <= t_first + self.cfg.event_tol)
+            {
+                first_terminal = Some(land);
+            }
+        }
+        for &(tr, e) in roots.iter() {
+            if e == Ev::B && mode != Mode::Flat {
+                if first_terminal.is_some_and(|(tt, _)| tt < tr) {
+                    continue;
+                }
+                let a = dense.eval(tr)[0];
+                if self.extreme.is_none_or(|(_, old)| a.abs() > old.abs()) {
+                    self.extreme = Some((tr, a));
+                }
+            }
+        }
+        first_terminal
+    }
+
+    /// Acts on the terminal event `e` the flow stopped at (the state is at its located time):
+    /// a fault, a tilt, a landing or a joint event, each followed by the settling checks.
+    fn on_event<T: TorqueLaw + ?Sized, O: Observer>(
+        &mut self,
+        e: Ev,
+        tau_of: &T,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        match (e, self.mode) {
+            (Ev::Contact, m) => {
+                let tau = tau_of.torque(self.t, m, &self.x);
+                let xd = self.rhs_here(tau);
+                Err(Fault::ContactLoss {
+                    t: self.t,
+                    mode: m,
+                    force: self.events(&self.x, &xd, || tau)[2],
+                })
+            }
+            (Ev::Fall, _) => Err(Fault::Fall {
+                t: self.t,
+                alpha: self.x[0],
+                limit: self.cfg.fall_angle,
+            }),
+            (Ev::A, Mode::Flat) => {
+                self.start_tilt_checked(Mode::Left, tau_of, obs)?;
+                self.settle(tau_of, obs)
+            }
+            (Ev::B, Mode::Flat) => {
+                self.start_tilt_checked(Mode::Right, tau_of, obs)?;
+                self.settle(tau_of, obs)
+            }
+            (Ev::A, _) => {
+                self.land(obs)?;
+                self.settle(tau_of, obs)
+            }
+            (Ev::B, _) => unreachable!("alpha extremes are not terminal"),
+            (Ev::Joint, _) => {
+                if self.joint != Joint::Stuck {
+                    // A sliding arm came to rest: located to round-off, like a landing.
+                    self.x[3] = 0.0;
+                }
+                self.settle(tau_of, obs)
+            }
+        }
     }
 }
 
@@ -910,6 +1052,14 @@ fn same<F>(f: F) -> F {
 #[inline]
 fn crossed(g0: f64, g1: f64) -> bool {
     g0 > 0.0 && g1 <= 0.0
+}
+
+/// Did event slot `i` fire? [`crossed`], and for the joint's event also a slide that starts at
+/// rest (`g0 = 0`) and at once turns the other way (`g1 < 0`, a torque law that reverses): the
+/// friction would then push the arm, so the slide ends there.
+#[inline(always)]
+fn fires(i: usize, g0: f64, g1: f64) -> bool {
+    crossed(g0, g1) || (i == NG - 1 && g0 == 0.0 && g1 < 0.0)
 }
 
 /// Locates the zero of `g` in `[a, b]` with `g(a) > 0 >= g(b)` to width `tol` (s) by the

@@ -40,7 +40,8 @@ pub mod ode;
 pub mod paper;
 pub mod params;
 
-pub use hybrid::{Fault, Observer, Plant, SimConfig, TiltPeak, TorqueLaw, Transition};
+pub use dynamics::Joint;
+pub use hybrid::{Fault, JointEvent, Observer, Plant, SimConfig, TiltPeak, TorqueLaw, Transition};
 pub use impact::ImpactLaw;
 pub use kinematics::{energy, mirror};
 pub use mode::Mode;

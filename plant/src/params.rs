@@ -39,8 +39,8 @@ pub enum ConfigError {
 /// A foot plate of length `2 f` with a point mass `m_f` at its centre, and an arm of length `l`
 /// mounted at the plate centre with its mass `m_l` at the distance `l_c` from the joint (the tip
 /// unless given) and the rotational inertia `i_l` about that centre of mass; a motor on the
-/// plate whose rotor (inertia `j_m`) turns `n_g` times per turn of the joint; viscous friction
-/// (`b_v`) at the joint. The defaults are the paper's: point masses, no
+/// plate whose rotor (inertia `j_m`) turns `n_g` times per turn of the joint; viscous (`b_v`)
+/// and Coulomb (`tau_c`) friction at the joint. The defaults are the paper's: point masses, no
 /// motor, no friction. The hardware terms are left out of the TOML and JSON forms while they
 /// keep their defaults, so the paper's parameters serialize as before. `docs/model.md` gives
 /// the equations.
@@ -77,6 +77,10 @@ pub struct Params {
     /// on the arm; default 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub b_v: f64,
+    /// Coulomb friction torque `tau_c` (N m) at the joint: `-tau_c sign(beta_dot)` on the arm
+    /// while it slides, and up to `tau_c` either way while it sticks; default 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub tau_c: f64,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -100,6 +104,7 @@ impl Default for Params {
             j_m: 0.0,
             n_g: 1.0,
             b_v: 0.0,
+            tau_c: 0.0,
         }
     }
 }
@@ -128,7 +133,12 @@ impl Params {
                 });
             }
         }
-        for (field, v) in [("i_l", self.i_l), ("j_m", self.j_m), ("b_v", self.b_v)] {
+        for (field, v) in [
+            ("i_l", self.i_l),
+            ("j_m", self.j_m),
+            ("b_v", self.b_v),
+            ("tau_c", self.tau_c),
+        ] {
             non_negative(field, v)?;
         }
         Ok(())

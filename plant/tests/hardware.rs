@@ -8,7 +8,10 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use tilting_plant::dynamics::{accelerations, bias, mass_matrix, rhs, torque_for_beta_ddot, zmp};
 use tilting_plant::kinematics::{angular_momentum, energy, mirror, pivot, point_masses};
 use tilting_plant::ode::{Dop853, Tolerance};
-use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, Plant, SimConfig, State};
+use tilting_plant::{
+    ConfigError, ImpactLaw, Joint, JointEvent, Mode, Observer, Params, Plant, SimConfig, State,
+    Transition,
+};
 
 /// A robot unlike the paper's point masses: the centre of mass 0.6 m short of the tip, an arm
 /// inertia of 0.25 kg m^2 about it, a 2 g cm^2-class rotor behind a 9:1 gear.
@@ -272,7 +275,10 @@ fn hanging_arm_in_the_plant_loses_what_viscous_friction_dissipates() {
 
 #[test]
 fn the_mirror_image_of_a_motion_is_a_motion_with_inertia_and_friction() {
-    let p = hw_viscous(0.3);
+    let p = Params {
+        tau_c: 0.4,
+        ..hw_viscous(0.3)
+    };
     let mut rng = Rng(99);
     for (from, to) in [(Mode::Left, Mode::Right), (Mode::Flat, Mode::Flat)] {
         for _ in 0..300 {
@@ -338,9 +344,27 @@ fn zmp_of_the_resting_plate_is_the_centre_of_mass_with_an_offset_arm() {
 #[test]
 fn computed_torque_is_the_inverse_of_the_dynamics_with_friction() {
     let p = hw_viscous(0.3);
+    let pc = Params { tau_c: 0.7, ..p };
     let mut rng = Rng(31337);
     for mode in [Mode::Flat, Mode::Left, Mode::Right] {
-        for _ in 0..200 {
+        for k in 0..200 {
+            let mut x = random_state(&mut rng, mode);
+            // With Coulomb friction, from rest too (the compensation then follows v), and
+            // v = 0 at rest (the joint sticks: beta_ddot = 0).
+            if k % 3 == 0 {
+                x[3] = 0.0;
+            }
+            let v = if k % 9 == 0 {
+                0.0
+            } else {
+                rng.uniform(-30.0, 30.0)
+            };
+            let tau = torque_for_beta_ddot(&pc, mode, &x, v);
+            let (_, bdd) = accelerations(&pc, mode, &x, tau);
+            assert!(
+                (bdd - v).abs() < 1e-10 * (1.0 + v.abs()),
+                "{mode} {x:?}: {bdd} vs {v}"
+            );
             let x = random_state(&mut rng, mode);
             let v = rng.uniform(-30.0, 30.0);
             let tau = torque_for_beta_ddot(&p, mode, &x, v);
@@ -385,6 +409,7 @@ fn bad_hardware_values_are_refused_with_the_field_and_its_range() {
         ("l_c = 2.5", "l_c", "<= l"),
         ("l_c = 0.0", "l_c", "> 0"),
         ("b_v = nan", "b_v", "finite"),
+        ("tau_c = -0.2", "tau_c", ">= 0"),
     ] {
         match Params::from_toml_str(text) {
             Err(e @ ConfigError::OutOfRange { field: f, .. }) => {
@@ -397,4 +422,219 @@ fn bad_hardware_values_are_refused_with_the_field_and_its_range() {
     }
     // A longer arm makes room for the centre of mass.
     assert!(Params::from_toml_str("l = 3.0\nl_c = 2.5").is_ok());
+}
+
+// --- Coulomb friction: stick and slip as hybrid events ------------------------------------
+
+#[derive(Default)]
+struct Log {
+    joint: Vec<JointEvent>,
+    transitions: Vec<Transition>,
+}
+impl Observer for Log {
+    fn joint(&mut self, ev: &JointEvent) {
+        self.joint.push(*ev);
+    }
+    fn transition(&mut self, ev: &Transition) {
+        self.transitions.push(*ev);
+    }
+}
+
+fn coulomb(tau_c: f64, b_v: f64) -> Params {
+    Params { tau_c, b_v, ..hw() }
+}
+
+/// Tolerances as tight as the mode-transition test's (plant/tests/physics.rs), so event times
+/// can be compared with closed forms to 1e-10 s.
+fn tight(p: Params) -> SimConfig {
+    SimConfig {
+        params: p,
+        tol: Tolerance {
+            rtol: 1e-12,
+            atol: 1e-14,
+        },
+        ..SimConfig::default()
+    }
+}
+
+/// The hold torque of a flat arm at `beta`, written out: `m_l g l_c cos(beta)` (N m).
+fn flat_hold(p: &Params, beta: f64) -> f64 {
+    p.m_l * p.g * 1.4 * beta.cos()
+}
+
+#[test]
+fn an_arm_inside_the_static_band_stays_exactly_still() {
+    // Flat: a sampled controller's torques all within tau_c of the hold torque: no state bit
+    // changes over 1 s of 1 kHz samples, and no event.
+    let p = coulomb(2.0, 0.3);
+    let x0 = State::new(0.0, 1.2, 0.0, 0.0);
+    let mut plant = Plant::new(tight(p), 0.0, Mode::Flat, x0).unwrap();
+    let mut log = Log::default();
+    for k in 0..1000 {
+        let tau = flat_hold(&p, 1.2) + 1.99 * (k as f64).sin();
+        plant
+            .advance_held(tau, 1e-3 * (k + 1) as f64, &mut log)
+            .unwrap();
+        assert_eq!(plant.joint(), Joint::Stuck);
+    }
+    let bits = |x: State| x.map(f64::to_bits);
+    assert_eq!(bits(plant.state()), bits(x0));
+    assert!(log.joint.is_empty() && log.transitions.is_empty());
+    // Just outside the band it slides, the way the excess pushes.
+    plant
+        .advance_held(flat_hold(&p, 1.2) - 2.01, 1.1, &mut log)
+        .unwrap();
+    assert_eq!((log.joint.len(), log.joint[0].to), (1, Joint::Backward));
+    assert!(plant.state()[3] < 0.0);
+}
+
+#[test]
+fn a_stuck_arm_tilts_with_the_plate_as_one_body() {
+    // Tilted left and stuck (the torque holds within a wide band): beta and beta_dot keep
+    // their bits while the plate rocks, and the energy of the rigid body is conserved (the
+    // joint does no work: it does not turn). The plate lands; the impact unsticks the arm.
+    let p = coulomb(40.0, 0.0);
+    let x0 = State::new(0.05, 1.9, 0.4, 0.0);
+    let mut plant = Plant::new(tight(p), 0.0, Mode::Left, x0).unwrap();
+    let mut log = Log::default();
+    let tau = 3.0;
+    let e0 = energy(&p, Mode::Left, &x0);
+    let mut t = 0.0;
+    while plant.mode() == Mode::Left && t < 3.0 {
+        let x = plant.state();
+        assert_eq!((x[1].to_bits(), x[3]), (1.9f64.to_bits(), 0.0), "t {t}");
+        let e = energy(&p, Mode::Left, &x);
+        assert!((e - e0).abs() < 1e-9 * e0, "t {t}: {e} vs {e0}");
+        t += 1e-3;
+        plant.advance_held(tau, t, &mut log).unwrap();
+    }
+    assert_eq!(log.transitions[0].to, Mode::Flat, "it landed");
+    assert!(
+        log.transitions[0].x_after[3] != 0.0,
+        "the impact moved the arm"
+    );
+    assert_eq!(log.joint[0].from, Joint::Stuck, "and unstuck it");
+}
+
+#[test]
+fn a_swinging_arm_loses_tau_c_times_the_angle_it_travels() {
+    // Tau = 0, the arm swinging below the flat plate: dE = -tau_c |d beta| on every slide, so
+    // E(0) - E(end) = tau_c * (total variation of beta), the slides' ends given by the joint
+    // events; it ends stuck where gravity's torque is inside the band. Both sides are exact
+    // but for the integrator (1e-10 relative of E): 1e-9 J.
+    let p = coulomb(0.3, 0.0);
+    let x0 = State::new(0.0, -FRAC_PI_2 + 0.4, 0.0, 0.0);
+    let mut plant = Plant::new(tight(p), 0.0, Mode::Flat, x0).unwrap();
+    let mut log = Log::default();
+    plant.advance_held(0.0, 20.0, &mut log).unwrap();
+    assert_eq!(plant.joint(), Joint::Stuck);
+    assert!(log.joint.len() >= 6, "a few swings: {:?}", log.joint.len());
+    let mut travel = 0.0;
+    let mut b = x0[1];
+    for ev in &log.joint {
+        travel += (ev.x[1] - b).abs();
+        b = ev.x[1];
+        if ev.to == Joint::Stuck || ev.from == Joint::Forward || ev.from == Joint::Backward {
+            assert_eq!(ev.x[3], 0.0, "slides end at rest exactly");
+        }
+    }
+    travel += (plant.state()[1] - b).abs();
+    let lost = energy(&p, Mode::Flat, &x0) - energy(&p, Mode::Flat, &plant.state());
+    assert!(
+        (lost - p.tau_c * travel).abs() < 1e-9,
+        "lost {lost} J, tau_c * travel = {} J",
+        p.tau_c * travel
+    );
+    // It stopped inside the band.
+    assert!(flat_hold(&p, plant.state()[1]).abs() < p.tau_c);
+}
+
+#[test]
+fn stick_and_slip_times_match_closed_forms() {
+    // Flat, gravity compensated (tau = m_l g l_c cos(beta) + u): M22 beta_ddot = u - b_v
+    // beta_dot - tau_c sign(beta_dot) with M22 = m_l l_c^2 + i_l + n_g^2 j_m.
+    let (tau_c, b_v) = (0.5, 0.8);
+    let p = coulomb(tau_c, b_v);
+    let j = p.m_l * 1.4 * 1.4 + p.i_l + p.n_g * p.n_g * p.j_m;
+    // 1) u = 0 from beta_dot = w0 > 0: it stops at t* = (J / b) ln(1 + b w0 / tau_c), and
+    //    sticks there (u = 0 is inside the band).
+    let w0 = 0.3;
+    let comp = move |_t: f64, _m: Mode, x: &State| p.m_l * p.g * 1.4 * x[1].cos();
+    let x0 = State::new(0.0, 1.3, 0.0, w0);
+    let mut plant = Plant::new(tight(p), 0.0, Mode::Flat, x0).unwrap();
+    let mut log = Log::default();
+    plant.advance_continuous(&comp, 3.0, &mut log).unwrap();
+    let t_stick = j / b_v * (1.0 + b_v * w0 / tau_c).ln();
+    let ev = log.joint[0];
+    assert_eq!(
+        (ev.from, ev.to, log.joint.len()),
+        (Joint::Forward, Joint::Stuck, 1)
+    );
+    // The mode transitions' accuracy at these tolerances (plant/tests/physics.rs): 1e-10 s.
+    assert!((ev.t - t_stick).abs() < 1e-10, "{} vs {t_stick}", ev.t);
+    let travel = j / b_v * (w0 - tau_c / b_v * (1.0 + b_v * w0 / tau_c).ln());
+    assert!((plant.state()[1] - 1.3 - travel).abs() < 1e-10);
+
+    // 2) Stuck at rest, u = r t: it slides when u reaches tau_c, at t = tau_c / r exactly (the
+    //    state is constant until then: only the location's width, 1e-13 s, remains); then
+    //    M22 beta_ddot = r t - tau_c - b beta_dot.
+    let r = 0.8;
+    let ramp = move |t: f64, _m: Mode, x: &State| p.m_l * p.g * 1.4 * x[1].cos() + r * t;
+    let x0 = State::new(0.0, 1.3, 0.0, 0.0);
+    let mut plant = Plant::new(tight(p), 0.0, Mode::Flat, x0).unwrap();
+    let mut log = Log::default();
+    plant.advance_continuous(&ramp, 0.6, &mut log).unwrap();
+    assert_eq!(plant.state(), x0, "still stuck at t = 0.6 s");
+    plant.advance_continuous(&ramp, 1.2, &mut log).unwrap();
+    let ev = log.joint[log.joint.len() - 1];
+    assert_eq!((ev.from, ev.to), (Joint::Stuck, Joint::Forward));
+    assert!(
+        (ev.t - tau_c / r).abs() < 1e-12,
+        "{} vs {}",
+        ev.t,
+        tau_c / r
+    );
+    // After the release: with s = t - t_r and k = b / J, beta_dot = (r / b)(s - (1 -
+    // exp(-k s)) / k).
+    let (s, k) = (1.2 - tau_c / r, b_v / j);
+    let bd = r / b_v * (s - (1.0 - (-k * s).exp()) / k);
+    assert!(
+        (plant.state()[3] - bd).abs() < 1e-10,
+        "{} vs {bd}",
+        plant.state()[3]
+    );
+}
+
+#[test]
+fn a_sampled_pd_loop_with_coulomb_friction_in_plant_and_model_holds_the_arm() {
+    // The computed torque of a model that knows the friction, sampled at 1 kHz, drives the
+    // flat arm to upright: the joint alternates between sliding and sticking and ends still
+    // near pi/2; the Zeno guard never trips.
+    let p = coulomb(0.8, 0.2);
+    let mut plant = Plant::new(
+        SimConfig {
+            params: p,
+            ..SimConfig::default()
+        },
+        0.0,
+        Mode::Flat,
+        State::new(0.0, 1.4, 0.0, 0.0),
+    )
+    .unwrap();
+    let mut log = Log::default();
+    for k in 0..3000 {
+        let x = plant.state();
+        let v = 14.14 * (0.0 - x[3]) + 100.0 * (FRAC_PI_2 - x[1]);
+        let tau = torque_for_beta_ddot(&p, Mode::Flat, &x, v);
+        plant
+            .advance_held(tau, 1e-3 * (k + 1) as f64, &mut log)
+            .unwrap();
+    }
+    assert!(!log.joint.is_empty());
+    assert!(
+        (plant.state()[1] - FRAC_PI_2).abs() < 1e-3,
+        "{:?}",
+        plant.state()
+    );
+    assert_eq!(plant.mode(), Mode::Flat);
 }

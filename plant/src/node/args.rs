@@ -90,7 +90,8 @@ pub struct PlantArgs {
     /// Landing impact law: paper or striking-edge
     #[arg(long, default_value = "paper")]
     pub impact: ImpactLaw,
-    /// Physical parameters (TOML: m_f, m_l, l, f, g); default: the paper's
+    /// Physical parameters (TOML: m_f, m_l, l, f, g, and the hardware keys l_c, i_l, j_m, n_g,
+    /// b_v, tau_c of docs/model.md); default: the paper's
     #[arg(long, value_name = "FILE.toml")]
     pub params: Option<PathBuf>,
     /// Relative tolerance of the integrator (the absolute one is rtol/100, as in `simulate`)

@@ -49,7 +49,8 @@ pub struct ScenarioArgs {
     /// Scenario file (TOML); flags override its values
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: Option<PathBuf>,
-    /// Parameter file (TOML: m_f, m_l, l, f, g); overrides the scenario's [params] table
+    /// Parameter file (TOML: m_f, m_l, l, f, g, and the hardware keys l_c, i_l, j_m, n_g, b_v,
+    /// tau_c of docs/model.md); overrides the scenario's [params] table
     #[arg(long, value_name = "FILE.toml")]
     pub params: Option<PathBuf>,
     /// The plant's own parameter file (model mismatch: the controller keeps --params); overrides
