@@ -638,3 +638,62 @@ fn a_sampled_pd_loop_with_coulomb_friction_in_plant_and_model_holds_the_arm() {
     );
     assert_eq!(plant.mode(), Mode::Flat);
 }
+
+#[test]
+fn mirrored_runs_with_friction_and_inertia_mirror_each_other() {
+    // A PD loop whose model leaves out the plant's Coulomb friction: tilts, landings and
+    // stick/slip events. Its mirror image (tau -> -tau through the mirror) has the mirrored
+    // mode transitions and the joint events with forward and backward swapped, at the same
+    // times (1e-9 s: the run is chaotic enough that round-off grows over the 3 s).
+    let plant_p = coulomb(0.3, 0.1);
+    let model = Params {
+        tau_c: 0.0,
+        ..plant_p
+    };
+    let law = move |_t: f64, m: Mode, x: &State| {
+        torque_for_beta_ddot(
+            &model,
+            m,
+            x,
+            14.14 * (0.0 - x[3]) + 100.0 * (FRAC_PI_2 - x[1]),
+        )
+    };
+    let mirrored = move |t: f64, m: Mode, x: &State| -law(t, m.mirrored(), &mirror(x));
+    let x0 = State::new(0.0, FRAC_PI_2 - 0.0003, 0.0, 0.6);
+    let run = |mode: Mode, x: State, mirror_law: bool| {
+        let mut plant = Plant::new(tight(plant_p), 0.0, mode, x).unwrap();
+        let mut log = Log::default();
+        if mirror_law {
+            plant.advance_continuous(&mirrored, 3.0, &mut log).unwrap();
+        } else {
+            plant.advance_continuous(&law, 3.0, &mut log).unwrap();
+        }
+        log
+    };
+    let a = run(Mode::Left, x0, false);
+    let b = run(Mode::Right, mirror(&x0), true);
+    assert!(
+        a.transitions.len() >= 3,
+        "{} transitions",
+        a.transitions.len()
+    );
+    assert!(!a.joint.is_empty(), "no joint event");
+    assert_eq!(a.transitions.len(), b.transitions.len());
+    for (u, v) in a.transitions.iter().zip(&b.transitions) {
+        assert_eq!((u.from.mirrored(), u.to.mirrored()), (v.from, v.to));
+        assert!((u.t - v.t).abs() < 1e-9, "{} vs {}", u.t, v.t);
+    }
+    let swap = |j: Joint| match j {
+        Joint::Forward => Joint::Backward,
+        Joint::Backward => Joint::Forward,
+        other => other,
+    };
+    assert_eq!(a.joint.len(), b.joint.len());
+    for (u, v) in a.joint.iter().zip(&b.joint) {
+        assert_eq!(
+            (swap(u.from), swap(u.to), u.mode.mirrored()),
+            (v.from, v.to, v.mode)
+        );
+        assert!((u.t - v.t).abs() < 1e-9, "{} vs {}", u.t, v.t);
+    }
+}
