@@ -697,3 +697,51 @@ fn mirrored_runs_with_friction_and_inertia_mirror_each_other() {
         assert!((u.t - v.t).abs() < 1e-9, "{} vs {}", u.t, v.t);
     }
 }
+
+#[test]
+fn the_dynamics_are_linear_in_seven_base_parameters() {
+    // docs/model.md's regressor form, written out here from the base parameters alone, against
+    // the model's mass matrix and bias terms at random states and accelerations.
+    let p = hw();
+    let (f, g) = (p.f, p.g);
+    let (lc, jm, n) = (1.4, p.j_m, p.n_g);
+    let pi = [
+        p.m_f + p.m_l,
+        p.m_l * lc,
+        p.m_l * lc * lc + p.i_l + jm,
+        (n - 1.0) * jm,
+        (n * n - 1.0) * jm,
+    ];
+    let mut rng = Rng(2718);
+    for mode in [Mode::Left, Mode::Right] {
+        let sf = if mode == Mode::Left { f } else { -f };
+        for _ in 0..200 {
+            let x = random_state(&mut rng, mode);
+            let (a, b, ad, bd) = (x[0], x[1], x[2], x[3]);
+            let (add, bdd) = (rng.uniform(-20.0, 20.0), rng.uniform(-20.0, 20.0));
+            let row1 = (sf * sf * pi[0] + 2.0 * sf * b.cos() * pi[1] + pi[2]) * add
+                + (sf * b.cos() * pi[1] + pi[2] + pi[3]) * bdd
+                - sf * b.sin() * (2.0 * ad * bd + bd * bd) * pi[1]
+                + g * sf * a.cos() * pi[0]
+                + g * (a + b).cos() * pi[1];
+            let row2 = (sf * b.cos() * pi[1] + pi[2] + pi[3]) * add
+                + (pi[2] + pi[4]) * bdd
+                + sf * b.sin() * ad * ad * pi[1]
+                + g * (a + b).cos() * pi[1];
+            let (m11, m12, m22) = mass_matrix(&p, mode, b);
+            let (h1, h2) = bias(&p, mode, &x);
+            let (r1, r2) = (m11 * add + m12 * bdd + h1, m12 * add + m22 * bdd + h2);
+            assert!(
+                (row1 - r1).abs() < 1e-11 * (1.0 + r1.abs()),
+                "{mode}: {row1} vs {r1}"
+            );
+            assert!(
+                (row2 - r2).abs() < 1e-11 * (1.0 + r2.abs()),
+                "{mode}: {row2} vs {r2}"
+            );
+        }
+    }
+    // The rotor and its gear come back from pi4 and pi5 (N + 1 = pi5 / pi4).
+    let n_back = pi[4] / pi[3] - 1.0;
+    assert!((n_back - n).abs() < 1e-12 && (pi[3] / (n_back - 1.0) - jm).abs() < 1e-15);
+}
