@@ -226,6 +226,18 @@ impl SimConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         use crate::params::positive;
         self.params.validate()?;
+        // Both impact laws divide by M12 (or its striking-edge analogue), whose least value
+        // over beta is m_l l_c (l_c - f) + i_l + n_g j_m.
+        let p = &self.params;
+        let lc = p.lc();
+        if p.m_l * lc * (lc - p.f) + p.inertia().1 <= 0.0 {
+            return Err(ConfigError::OutOfRange {
+                field: "l_c",
+                value: format!("{lc} (with f = {}, i_l = {}, j_m = {})", p.f, p.i_l, p.j_m),
+                allowed: "such that m_l l_c (l_c - f) + i_l + n_g j_m > 0 (the impact laws \
+                          divide by it): l_c > f suffices",
+            });
+        }
         positive("rtol", self.tol.rtol)?;
         positive("atol", self.tol.atol)?;
         positive("fall_angle", self.fall_angle)?;

@@ -422,6 +422,25 @@ fn bad_hardware_values_are_refused_with_the_field_and_its_range() {
     }
     // A longer arm makes room for the centre of mass.
     assert!(Params::from_toml_str("l = 3.0\nl_c = 2.5").is_ok());
+    // A centre of mass inside the plate's half-length and no inertia: the impact laws would
+    // divide by zero at some arm angle; the simulator refuses it, naming l_c.
+    let p = Params::from_toml_str("l_c = 0.3").unwrap();
+    let cfg = SimConfig {
+        params: p,
+        ..SimConfig::default()
+    };
+    match Plant::new(cfg, 0.0, Mode::Flat, State::new(0.0, 1.0, 0.0, 0.0)) {
+        Err(ConfigError::OutOfRange { field: "l_c", .. }) => {}
+        other => panic!("{other:?}"),
+    }
+    // With enough inertia it is fine.
+    let p = Params::from_toml_str("l_c = 0.3\ni_l = 0.1").unwrap();
+    assert!(SimConfig {
+        params: p,
+        ..SimConfig::default()
+    }
+    .validate()
+    .is_ok());
 }
 
 // --- Coulomb friction: stick and slip as hybrid events ------------------------------------
