@@ -47,6 +47,16 @@ pub fn parse_predict(s: &str) -> Result<Predict, String> {
     }
 }
 
+impl std::fmt::Display for Predict {
+    /// `--predict`'s value that [`parse_predict`] reads back: `auto` or the delay in seconds.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Predict::Given(d) => write!(f, "{d}"),
+            Predict::Estimated => f.write_str("auto"),
+        }
+    }
+}
+
 /// The predictor of one controller: the model of the plant, the loop's period and delay, and
 /// the answers sent.
 #[derive(Debug, Clone)]
@@ -212,6 +222,25 @@ impl Predictor {
         let keep_from = t - 2.0 * self.delay - 1.0;
         while self.sent.len() > MAX_SENT || (self.sent.len() >= 2 && self.sent[1].0 < keep_from) {
             self.sent.pop_front();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `Display` is the inverse of [`parse_predict`] on the values it accepts.
+    #[test]
+    fn predict_round_trips_through_its_flag_value() {
+        for p in [
+            Predict::Estimated,
+            Predict::Given(0.0),
+            Predict::Given(0.1 + 0.2),
+            Predict::Given(1e-300),
+            Predict::Given(60.0),
+        ] {
+            assert_eq!(parse_predict(&p.to_string()), Ok(p), "{p}");
         }
     }
 }
