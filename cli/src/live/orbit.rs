@@ -5,7 +5,10 @@
 //! 1 kHz over a perfect network, 0.0413 rad for the paper's `k = 500` loop).
 
 use super::summary::{OrbitState, OrbitVerdict};
-use tilting_planner::margins::{peaks_hold, Criteria, LAST_PEAKS, SECONDS_PER_TILT};
+use anyhow::Context as _;
+use tilting_planner::margins::{self, peaks_hold, Criteria, LAST_PEAKS, SECONDS_PER_TILT};
+use tilting_proto::Reference;
+use tilting_sim::Scenario;
 
 /// Longest wait for the next tilt (s of plant time) before the orbit counts as lost: three
 /// times the time `margins` allows per tilt (the orbit tilts every 0.435 s).
@@ -18,6 +21,33 @@ pub(super) struct OrbitCheck {
     pub(super) nominal: f64,
     /// The criteria of `tilting plan margins`.
     pub(super) criteria: Criteria,
+}
+
+/// The nominal loop of a live run: the scenario of its law at `rate` (Hz) for `duration` (s),
+/// and the check against its orbit (`tilting plan margins`' criterion: the same law at 1 kHz
+/// over a perfect network, simulated here in about 0.1 s); no check when the law has no orbit.
+pub(super) async fn nominal(
+    reference: &Reference,
+    rate: f64,
+    duration: f64,
+) -> anyhow::Result<(Scenario, Option<OrbitCheck>)> {
+    let scenario = Scenario {
+        kp: reference.kp,
+        kd: reference.kd,
+        k: reference.k,
+        energy_avg: Some(reference.energy_avg),
+        control_period: 1.0 / rate,
+        duration,
+        torque_limit: (reference.torque_limit > 0.0).then_some(reference.torque_limit),
+        ..Scenario::default()
+    };
+    let criteria = Criteria::default();
+    let sc = scenario.clone();
+    let nominal = tokio::task::spawn_blocking(move || margins::nominal_peak(&sc, &criteria))
+        .await
+        .context("the nominal orbit")?;
+    let check = (nominal > 0.0).then_some(OrbitCheck { nominal, criteria });
+    Ok((scenario, check))
 }
 
 impl OrbitCheck {

@@ -1,0 +1,294 @@
+//! Spawning the nodes of a live run: where each session listens and connects (loopback ports,
+//! or the router of `--secure`), the router itself, and the plant and controller children with
+//! their flags.
+//!
+//! A child's flags come from the typed arguments of `live` through the `to_args()` of each
+//! parser (`NetworkArgs`, the law, `--predict`'s value), not from flags spelled out again here.
+
+use super::summary::Endpoints;
+use super::Job;
+use crate::security;
+use crate::supervise::{endpoint, free_port, Child, NodeBinaries};
+use anyhow::Context as _;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use tilting_net::ZenohArgs;
+use tilting_planner::node::LawArgs;
+
+/// The router of a `--secure` run.
+pub(super) struct Secure {
+    /// The certificate directory (its `{node}.json5` files).
+    certs: PathBuf,
+    /// The router's endpoint, `tls/127.0.0.1:{port}`.
+    endpoint: String,
+    /// The `tilting-router` child.
+    router: Child,
+}
+
+/// Where the three sessions meet. Without `--secure`: the plant listens on its port; the
+/// in-process planner listens on its own and connects to the plant; the controller listens on a
+/// third and connects to both. With it, every node is a client of the router.
+pub(super) struct Topology {
+    plant_port: u16,
+    ctl_port: u16,
+    my_port: u16,
+    secure: Option<Secure>,
+}
+
+impl Topology {
+    /// Free loopback ports for the three sessions (the plant's is `--port` if given).
+    pub(super) fn ports(job: &Job) -> anyhow::Result<Self> {
+        let plant_port = match job.args.port {
+            Some(p) => p,
+            None => free_port()?,
+        };
+        Ok(Self {
+            plant_port,
+            ctl_port: free_port()?,
+            my_port: free_port()?,
+            secure: None,
+        })
+    }
+
+    /// With `--secure`: finds or creates the certificates, starts `tilting-router` on a free
+    /// loopback port and waits until it listens (the nodes, clients, give up at once when no
+    /// router answers).
+    pub(super) async fn start_router(
+        &mut self,
+        job: &Job<'_>,
+        bins: &NodeBinaries,
+    ) -> anyhow::Result<()> {
+        let certs = match &job.args.certs {
+            // Checked by `run` already.
+            Some(c) => c
+                .canonicalize()
+                .with_context(|| format!("--certs {}", c.display()))?,
+            None => {
+                let c = job.dir.join("certs");
+                security::generate(&job.keys, &c, &[], security::DEFAULT_ROUTER_ENDPOINT, &[])?;
+                c.canonicalize()?
+            }
+        };
+        let endpoint = format!("tls/127.0.0.1:{}", free_port()?);
+        let config = certs.join("router.json5").display().to_string();
+        let args = [
+            "--config".into(),
+            config,
+            "--listen".into(),
+            endpoint.clone(),
+        ];
+        let mut router = Child::spawn("router", &bins.router, &args, &job.dir)?;
+        let t0 = Instant::now();
+        while !router.stdout().contains("\"ready\"") {
+            if let Some(s) = router.try_wait() {
+                anyhow::bail!(
+                    "the router exited at start with {s}:\n{}",
+                    router.log_tail(15)
+                );
+            }
+            if t0.elapsed() > Duration::from_secs(10) {
+                anyhow::bail!(
+                    "the router did not start within 10 s (see {})",
+                    router.stderr_path().display()
+                );
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        eprintln!(
+            "live: secure: router on {endpoint}, certificates in {}",
+            certs.display()
+        );
+        self.secure = Some(Secure {
+            certs,
+            endpoint,
+            router,
+        });
+        Ok(())
+    }
+
+    /// The session flags of child `node`: its certificate and the router, or loopback peers.
+    fn session_flags(&self, node: &str, listen: u16, connect: &[u16]) -> Vec<String> {
+        match &self.secure {
+            Some(s) => vec![
+                "--zenoh-config".into(),
+                s.certs.join(format!("{node}.json5")).display().to_string(),
+                "--connect".into(),
+                s.endpoint.clone(),
+            ],
+            None => {
+                let mut v = vec!["--listen".into(), endpoint(listen)];
+                for c in connect {
+                    v.extend(["--connect".into(), endpoint(*c)]);
+                }
+                v
+            }
+        }
+    }
+
+    /// The in-process planner's session.
+    pub(super) fn planner_session(&self, robot: &str) -> ZenohArgs {
+        match &self.secure {
+            Some(s) => ZenohArgs {
+                zenoh_config: Some(s.certs.join("planner.json5")),
+                ..ZenohArgs::new(robot, &[], &[&s.endpoint])
+            },
+            None => ZenohArgs::new(
+                robot,
+                &[&endpoint(self.my_port)],
+                &[&endpoint(self.plant_port)],
+            ),
+        }
+    }
+
+    /// The endpoints as the summary records them.
+    pub(super) fn endpoints(&self) -> Endpoints {
+        match &self.secure {
+            Some(s) => Endpoints {
+                plant: String::new(),
+                controller: String::new(),
+                planner: String::new(),
+                router: Some(s.endpoint.clone()),
+            },
+            None => Endpoints {
+                plant: endpoint(self.plant_port),
+                controller: endpoint(self.ctl_port),
+                planner: endpoint(self.my_port),
+                router: None,
+            },
+        }
+    }
+
+    /// Stops the router, if any (after the nodes); a problem if it failed or had to be killed.
+    pub(super) fn stop_router(&mut self, force: &dyn Fn() -> bool) -> Option<String> {
+        let s = self.secure.as_mut()?;
+        let (status, killed) = tokio::task::block_in_place(|| s.router.stop(force));
+        (killed || !status.success()).then(|| {
+            format!(
+                "the router exited with {status} (see {})",
+                s.router.stderr_path().display()
+            )
+        })
+    }
+}
+
+/// The plant's flags: session, rate, duration, the law's torque limit as its hard limit, the
+/// age rule and the emulated link.
+fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
+    let args = job.args;
+    let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
+    v.extend(topo.session_flags("plant", topo.plant_port, &[]));
+    v.extend([
+        "--rate".into(),
+        args.rate.to_string(),
+        "--duration".into(),
+        args.duration.to_string(),
+    ]);
+    let limit = job.reference.torque_limit;
+    if limit > 0.0 {
+        // The controller saturates already; the plant's hard limit is the same.
+        v.extend(["--torque-limit".into(), limit.to_string()]);
+    }
+    v.extend(["--max-age".into(), args.max_age.to_string()]);
+    if job.impairment.is_some() {
+        v.extend(args.network.to_args());
+    }
+    v
+}
+
+/// The controller's flags: session, the law and `--predict`.
+fn controller_args(job: &Job, topo: &Topology) -> Vec<String> {
+    let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
+    let peers = [topo.plant_port, topo.my_port];
+    v.extend(topo.session_flags("controller", topo.ctl_port, &peers));
+    v.extend(LawArgs::controller_flags(&job.reference));
+    if let Some(p) = job.args.predict {
+        v.push(format!("--predict={p}"));
+    }
+    v
+}
+
+/// Starts the plant; it publishes state 0 until a controller shows up.
+pub(super) fn spawn_plant(
+    job: &Job,
+    topo: &Topology,
+    bins: &NodeBinaries,
+) -> anyhow::Result<Child> {
+    Child::spawn("plant", &bins.plant, &plant_args(job, topo), &job.dir)
+}
+
+/// Starts the controller; the plant starts its clock when the controller's token appears.
+pub(super) fn spawn_controller(
+    job: &Job,
+    topo: &Topology,
+    bins: &NodeBinaries,
+) -> anyhow::Result<Child> {
+    let args = controller_args(job, topo);
+    Child::spawn("controller", &bins.controller, &args, &job.dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::live::LiveArgs;
+    use clap::Parser as _;
+    use tilting_controller::node::ControllerArgs;
+    use tilting_plant::node::PlantArgs;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        live: LiveArgs,
+    }
+
+    /// The children parse the flags `live` hands them into what `live` was given: the link,
+    /// the law, `--predict`, the rate, the duration and the age rule.
+    #[test]
+    fn the_children_read_what_live_was_given() {
+        let live = Cli::try_parse_from([
+            "tilting",
+            "--delay",
+            "0.002",
+            "--torque-jitter",
+            "exp:0.0005",
+            "--state-loss",
+            "0.1",
+            "--seed",
+            "7",
+            "--max-age",
+            "3",
+            "--predict",
+            "0.004",
+            "--kp",
+            "60",
+            "--kd",
+            "12",
+            "--reference",
+            "sinusoid:0.2,4",
+            "--torque-limit",
+            "5",
+            "--energy-avg=0.1875",
+            "--rate",
+            "500",
+            "--duration",
+            "2.5",
+        ])
+        .unwrap()
+        .live;
+        let job = crate::live::check(&live).unwrap();
+        let topo = Topology::ports(&job).unwrap();
+        let once = |bin: &'static str, v: Vec<String>| std::iter::once(bin.to_owned()).chain(v);
+        let plant =
+            PlantArgs::try_parse_from(once("tilting-plant", plant_args(&job, &topo))).unwrap();
+        assert_eq!(plant.network, live.network);
+        assert_eq!(plant.zenoh.robot, live.robot);
+        assert_eq!((plant.rate, plant.duration), (500.0, Some(2.5)));
+        assert_eq!((plant.max_age, plant.torque_limit), (3, 5.0));
+        let ctl = ControllerArgs::try_parse_from(once(
+            "tilting-controller",
+            controller_args(&job, &topo),
+        ))
+        .unwrap();
+        assert_eq!(ctl.predict, live.predict);
+        assert_eq!(ctl.control_config().unwrap().to_wire(), job.reference);
+    }
+}

@@ -1,0 +1,165 @@
+//! Summarising a live run: the figure and the moving clip, the orbit verdict, `summary.json`
+//! and the report on stdout.
+
+use super::monitor::End;
+use super::orbit::OrbitCheck;
+use super::shutdown::Stopped;
+use super::summary::{
+    Endpoints, LawRecord, LiveResult, LiveSummary, OrbitVerdict, PlannerCounts, RecordCounts,
+};
+use super::Job;
+use crate::record::{self, RecordView};
+use anyhow::{anyhow, Context as _};
+use std::io::Write as _;
+use std::path::Path;
+use tilting_controller::node::ControllerSummary;
+use tilting_plant::node::PlantSummary;
+use tilting_proto::Status;
+use tilting_sim::Scenario;
+
+/// Everything a finished run left: how it ended, the children's summaries, the recording.
+pub(super) struct Outcome {
+    /// Why the monitoring ended.
+    pub(super) end: End,
+    /// What went wrong so far, one sentence each.
+    pub(super) problems: Vec<String>,
+    /// The children's exit statuses.
+    pub(super) stopped: Stopped,
+    /// The plant's own summary.
+    pub(super) plant: Option<PlantSummary>,
+    /// The controller's own summary.
+    pub(super) controller: Option<ControllerSummary>,
+    /// The closed recording.
+    pub(super) view: RecordView,
+    /// Messages the recorder dropped.
+    pub(super) dropped: u64,
+    /// Undecodable messages.
+    pub(super) invalid: u64,
+    /// The plant's last status.
+    pub(super) last_status: Option<Status>,
+    /// The planner's counters.
+    pub(super) planner: PlannerCounts,
+    /// The sessions' endpoints.
+    pub(super) endpoints: Endpoints,
+}
+
+/// Draws `run.png` (and `run.gif`, the last seconds moving) from the recording in `dir`;
+/// whether the figure was drawn. A failure is a problem of the run.
+fn draw(
+    dir: &Path,
+    scenario: &Scenario,
+    view: &RecordView,
+    early: bool,
+    problems: &mut Vec<String>,
+) -> bool {
+    let png = dir.join(record::RUN_PNG);
+    let plot = if view.states > 0 {
+        record::plot_recording(dir, &png, scenario, early)
+    } else {
+        Err(anyhow!("no state was recorded"))
+    };
+    if let Err(e) = &plot {
+        problems.push(format!("cannot draw {}: {e:#}", png.display()));
+    }
+    if view.states > 0 {
+        let gif = dir.join("run.gif");
+        if let Err(e) = crate::commands::animate::live_clip(dir, &gif, &scenario.params) {
+            problems.push(format!("cannot animate {}: {e:#}", gif.display()));
+        }
+    }
+    plot.is_ok()
+}
+
+/// The orbit verdict from the plant's own peaks (every tilt, not the sampled states), or the
+/// recording's without a plant summary.
+fn verdict(check: OrbitCheck, o: &Outcome, fault: Option<&str>) -> OrbitVerdict {
+    match &o.plant {
+        Some(p) => {
+            let peaks: Vec<(f64, f64)> = p.tilt_peaks.iter().map(|x| (x[0], x[1])).collect();
+            check.judge(&peaks, p.time, p.watchdog_trips, fault)
+        }
+        None => {
+            let peaks: Vec<(f64, f64)> = o.view.peaks.iter().copied().collect();
+            let now = o.view.last_state.map_or(0.0, |s| s.time);
+            let trips = o.last_status.as_ref().map_or(0, |s| s.watchdog_trips);
+            check.judge(&peaks, now, trips, fault)
+        }
+    }
+}
+
+/// What the recording holds.
+fn record_counts(o: &Outcome, csv: bool) -> RecordCounts {
+    let v = &o.view;
+    RecordCounts {
+        states: v.states,
+        torques: v.torques,
+        events: v.events,
+        statuses: v.statuses,
+        references: v.references,
+        csv,
+        tilts: v.tilts,
+        dropped: o.dropped,
+        missing_states: v.missing_states,
+        repeated_states: v.repeated_states,
+        repeated_torques: v.repeated_torques,
+        invalid: o.invalid,
+        peaks: v.peaks.iter().map(|p| [p.0, p.1]).collect(),
+    }
+}
+
+/// Draws the figures, writes `summary.json` and prints the report (and the problems, on
+/// stderr); whether the run ended cleanly.
+pub(super) fn summarise(
+    job: &Job,
+    scenario: &Scenario,
+    check: Option<OrbitCheck>,
+    mut o: Outcome,
+) -> anyhow::Result<bool> {
+    let fault = o.plant.as_ref().and_then(|s| s.fault.clone()).or_else(|| {
+        o.last_status
+            .as_ref()
+            .filter(|s| !s.fault.is_empty())
+            .map(|s| s.fault.clone())
+    });
+    let early = fault.is_some() || !o.problems.is_empty();
+    let png = draw(&job.dir, scenario, &o.view, early, &mut o.problems);
+    let orbit = check.map(|c| verdict(c, &o, fault.as_deref()));
+    let ok = o.problems.is_empty();
+    let result = match (&o.end, ok) {
+        (End::Interrupted, true) => LiveResult::Interrupted,
+        (_, true) => LiveResult::Completed,
+        (_, false) => LiveResult::Failed,
+    };
+    let args = job.args;
+    let summary = LiveSummary {
+        result,
+        problems: o.problems.clone(),
+        duration: args.duration,
+        rate: args.rate,
+        robot: job.keys.robot().to_owned(),
+        out: job.dir.clone(),
+        reference: LawRecord::from(&job.reference),
+        endpoints: o.endpoints.clone(),
+        record: record_counts(&o, args.csv),
+        planner: o.planner,
+        png,
+        plant_exit: o.stopped.plant.to_string(),
+        controller_exit: o.stopped.controller.map(|s| s.to_string()),
+        plant: o.plant.take(),
+        controller: o.controller.take(),
+        orbit,
+    };
+    let path = job.dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).context("cannot serialise the summary")?;
+    std::fs::write(&path, format!("{text}\n"))
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    print!(
+        "{}",
+        summary.report(&o.view, o.last_status.as_ref(), fault.as_deref())
+    );
+    let _ = std::io::stdout().flush();
+    for p in &o.problems {
+        eprintln!("live: error: {p}");
+    }
+    Ok(ok)
+}
