@@ -208,23 +208,23 @@ pub struct Rendered {
     pub flashed: usize,
 }
 
-/// Renders `trace` for the plant `params` into `out`, one frame at a time, advancing `bar` by
-/// one per frame (its length is set to the frame count). Errors name the output file.
+/// Renders `trace` for the plant `params` into `out`, one frame at a time, calling
+/// `progress(done, frames)` after each frame (frames written so far, frames in all). Errors
+/// name the output file.
 pub fn animate(
     out: Output,
     params: &Params,
     trace: &Trace,
     opts: &Options,
-    bar: &indicatif::ProgressBar,
+    progress: &dyn Fn(usize, usize),
 ) -> Result<Rendered> {
     register_fonts()?;
     let tl = timeline(trace, opts)?;
     let scene = Scene::new(params, trace, &tl, opts);
-    bar.set_length(tl.frames as u64);
     let mut flashed = 0;
     match out {
         Output::Gif(path) => {
-            flashed = write_gif(path, &scene, &tl, opts.size, bar)?;
+            flashed = write_gif(path, &scene, &tl, opts.size, progress)?;
         }
         Output::Frames(dir) => {
             if !dir.is_dir() {
@@ -236,11 +236,10 @@ pub fn animate(
                 flashed += scene.draw(&root, tl.time(i))? as usize;
                 root.present()
                     .with_context(|| format!("cannot write {}", path.display()))?;
-                bar.inc(1);
+                progress(i + 1, tl.frames);
             }
         }
     }
-    bar.finish_and_clear();
     Ok(Rendered {
         timeline: tl,
         flashed,
@@ -280,7 +279,7 @@ fn write_gif(
     scene: &Scene,
     tl: &Timeline,
     size: (u32, u32),
-    bar: &indicatif::ProgressBar,
+    progress: &dyn Fn(usize, usize),
 ) -> Result<usize> {
     let (w, h) = (size.0 as usize, size.1 as usize);
     let palette = cube_palette();
@@ -347,7 +346,7 @@ fn write_gif(
             Some(p) => p.copy_from_slice(&idx),
             None => prev = Some(idx.clone()),
         }
-        bar.inc(1);
+        progress(i + 1, tl.frames);
     }
     let mut file = enc
         .into_inner()
@@ -778,8 +777,20 @@ mod tests {
             size: (320, 240),
             ..Options::default()
         };
-        let bar = indicatif::ProgressBar::hidden();
-        let r = animate(Output::Gif(&path), &Params::default(), &tr, &opts, &bar).unwrap();
+        let calls = std::cell::Cell::new(0);
+        let progress = |done, all| {
+            calls.set(calls.get() + 1);
+            assert_eq!((done, all), (calls.get(), 13));
+        };
+        let r = animate(
+            Output::Gif(&path),
+            &Params::default(),
+            &tr,
+            &opts,
+            &progress,
+        )
+        .unwrap();
+        assert_eq!(calls.get(), 13, "one call per frame");
         // 0.5 s at 25 fps: frames at 0, 0.04, ..., 0.48; the landing (at 0.19 s, off the frame
         // times) flashes for 0.12 s: the frames at 0.20, 0.24 and 0.28.
         assert_eq!(r.timeline.frames, 13);

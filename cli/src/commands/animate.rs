@@ -173,7 +173,13 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
     } else {
         Output::Frames(&out)
     };
-    let r = animate(target, &sc.params, &trace, &opts, &pb)
+    let progress = |done, frames| {
+        pb.set_length(frames as u64);
+        pb.set_position(done as u64);
+    };
+    let r = animate(target, &sc.params, &trace, &opts, &progress);
+    pb.finish_and_clear();
+    let r = r
         .with_context(|| format!("cannot animate into {}", out.display()))
         .map_err(CommandError::Failed)?;
     let seconds = started.elapsed().as_secs_f64();
@@ -290,13 +296,7 @@ pub fn live_clip(dir: &Path, gif: &Path, params: &Params) -> Result<Rendered> {
         size: (480, 360),
         ..Options::default()
     };
-    animate(
-        Output::Gif(gif),
-        params,
-        &trace,
-        &opts,
-        &indicatif::ProgressBar::hidden(),
-    )
+    animate(Output::Gif(gif), params, &trace, &opts, &|_, _| {})
 }
 
 #[cfg(test)]

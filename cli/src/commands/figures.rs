@@ -101,7 +101,7 @@ pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
     for &n in &which {
         bar.set_message(format!("fig{n}"));
         let t0 = Instant::now();
-        let r = ctx.draw(n, &bar);
+        let r = ctx.draw(n, &|| bar.inc(1));
         match r {
             Ok(summary) => done.push(FigureReport {
                 figure: n,

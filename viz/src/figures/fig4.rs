@@ -51,7 +51,7 @@ pub struct Fig4Curve {
     pub s_drawn: f64,
 }
 
-pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig4Summary> {
+pub(super) fn fig4(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig4Summary> {
     let p = ctx.params;
     // The no-tilt grid.
     let ga = gains::range(FIG4_A.0, FIG4_A.1, ctx.set.grid_a_step);
@@ -65,7 +65,7 @@ pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig4Summar
             })
         })
         .collect();
-    bar.inc(1);
+    tick();
     // The curves: exact s = -1, 0, 1 and the fallbacks -0.98, 0.98.
     let ss = [-1.0, 0.0, 1.0, -0.98, 0.98];
     let amps = ctx.amplitudes();
@@ -73,7 +73,7 @@ pub(super) fn fig4(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig4Summar
         .par_iter()
         .map(|&a| {
             let r = sinusoid::landing_curves(&p, a, &ss, ctx.set.scan);
-            bar.inc(1);
+            tick();
             r
         })
         .collect();

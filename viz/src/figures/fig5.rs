@@ -93,7 +93,7 @@ pub struct Fig5Panel {
     pub simulated_max_tilt: f64,
 }
 
-pub(super) fn fig5(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig5Summary> {
+pub(super) fn fig5(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig5Summary> {
     let p = ctx.params;
     let panels: Vec<Result<Panel>> = FIG5_S
         .par_iter()
@@ -140,7 +140,7 @@ pub(super) fn fig5(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig5Summar
                     sim_max,
                 })
             })();
-            bar.inc(1);
+            tick();
             r
         })
         .collect();

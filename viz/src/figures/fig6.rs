@@ -15,11 +15,11 @@ pub struct Fig6Summary {
     pub text: String,
 }
 
-pub(super) fn fig6(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig6Summary> {
+pub(super) fn fig6(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig6Summary> {
     let (kps, kds) = (ctx.kps(), ctx.kds());
-    let cells = gains::grid(ctx.params, ctx.impact, &kps, &kds, &|| bar.inc(1));
+    let cells = gains::grid(ctx.params, ctx.impact, &kps, &kds, tick);
     let paper = orbit::find_all(&ctx.orbit_problem());
-    bar.inc(1);
+    tick();
     if cells.iter().all(|c| c.max_tilt.is_empty()) {
         return Err(anyhow!(
             "no periodic orbit anywhere on the grid (impact law {})",

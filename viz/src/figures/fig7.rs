@@ -37,11 +37,11 @@ pub struct Fig7Run {
     pub peaks: Vec<f64>,
 }
 
-pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig7Summary> {
+pub(super) fn fig7(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig7Summary> {
     let pb = ctx.orbit_problem();
     let o = orbit::smallest(&pb)
         .ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
-    bar.inc(1);
+    tick();
     let law = |k: f64| {
         ComputedTorque::new(ControlConfig {
             k,
@@ -66,7 +66,7 @@ pub(super) fn fig7(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig7Summar
                     ctx.set.fig7_duration,
                 )
             });
-            bar.inc(1);
+            tick();
             r
         })
         .collect();

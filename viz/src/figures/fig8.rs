@@ -23,11 +23,11 @@ pub struct Fig8Summary {
     pub text: String,
 }
 
-pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig8Summary> {
+pub(super) fn fig8(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig8Summary> {
     let pb = ctx.orbit_problem();
     let o = orbit::smallest(&pb)
         .ok_or_else(|| anyhow!("no periodic orbit for K_P = {KP}, K_D = {KD}"))?;
-    bar.inc(1);
+    tick();
     let set = ctx.set;
     let sw = Sweep {
         problem: pb,
@@ -39,9 +39,9 @@ pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig8Summar
         period_tol: 1e-5,
     };
     let ks = ctx.ks();
-    let rows = bifurcation::sweep(&sw, &ks, &|| bar.inc(1));
+    let rows = bifurcation::sweep(&sw, &ks, tick);
     let k_star = bifurcation::k_star(&sw, 500.0, FIG8_K.0, FIG8_K.1, 1e-3);
-    bar.inc(1);
+    tick();
     let series_sw = Sweep {
         tilts: set.series_tilts,
         keep: set.series_keep,
@@ -51,7 +51,7 @@ pub(super) fn fig8(ctx: &Ctx, bar: &indicatif::ProgressBar) -> Result<Fig8Summar
         .par_iter()
         .map(|&k| {
             let r = bifurcation::run_one(&series_sw, k);
-            bar.inc(1);
+            tick();
             r
         })
         .collect();

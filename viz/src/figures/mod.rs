@@ -1,6 +1,6 @@
 //! The paper's Figs. 4 to 8 as PNG files, computed from scratch with the planner and the
 //! closed loop and drawn with plotters. [`Figures::draw`] draws one; the `tilting figures`
-//! command draws them all with a progress bar.
+//! command draws them all with a progress bar (fed by a callback).
 //!
 //! - Fig. 4 ([`sinusoid`]): the partition of the `(A, w)` plane: the pairs whose ideal arm
 //!   motion never tilts the plate, and the curves `t_l = T/2 + s t_t` for `s = -1, 0, 1`;
@@ -172,7 +172,7 @@ impl Figures {
         gains::range(FIG8_K.0, FIG8_K.1, self.set.k_step)
     }
 
-    /// Progress units of figure `n` (the ticks [`Figures::draw`] gives its bar).
+    /// Progress units of figure `n` (the ticks [`Figures::draw`] gives).
     pub fn units(&self, n: u8) -> u64 {
         (match n {
             4 => self.amplitudes().len() + 1,
@@ -198,16 +198,17 @@ impl Figures {
         OrbitProblem::new(self.params, self.impact, KP, KD)
     }
 
-    /// Computes and draws figure `n` (4 to 8) into [`Figures::path`], ticking `bar`; returns
+    /// Computes and draws figure `n` (4 to 8) into [`Figures::path`], calling `tick` once per
+    /// unit of progress ([`Figures::units`] in all; from several threads); returns
     /// its summary: a one-line `text` and the figure's numbers.
-    pub fn draw(&self, n: u8, bar: &indicatif::ProgressBar) -> Result<Summary> {
+    pub fn draw(&self, n: u8, tick: &(dyn Fn() + Sync)) -> Result<Summary> {
         register_fonts()?;
         Ok(match n {
-            4 => Summary::Fig4(fig4::fig4(self, bar)?),
-            5 => Summary::Fig5(fig5::fig5(self, bar)?),
-            6 => Summary::Fig6(fig6::fig6(self, bar)?),
-            7 => Summary::Fig7(fig7::fig7(self, bar)?),
-            8 => Summary::Fig8(fig8::fig8(self, bar)?),
+            4 => Summary::Fig4(fig4::fig4(self, tick)?),
+            5 => Summary::Fig5(fig5::fig5(self, tick)?),
+            6 => Summary::Fig6(fig6::fig6(self, tick)?),
+            7 => Summary::Fig7(fig7::fig7(self, tick)?),
+            8 => Summary::Fig8(fig8::fig8(self, tick)?),
             _ => return Err(anyhow!("no figure {n}: the figures are numbered 4 to 8")),
         })
     }
