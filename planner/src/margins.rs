@@ -12,11 +12,17 @@
 //! - the mean |peak| of the last 10 tilts is within `tolerance` (default 25 %) of the nominal
 //!   orbit's: the same loop at 1 kHz over a perfect network.
 //!
+//! [`Survey`] runs all the maps of `tilting plan margins` and reads their boundaries off.
+//!
 //! Each point is one run of up to `tilts × 0.6 s` of plant time (the orbit tilts every 0.435 s),
 //! stopped early at the first fault; points run in parallel (rayon).
 
+mod survey;
+
+pub use survey::{MarginsReport, RobotMargins, Survey, SurveyError};
+
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tilting_link::{Impairment, LinkSpec};
 use tilting_plant::imperfect::Imperfections;
 use tilting_plant::{Mode, Plant, TiltPeak, Transition};
@@ -29,7 +35,7 @@ pub const SECONDS_PER_TILT: f64 = 0.6;
 pub const LAST_PEAKS: usize = 10;
 
 /// The survival criteria.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Criteria {
     /// Tilts to complete.
     pub tilts: u64,
@@ -50,7 +56,7 @@ impl Default for Criteria {
 }
 
 /// One point of a map.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Point {
     /// Total constant delay, state and torque together (s).
     pub delay: f64,
@@ -300,7 +306,7 @@ pub fn boundaries(map: &[Point], rates: &[Point]) -> (Option<f64>, Option<f64>, 
 
 /// An imperfection of the robot mapped by [`imperfection_map`], one at a time, over a perfect
 /// network.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Imperfection {
     /// Gaussian sensor noise of both angles, `alpha` and `beta`: the value is their standard
@@ -343,7 +349,7 @@ impl Imperfection {
 }
 
 /// One point of an imperfection map.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ImperfectPoint {
     /// The imperfection.
     pub imperfection: Imperfection,

@@ -1,15 +1,15 @@
 //! `tilting plan margins`: what the paper's stabilised orbit (`k = 500`) survives, mapped over
 //! constant delay × loss, over the control rate, and over the robot's imperfections (sensor
-//! noise, arm-mass error; see `tilting_planner::margins` for the criteria).
+//! noise, arm-mass error; see `tilting_planner::margins` for the criteria). The survey is
+//! [`tilting_planner::margins::Survey`]; this command checks the flags, draws the progress bar,
+//! the maps and the tables.
 
 use super::{bar, emit, usage};
 use anyhow::Context as _;
 use clap::Args;
-use serde::Serialize;
 use std::path::PathBuf;
-use tilting_planner::margins::{self, Criteria, ImperfectPoint, Imperfection, Point};
+use tilting_planner::margins::{Criteria, MarginsReport, RobotMargins, Survey};
 use tilting_planner::CommandError;
-use tilting_sim::{LoopOptions, Predict, Scenario};
 
 /// Most points of one map.
 const MAX_POINTS: usize = 10_000;
@@ -100,27 +100,8 @@ pub struct RobotMapArgs {
     pub mass_errors: Vec<f64>,
 }
 
-/// The imperfection maps in the JSON of `plan margins`.
-#[derive(Debug, Serialize)]
-pub struct RobotMargins {
-    /// Control rate (Hz); the network is perfect.
-    pub rate: f64,
-    /// Survival against the sensor noise of the angles.
-    pub angle_noise: Vec<ImperfectPoint>,
-    /// Survival against the sensor noise of the rates.
-    pub rate_noise: Vec<ImperfectPoint>,
-    /// Survival against the arm-mass error.
-    pub mass_error: Vec<ImperfectPoint>,
-    /// Largest angle noise (rad) survived, with every smaller one of the grid.
-    pub largest_angle_noise: Option<f64>,
-    /// Largest rate noise (rad/s) survived, with every smaller one of the grid.
-    pub largest_rate_noise: Option<f64>,
-    /// The range of mass errors around 0 survived, every grid value inside it too.
-    pub mass_error_range: Option<(f64, f64)>,
-}
-
 impl RobotMapArgs {
-    fn check(&self) -> Result<usize, CommandError> {
+    fn check(&self) -> Result<(), CommandError> {
         check_list("--angle-noises", &self.angle_noises, 0.0, 10.0)?;
         check_list("--rate-noises", &self.rate_noises, 0.0, 10.0)?;
         check_list("--mass-errors", &self.mass_errors, -1.0, 10.0)?;
@@ -135,72 +116,44 @@ impl RobotMapArgs {
                 "too many points: {n} imperfection values, at most {MAX_POINTS}"
             )));
         }
-        Ok(n)
-    }
-
-    fn run(
-        &self,
-        sc: &Scenario,
-        rate: f64,
-        seed: u64,
-        c: &Criteria,
-        nominal: f64,
-        tick: &(dyn Fn() + Sync),
-    ) -> RobotMargins {
-        let map = |which, values: &[f64]| {
-            margins::imperfection_map(sc, rate, which, values, seed, c, nominal, tick)
-        };
-        let angle_noise = map(Imperfection::AngleNoise, &self.angle_noises);
-        let rate_noise = map(Imperfection::RateNoise, &self.rate_noises);
-        let mass_error = map(Imperfection::MassError, &self.mass_errors);
-        RobotMargins {
-            rate,
-            largest_angle_noise: margins::imperfection_range(&angle_noise).map(|r| r.1),
-            largest_rate_noise: margins::imperfection_range(&rate_noise).map(|r| r.1),
-            mass_error_range: margins::imperfection_range(&mass_error),
-            angle_noise,
-            rate_noise,
-            mass_error,
-        }
+        Ok(())
     }
 }
 
-impl RobotMargins {
-    fn text(&self) -> String {
-        let mut s = format!(
-            "\nthe robot is not the model, at {} Hz over a perfect network (one imperfection at a \
+/// The imperfection maps as text.
+fn robot_text(r: &RobotMargins) -> String {
+    let mut s = format!(
+        "\nthe robot is not the model, at {} Hz over a perfect network (one imperfection at a \
              time)\n",
-            self.rate
-        );
-        for map in [&self.angle_noise, &self.rate_noise, &self.mass_error] {
-            let Some(first) = map.first() else { continue };
-            s += &format!("  {}\n", first.imperfection.describe());
-            for p in map {
-                s += &format!(
-                    "  {:>10}: {}{}\n",
-                    p.value,
-                    if p.survived { "survives" } else { "fails" },
-                    if p.why.is_empty() {
-                        format!(" (last peaks {:.4} rad)", p.last_peak)
-                    } else {
-                        format!(" ({})", p.why)
-                    }
-                );
-            }
+        r.rate
+    );
+    for map in [&r.angle_noise, &r.rate_noise, &r.mass_error] {
+        let Some(first) = map.first() else { continue };
+        s += &format!("  {}\n", first.imperfection.describe());
+        for p in map {
+            s += &format!(
+                "  {:>10}: {}{}\n",
+                p.value,
+                if p.survived { "survives" } else { "fails" },
+                if p.why.is_empty() {
+                    format!(" (last peaks {:.4} rad)", p.last_peak)
+                } else {
+                    format!(" ({})", p.why)
+                }
+            );
         }
-        let f = |v: Option<f64>, unit: &str| {
-            v.map_or("none of the grid".into(), |v| format!("{v} {unit}"))
-        };
-        s += &format!(
-            "largest angle noise survived: {}\nlargest rate noise survived: {}\narm-mass errors \
-             survived: {}\n",
-            f(self.largest_angle_noise, "rad"),
-            f(self.largest_rate_noise, "rad/s"),
-            self.mass_error_range
-                .map_or("none of the grid".into(), |(a, b)| format!("{a} to {b}")),
-        );
-        s
     }
+    let f =
+        |v: Option<f64>, unit: &str| v.map_or("none of the grid".into(), |v| format!("{v} {unit}"));
+    s += &format!(
+        "largest angle noise survived: {}\nlargest rate noise survived: {}\narm-mass errors \
+             survived: {}\n",
+        f(r.largest_angle_noise, "rad"),
+        f(r.largest_rate_noise, "rad/s"),
+        r.mass_error_range
+            .map_or("none of the grid".into(), |(a, b)| format!("{a} to {b}")),
+    );
+    s
 }
 
 /// The PNG of the imperfection maps beside `--plot FILE.png`: `FILE-robot.png`.
@@ -209,43 +162,6 @@ pub fn robot_plot_path(plot: &std::path::Path) -> PathBuf {
         .file_stem()
         .map_or("margins".into(), |s| s.to_string_lossy());
     plot.with_file_name(format!("{stem}-robot.png"))
-}
-
-/// The JSON of `plan margins`.
-#[derive(Debug, Serialize)]
-pub struct MarginsReport {
-    /// The criteria a point must meet.
-    pub criteria: Criteria,
-    /// The survival criteria in words.
-    pub survives_means: String,
-    /// Nominal mean |peak| of the last 10 tilts, 1 kHz, perfect network (rad).
-    pub nominal_peak: f64,
-    /// Control rate of the delay × loss maps (Hz).
-    pub rate: f64,
-    /// The delay × loss map of the plain controller (delays outer).
-    pub delay_loss: Vec<Point>,
-    /// The delay × loss map of the predicting controller, delay estimated online from the
-    /// ages of the applied torques (`--predict auto`).
-    pub delay_loss_predict: Vec<Point>,
-    /// The rate map (perfect network), periodic samples only.
-    pub rates: Vec<Point>,
-    /// The rate map (perfect network) with an extra sample at each mode transition
-    /// (`--sample-on-event`).
-    pub rates_events: Vec<Point>,
-    /// Largest surviving delay with no loss (s), plain controller.
-    pub largest_delay: Option<f64>,
-    /// Largest surviving loss with no delay, plain controller.
-    pub largest_loss: Option<f64>,
-    /// Largest surviving delay with no loss (s), predicting controller.
-    pub largest_delay_predict: Option<f64>,
-    /// Largest surviving loss with no delay, predicting controller.
-    pub largest_loss_predict: Option<f64>,
-    /// Lowest surviving control rate (Hz), periodic samples.
-    pub lowest_rate: Option<f64>,
-    /// Lowest surviving control rate (Hz), with samples on events.
-    pub lowest_rate_events: Option<f64>,
-    /// The robot's imperfections (sensor noise, arm-mass error).
-    pub robot: RobotMargins,
 }
 
 fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), CommandError> {
@@ -262,8 +178,8 @@ fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), CommandErro
     Ok(())
 }
 
-/// `tilting plan margins`.
-pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
+/// Checks the flags: every grid value in range, not too many points, a PNG for `--plot`.
+fn check_args(args: &MarginsArgs) -> Result<(), CommandError> {
     check_list("--delays", &args.delays, 0.0, 60.0)?;
     check_list("--losses", &args.losses, 0.0, 1.0)?;
     check_list("--rates", &args.rates, 1.0, 10_000.0)?;
@@ -286,7 +202,7 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
             args.watchdog
         )));
     }
-    let n_robot = args.robot.check()?;
+    args.robot.check()?;
     let n = args.delays.len() * args.losses.len();
     if n > MAX_POINTS || args.rates.len() > MAX_POINTS {
         return Err(usage(format!(
@@ -302,179 +218,141 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
             )));
         }
     }
-    let c = Criteria {
-        tilts: args.tilts,
-        watchdog: args.watchdog,
-        tolerance: args.tolerance,
-    };
-    let sc = Scenario::default();
-    let b = bar(
-        (2 * (n + args.rates.len()) + n_robot + 1) as u64,
-        "margins",
-        args.json,
-    );
-    let nominal = margins::nominal_peak(&sc, &c);
-    b.inc(1);
-    if nominal <= 0.0 {
-        return Err(CommandError::Failed(anyhow::anyhow!(
-            "the nominal loop did not complete {} tilts",
-            c.tilts
-        )));
-    }
-    let plain = LoopOptions::default();
-    let predict = LoopOptions {
-        predict: Some(Predict::Estimated),
-        ..plain
-    };
-    let events = LoopOptions {
-        sample_on_event: true,
-        ..plain
-    };
-    let tick = || b.inc(1);
-    let map = |opts: &LoopOptions| {
-        margins::delay_loss_map(
-            &sc,
-            args.rate,
-            &args.delays,
-            &args.losses,
-            args.seed,
-            opts,
-            &c,
-            nominal,
-            &tick,
-        )
-    };
-    let (delay_loss, delay_loss_predict) = (map(&plain), map(&predict));
-    let rates = margins::rate_map(&sc, &args.rates, &plain, &c, nominal, &tick);
-    let rates_events = margins::rate_map(&sc, &args.rates, &events, &c, nominal, &tick);
-    let robot = args
-        .robot
-        .run(&sc, args.rate, args.seed, &c, nominal, &tick);
-    b.finish_and_clear();
-    let (largest_delay, largest_loss, lowest_rate) = margins::boundaries(&delay_loss, &rates);
-    let (largest_delay_predict, largest_loss_predict, lowest_rate_events) =
-        margins::boundaries(&delay_loss_predict, &rates_events);
-    let report = MarginsReport {
-        criteria: c,
-        survives_means: format!(
-            "{} tilts completed, alternating sides; no fault and never {} periods without a new \
-             torque (the plant's safe mode); mean |peak| of the last 10 tilts within {:.0} % of \
-             the nominal {nominal:.4} rad (1 kHz, perfect network)",
-            c.tilts,
-            c.watchdog,
-            100.0 * c.tolerance
-        ),
-        nominal_peak: nominal,
+    Ok(())
+}
+
+/// The survey the flags describe.
+fn survey(args: &MarginsArgs) -> Survey {
+    Survey {
+        delays: args.delays.clone(),
+        losses: args.losses.clone(),
         rate: args.rate,
-        delay_loss,
-        delay_loss_predict,
-        rates,
-        rates_events,
-        largest_delay,
-        largest_loss,
-        largest_delay_predict,
-        largest_loss_predict,
-        lowest_rate,
-        lowest_rate_events,
-        robot,
-    };
-    if let Some(p) = &args.plot {
-        let maps = tilting_viz::margins::Maps {
-            delay_loss: &report.delay_loss,
-            delay_loss_predict: &report.delay_loss_predict,
-            rates: &report.rates,
-            rates_events: &report.rates_events,
-        };
-        tilting_viz::margins::plot(p, &maps, nominal, &c)
-            .with_context(|| format!("cannot draw {}", p.display()))
-            .map_err(CommandError::Failed)?;
-        let rp = robot_plot_path(p);
-        let r = &report.robot;
-        tilting_viz::margins::plot_imperfections(
-            &rp,
-            &[&r.angle_noise, &r.rate_noise, &r.mass_error],
-            nominal,
-            &c,
-        )
-        .with_context(|| format!("cannot draw {}", rp.display()))
-        .map_err(CommandError::Failed)?;
+        rates: args.rates.clone(),
+        angle_noises: args.robot.angle_noises.clone(),
+        rate_noises: args.robot.rate_noises.clone(),
+        mass_errors: args.robot.mass_errors.clone(),
+        seed: args.seed,
+        criteria: Criteria {
+            tilts: args.tilts,
+            watchdog: args.watchdog,
+            tolerance: args.tolerance,
+        },
     }
-    emit(args.json, &report, || {
-        let mut s = format!("survives = {}\n", report.survives_means);
-        for (name, map) in [
-            ("plain controller", &report.delay_loss),
-            ("--predict auto", &report.delay_loss_predict),
-        ] {
-            s += &format!(
-                "\ndelay × loss at {} Hz, {name} (rows: total delay, columns: loss of each direction)\n{:>12}",
-                report.rate, "delay \\ loss"
-            );
-            for l in &args.losses {
-                s += &format!("{l:>8}");
-            }
-            s += "\n";
-            for d in &args.delays {
-                s += &format!("{:>10.4} s ", d);
-                for l in &args.losses {
-                    let p = map.iter().find(|p| p.delay == *d && p.loss == *l);
-                    s += &format!(
-                        "{:>8}",
-                        p.map_or("?", |p| if p.survived { "yes" } else { "no" })
-                    );
-                }
-                s += "\n";
-            }
+}
+
+/// `tilting plan margins`.
+pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
+    check_args(args)?;
+    let survey = survey(args);
+    let b = bar(survey.units(), "margins", args.json);
+    let report = survey.run(&|| b.inc(1));
+    b.finish_and_clear();
+    let report = report.map_err(|e| CommandError::Failed(e.into()))?;
+    if let Some(p) = &args.plot {
+        plot(p, &report)?;
+    }
+    emit(args.json, &report, || human(args, &report))
+}
+
+/// Draws the maps into `p` and the imperfection maps beside it ([`robot_plot_path`]).
+fn plot(p: &std::path::Path, report: &MarginsReport) -> Result<(), CommandError> {
+    let (nominal, c) = (report.nominal_peak, &report.criteria);
+    let maps = tilting_viz::margins::Maps {
+        delay_loss: &report.delay_loss,
+        delay_loss_predict: &report.delay_loss_predict,
+        rates: &report.rates,
+        rates_events: &report.rates_events,
+    };
+    tilting_viz::margins::plot(p, &maps, nominal, c)
+        .with_context(|| format!("cannot draw {}", p.display()))
+        .map_err(CommandError::Failed)?;
+    let rp = robot_plot_path(p);
+    let r = &report.robot;
+    tilting_viz::margins::plot_imperfections(
+        &rp,
+        &[&r.angle_noise, &r.rate_noise, &r.mass_error],
+        nominal,
+        c,
+    )
+    .with_context(|| format!("cannot draw {}", rp.display()))
+    .map_err(CommandError::Failed)
+}
+
+/// The report as tables: the delay × loss maps, the rate maps, the boundaries, the robot.
+fn human(args: &MarginsArgs, report: &MarginsReport) -> String {
+    let mut s = format!("survives = {}\n", report.survives_means);
+    for (name, map) in [
+        ("plain controller", &report.delay_loss),
+        ("--predict auto", &report.delay_loss_predict),
+    ] {
+        s += &format!(
+            "\ndelay × loss at {} Hz, {name} (rows: total delay, columns: loss of each direction)\n{:>12}",
+            report.rate, "delay \\ loss"
+        );
+        for l in &args.losses {
+            s += &format!("{l:>8}");
         }
-        for (name, rates) in [
-            ("periodic samples", &report.rates),
-            ("--sample-on-event", &report.rates_events),
-        ] {
-            s += &format!("\ncontrol rate (perfect network), {name}\n");
-            for p in rates.iter() {
+        s += "\n";
+        for d in &args.delays {
+            s += &format!("{:>10.4} s ", d);
+            for l in &args.losses {
+                let p = map.iter().find(|p| p.delay == *d && p.loss == *l);
                 s += &format!(
-                    "  {:>7.1} Hz: {}{}\n",
-                    p.rate,
-                    if p.survived { "survives" } else { "fails" },
-                    if p.why.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({})", p.why)
-                    }
+                    "{:>8}",
+                    p.map_or("?", |p| if p.survived { "yes" } else { "no" })
                 );
             }
+            s += "\n";
         }
-        let f = |v: Option<f64>, unit: &str| {
-            v.map_or("none of the grid".into(), |v| format!("{v} {unit}"))
-        };
-        s += &format!(
-            "\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
-            "",
-            "plain",
-            "--predict auto",
-            "largest delay survived (no loss)",
-            f(report.largest_delay, "s"),
-            f(report.largest_delay_predict, "s"),
-            "largest loss survived (no delay)",
-            f(report.largest_loss, ""),
-            f(report.largest_loss_predict, ""),
-        );
-        s += &format!(
-            "{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
-            "",
-            "periodic",
-            "--sample-on-event",
-            "lowest rate survived",
-            f(report.lowest_rate, "Hz"),
-            f(report.lowest_rate_events, "Hz"),
-        );
-        s += &report.robot.text();
-        if let Some(p) = &args.plot {
+    }
+    for (name, rates) in [
+        ("periodic samples", &report.rates),
+        ("--sample-on-event", &report.rates_events),
+    ] {
+        s += &format!("\ncontrol rate (perfect network), {name}\n");
+        for p in rates.iter() {
             s += &format!(
-                "plot: {} and {}\n",
-                p.display(),
-                robot_plot_path(p).display()
+                "  {:>7.1} Hz: {}{}\n",
+                p.rate,
+                if p.survived { "survives" } else { "fails" },
+                if p.why.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", p.why)
+                }
             );
         }
-        s
-    })
+    }
+    let f =
+        |v: Option<f64>, unit: &str| v.map_or("none of the grid".into(), |v| format!("{v} {unit}"));
+    s += &format!(
+        "\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
+        "",
+        "plain",
+        "--predict auto",
+        "largest delay survived (no loss)",
+        f(report.largest_delay, "s"),
+        f(report.largest_delay_predict, "s"),
+        "largest loss survived (no delay)",
+        f(report.largest_loss, ""),
+        f(report.largest_loss_predict, ""),
+    );
+    s += &format!(
+        "{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
+        "",
+        "periodic",
+        "--sample-on-event",
+        "lowest rate survived",
+        f(report.lowest_rate, "Hz"),
+        f(report.lowest_rate_events, "Hz"),
+    );
+    s += &robot_text(&report.robot);
+    if let Some(p) = &args.plot {
+        s += &format!(
+            "plot: {} and {}\n",
+            p.display(),
+            robot_plot_path(p).display()
+        );
+    }
+    s
 }
