@@ -1,5 +1,6 @@
 //! The front door of the tilting system: the `tilting` binary and what it runs.
 //!
+//! - [`error`]: [`CommandError`], the exit codes (the libraries return their own errors);
 //! - [`commands`]: the subcommands, grouped by what a person wants (run: `live`, `simulate`;
 //!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`, `animate`);
 //! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
@@ -17,9 +18,10 @@
 #![warn(missing_docs)]
 
 pub mod commands;
+pub mod error;
 pub mod live;
 pub mod record;
 pub mod security;
 pub mod supervise;
 
-pub use tilting_planner::CommandError;
+pub use error::CommandError;

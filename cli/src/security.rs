@@ -22,6 +22,7 @@
 //! ACL of a third peer, so the rules are enforced at a **router**, and the nodes connect to it
 //! as **clients** (which only ever talk to their router) with scouting off.
 
+use crate::CommandError;
 use anyhow::{anyhow, Context as _};
 use rcgen::{
     BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer, KeyPair,
@@ -29,7 +30,6 @@ use rcgen::{
 };
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use tilting_planner::CommandError;
 use tilting_proto::Keys;
 
 /// The identities `tilting certs` always creates, in this order.

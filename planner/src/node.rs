@@ -15,7 +15,6 @@
 //! `live`.
 
 use crate::orbit::{find_all, OrbitProblem};
-use crate::CommandError;
 use anyhow::{anyhow, Context as _};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -26,6 +25,26 @@ use tilting_plant::paper::{ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP};
 use tilting_plant::{ImpactLaw, Params};
 use tilting_proto::{codec, Keys, Reference};
 use zenoh::{Session, Wait as _};
+
+/// Why the planner node (or the law of its flags) cannot be used. The front doors map these
+/// to exit codes (`tilting-planner` and `tilting`: 2 for [`NodeError::Invalid`], 1 otherwise).
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    /// A flag, or the law the flags describe, is invalid (names the flag and what is allowed).
+    #[error("{0:#}")]
+    Invalid(anyhow::Error),
+    /// `--from-orbit` found no periodic tilting orbit for the gains.
+    #[error("--from-orbit: no periodic tilting orbit found for K_P = {kp}, K_D = {kd}")]
+    NoOrbit {
+        /// `K_P` (1/s^2).
+        kp: f64,
+        /// `K_D` (1/s).
+        kd: f64,
+    },
+    /// The runtime or the zenoh session failed.
+    #[error("{0:#}")]
+    Run(anyhow::Error),
+}
 
 /// The controller's law as flags (shared by `publish` and `live`).
 #[derive(Debug, Clone, PartialEq, clap::Args)]
@@ -77,7 +96,7 @@ impl Default for LawArgs {
 impl LawArgs {
     /// The reference message the flags describe, checked like the controller checks it. With
     /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
-    pub fn resolve(&self) -> Result<Reference, CommandError> {
+    pub fn resolve(&self) -> Result<Reference, NodeError> {
         let mut energy_avg = self.energy_avg;
         if self.from_orbit {
             energy_avg = orbit_energy_avg(self.kp, self.kd)?;
@@ -92,7 +111,7 @@ impl LawArgs {
             ..ControlConfig::default()
         }
         .to_wire();
-        check_reference(&r).map_err(CommandError::Usage)?;
+        check_reference(&r).map_err(NodeError::Invalid)?;
         Ok(r)
     }
 
@@ -141,9 +160,9 @@ pub fn describe(r: &Reference) -> String {
 
 /// `E_av` of the smallest periodic tilting orbit of the loop `K_P = kp`, `K_D = kd` without
 /// adaptation (paper model, paper impact law).
-pub fn orbit_energy_avg(kp: f64, kd: f64) -> Result<f64, CommandError> {
+pub fn orbit_energy_avg(kp: f64, kd: f64) -> Result<f64, NodeError> {
     if !(kp.is_finite() && kp > 0.0 && kd.is_finite() && kd >= 0.0) {
-        return Err(CommandError::Usage(anyhow!(
+        return Err(NodeError::Invalid(anyhow!(
             "--from-orbit needs --kp > 0 and --kd >= 0, got {kp} and {kd}"
         )));
     }
@@ -151,9 +170,7 @@ pub fn orbit_energy_avg(kp: f64, kd: f64) -> Result<f64, CommandError> {
     let pb = OrbitProblem::new(Params::default(), ImpactLaw::Paper, kp, kd);
     let all = find_all(&pb);
     let Some(best) = all.first() else {
-        return Err(CommandError::Failed(anyhow!(
-            "--from-orbit: no periodic tilting orbit found for K_P = {kp}, K_D = {kd}"
-        )));
+        return Err(NodeError::NoOrbit { kp, kd });
     };
     eprintln!(
         "--from-orbit: {} orbit(s) for K_P = {kp}, K_D = {kd} in {:.1} s; the smallest (max tilt \
@@ -288,12 +305,12 @@ pub struct PublishArgs {
 }
 
 /// Checks a duration flag: positive and finite.
-pub fn check_seconds(flag: &str, v: f64, allow_zero: bool) -> Result<(), CommandError> {
+pub fn check_seconds(flag: &str, v: f64, allow_zero: bool) -> Result<(), NodeError> {
     let ok = v.is_finite() && (v > 0.0 || (allow_zero && v == 0.0)) && v < 1e9;
     if ok {
         Ok(())
     } else {
-        Err(CommandError::Usage(anyhow!(
+        Err(NodeError::Invalid(anyhow!(
             "invalid `{flag}` = {v}: must be a {} number of seconds",
             if allow_zero {
                 "non-negative"
@@ -305,18 +322,18 @@ pub fn check_seconds(flag: &str, v: f64, allow_zero: bool) -> Result<(), Command
 }
 
 /// Runs the planner node (`tilting-planner`, also `tilting-planner publish`).
-pub fn run(args: &PublishArgs) -> Result<(), CommandError> {
+pub fn run(args: &PublishArgs) -> Result<(), NodeError> {
     tilting_net::init_tracing("warn,tilting_planner=info,tilting_net=info");
     check_seconds("--repeat", args.repeat, true)?;
     if let Some(d) = args.duration {
         check_seconds("--duration", d, false)?;
     }
-    let keys = args.zenoh.keys().map_err(CommandError::Usage)?;
-    args.zenoh.config(Role::Peer).map_err(CommandError::Usage)?;
+    let keys = args.zenoh.keys().map_err(NodeError::Invalid)?;
+    args.zenoh.config(Role::Peer).map_err(NodeError::Invalid)?;
     let reference = args.law.resolve()?;
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let rt = tilting_net::runtime().map_err(NodeError::Run)?;
     rt.block_on(serve(args, keys, reference))
-        .map_err(CommandError::Failed)
+        .map_err(NodeError::Run)
 }
 
 async fn serve(args: &PublishArgs, keys: Keys, reference: Reference) -> anyhow::Result<()> {
@@ -447,7 +464,7 @@ mod tests {
         assert!(describe(&r).contains("sinusoid:0.2,4"));
         // Bad laws are usage errors.
         let bad = Cli::try_parse_from(["x", "--kp=-1"]).unwrap().args;
-        assert!(matches!(bad.law.resolve(), Err(CommandError::Usage(_))));
+        assert!(matches!(bad.law.resolve(), Err(NodeError::Invalid(_))));
         assert!(Cli::try_parse_from(["x", "--reference", "sinusoid:1,0"]).is_err());
         assert!(
             Cli::try_parse_from(["x", "--from-orbit", "--energy-avg", "3"]).is_err(),

@@ -5,12 +5,12 @@
 //! this module checks the flags.
 
 use super::{bar, check, emit, usage};
+use crate::CommandError;
 use anyhow::{Context as _, Result};
 use serde::{Deserialize, Serialize};
 use std::io::IsTerminal as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_planner::CommandError;
 use tilting_plant::Params;
 use tilting_record::{Trace, Window};
 use tilting_sim::{ScenarioArgs, SimOptions};

@@ -2,13 +2,13 @@
 //! with a progress bar and a summary of what each figure shows.
 
 use super::ModelArgs;
+use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
 use serde::{Deserialize, Serialize};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_planner::CommandError;
 use tilting_plant::Params;
 use tilting_viz::figures::{Figures, Settings, Summary, ALL};
 

@@ -5,11 +5,11 @@
 //! the maps and the tables.
 
 use super::{bar, emit, usage};
+use crate::CommandError;
 use anyhow::Context as _;
 use clap::Args;
 use std::path::PathBuf;
 use tilting_planner::margins::{Criteria, MarginsReport, RobotMargins, Survey};
-use tilting_planner::CommandError;
 
 /// Most points of one map.
 const MAX_POINTS: usize = 10_000;

@@ -11,12 +11,12 @@ pub mod recording;
 pub mod simulate;
 pub mod topics;
 
+use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use tilting_planner::CommandError;
 use tilting_plant::{ImpactLaw, Params};
 
 /// Model flags shared by the planning commands.

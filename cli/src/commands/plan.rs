@@ -3,13 +3,14 @@
 //! [`bifurcation`] and [`gains`].
 
 use super::{bar, check, emit, usage, ModelArgs};
+use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
 use std::time::Instant;
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
-use tilting_planner::{gains, sinusoid, CommandError};
+use tilting_planner::{gains, sinusoid};
 use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 
 /// `orbit`: the periodic orbits of approach 2 for one gain pair.

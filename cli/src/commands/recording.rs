@@ -4,6 +4,7 @@
 
 use super::print_stdout;
 use super::topics::{check_seconds, parse_topic, session_args};
+use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
 use std::path::PathBuf;
@@ -12,7 +13,6 @@ use std::sync::mpsc::{sync_channel, RecvTimeoutError, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tilting_net::{Qos, RawPublisher, Role, ZenohArgs};
-use tilting_planner::CommandError;
 use tilting_proto::{Keys, Topic};
 use tilting_record::{Recorder, Recording};
 

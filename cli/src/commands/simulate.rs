@@ -2,10 +2,10 @@
 //! stabilised orbit), as a summary or JSON, with an optional plot.
 
 use super::print_stdout;
+use crate::CommandError;
 use anyhow::Context as _;
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
-use tilting_planner::CommandError;
 use tilting_plant::imperfect::ImperfectArgs;
 use tilting_sim::{LoopArgs, NetworkArgs, ScenarioArgs, SimOptions};
 use tilting_viz::plot::plot_run;

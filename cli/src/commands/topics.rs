@@ -4,13 +4,13 @@
 //! codec, and never publish anything.
 
 use super::print_stdout;
+use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
 use std::sync::mpsc::{sync_channel, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_net::{Role, ZenohArgs};
-use tilting_planner::CommandError;
 use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
 
 /// Parses a topic name for clap (`state`, `torque`, `event`, `status`, `reference`).

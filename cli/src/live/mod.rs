@@ -51,6 +51,7 @@ mod tap;
 use crate::record::Recorder;
 use crate::security;
 use crate::supervise::{utc_timestamp, NodeBinaries};
+use crate::CommandError;
 use anyhow::{anyhow, Context as _};
 use monitor::{Signals, Watch};
 use nodes::Topology;
@@ -59,7 +60,6 @@ use std::time::Duration;
 use tap::Tap;
 use tilting_link::{Impairment, Jitter, LinkSpec, NetworkArgs};
 use tilting_planner::node::{check_seconds, describe, LawArgs};
-use tilting_planner::CommandError;
 use tilting_proto::{Keys, Reference};
 
 /// Flags of `tilting live`.

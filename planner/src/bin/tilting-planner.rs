@@ -7,7 +7,7 @@
 
 use clap::Parser;
 use std::process::ExitCode;
-use tilting_planner::node::{self, PublishArgs};
+use tilting_planner::node::{self, NodeError, PublishArgs};
 
 /// Old `tilting-planner` subcommands and their place in `tilting`.
 const MOVED: &[(&str, &[&str])] = &[
@@ -38,7 +38,11 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::from(e.exit_code())
+            // 2 for bad flags (clap's convention), 1 when the node failed.
+            ExitCode::from(match e {
+                NodeError::Invalid(_) => 2,
+                NodeError::NoOrbit { .. } | NodeError::Run(_) => 1,
+            })
         }
     }
 }

@@ -1,0 +1,70 @@
+//! The error of a `tilting` command and its exit code: the front door's mapping of what the
+//! libraries report (their own typed errors) to the process's exit status.
+
+use tilting_planner::node::NodeError;
+
+/// The error of a command, sorted by exit code.
+#[derive(Debug)]
+pub enum CommandError {
+    /// Bad flags, an invalid scenario or parameter file (exit code 2).
+    Usage(anyhow::Error),
+    /// The command failed while running (I/O, drawing) (exit code 1).
+    Failed(anyhow::Error),
+}
+
+impl CommandError {
+    /// The process exit code: 2 for usage and configuration errors, 1 otherwise.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CommandError::Usage(_) => 2,
+            CommandError::Failed(_) => 1,
+        }
+    }
+
+    /// The underlying error.
+    pub fn error(&self) -> &anyhow::Error {
+        match self {
+            CommandError::Usage(e) | CommandError::Failed(e) => e,
+        }
+    }
+}
+
+impl std::fmt::Display for CommandError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:#}", self.error())
+    }
+}
+
+impl std::error::Error for CommandError {}
+
+impl From<NodeError> for CommandError {
+    /// An invalid flag or law is a usage error; a missing orbit or a failed session is not.
+    fn from(e: NodeError) -> Self {
+        match e {
+            NodeError::Invalid(_) => CommandError::Usage(e.into()),
+            NodeError::NoOrbit { .. } | NodeError::Run(_) => CommandError::Failed(e.into()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The planner's errors keep their exit codes in the front door: an invalid law is a usage
+    /// error (2), a missing orbit or a failed session is a failure (1); the message is the
+    /// library's.
+    #[test]
+    fn library_errors_map_to_exit_codes() {
+        let invalid = CommandError::from(NodeError::Invalid(anyhow::anyhow!("bad `--kp`")));
+        assert_eq!(
+            (invalid.exit_code(), invalid.to_string().as_str()),
+            (2, "bad `--kp`")
+        );
+        let orbit = CommandError::from(NodeError::NoOrbit { kp: 1.0, kd: 2.0 });
+        assert_eq!(orbit.exit_code(), 1);
+        assert!(orbit.to_string().contains("K_P = 1, K_D = 2"), "{orbit}");
+        let run = CommandError::from(NodeError::Run(anyhow::anyhow!("no session")));
+        assert_eq!(run.exit_code(), 1);
+    }
+}
