@@ -193,7 +193,18 @@ fn draw_fig8(
         }
     }
     legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
-    // One scale for the three series, so that period 1 looks constant.
+    draw_series_panels(&bottom, series, series_sw)?;
+    root.present()?;
+    Ok(())
+}
+
+/// The bottom row of Fig. 8: the tilt peaks against the tilt number for each `k` of
+/// [`FIG8_SERIES`], on one scale so that period 1 looks constant.
+fn draw_series_panels(
+    bottom: &DrawingArea<BitMapBackend<'_>, Shift>,
+    series: &[bifurcation::Row],
+    series_sw: &Sweep,
+) -> Result<()> {
     let (plo, phi) =
         crate::plot::padded_range(series.iter().flat_map(|r| r.peaks.iter().copied()), 0.08);
     for (area, r) in bottom.split_evenly((1, 3)).iter().zip(series) {
@@ -240,6 +251,5 @@ fn draw_fig8(
         c.draw_series(LineSeries::new(pts.clone(), BLUE.mix(0.5).stroke_width(1)))?;
         c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, BLUE.filled())))?;
     }
-    root.present()?;
     Ok(())
 }
