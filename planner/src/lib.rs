@@ -16,6 +16,7 @@
 
 pub mod bifurcation;
 pub mod gains;
+pub mod identify;
 pub mod margins;
 #[cfg(feature = "node")]
 pub mod node;

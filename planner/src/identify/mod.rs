@@ -1,0 +1,394 @@
+//! Identification from a recording: the physical parameters of a robot estimated by least
+//! squares on the regressor form of its dynamics (docs/model.md, "Linear in the parameters"),
+//! per contact mode: flat, the arm's equation; tilted, both (the plate's row has no torque).
+//!
+//! The geometry (`f`, `g`, and `l`, which only draws the arm) is measured, not identified: it
+//! comes with the prior [`Options::base`], as does the arm's mass `m_l` (weighed), which the
+//! motion cannot tell from `l_c` and `i_l`. What the motion fixes are the seven base
+//! parameters ([`BASE`]); [`Identification::params`] turns them into a `--params` file with the
+//! prior's `m_l`, `l`, `f` and `g`, which moves exactly as the base parameters say.
+//!
+//! How rows are made (accelerations without straddling a torque step, an impact or a mode
+//! transition): [`rows`].
+
+pub mod load;
+pub mod rows;
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+use tilting_plant::Params;
+use tilting_record::Trace;
+
+pub use load::{load, Recorded};
+use rows::N_BASE;
+
+/// The base parameters: name, combination of physical parameters, unit.
+pub const BASE: [(&str, &str, &str); N_BASE] = [
+    ("pi1", "m_f + m_l", "kg"),
+    ("pi2", "m_l l_c", "kg m"),
+    ("pi3", "m_l l_c^2 + i_l + j_m", "kg m^2"),
+    ("pi4", "(n_g - 1) j_m", "kg m^2"),
+    ("pi5", "(n_g^2 - 1) j_m", "kg m^2"),
+    ("pi6", "b_v", "N m s/rad"),
+    ("pi7", "tau_c", "N m"),
+];
+
+/// A regressor whose scaled condition number exceeds this is refused as singular.
+pub const MAX_CONDITION: f64 = 1e9;
+
+/// What the identification needs besides the recording.
+#[derive(Debug, Clone, Copy)]
+pub struct Options {
+    /// The prior: `f`, `g` and `l` (measured), `m_l` (weighed); its other fields are replaced
+    /// by the estimates where the data fixes them, kept otherwise.
+    pub base: Params,
+    /// Shortest recording accepted (s of usable intervals).
+    pub min_duration: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            base: Params::default(),
+            min_duration: 1.0,
+        }
+    }
+}
+
+/// One base parameter's estimate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Estimate {
+    /// `pi1` ... `pi7`, or `pi3+pi5` when only their sum is seen.
+    pub name: String,
+    /// The physical parameters it combines.
+    pub combination: String,
+    /// Unit.
+    pub unit: String,
+    /// The estimate, `None` when the data does not fix it.
+    pub value: Option<f64>,
+    /// Its standard error (same unit), from the residual variance.
+    pub std_error: Option<f64>,
+    /// Why the data does not fix it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_identifiable: Option<String>,
+}
+
+/// How many equations came from where.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RowCounts {
+    /// Equations in the fit.
+    pub equations: usize,
+    /// Flat intervals used (the arm's equation).
+    pub flat: usize,
+    /// Tilted intervals used (the plate's equation, and the arm's while the joint slides).
+    pub tilted: usize,
+    /// Intervals skipped: an event or mode change inside, or no torque known.
+    pub skipped: usize,
+}
+
+/// The result of [`identify`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Identification {
+    /// The base parameters, in [`BASE`] order (and `pi3+pi5` when only the sum is seen).
+    pub base: Vec<Estimate>,
+    /// Condition number of the regressor with its columns scaled to unit norm.
+    pub condition_number: f64,
+    /// RMS of the residual (N m).
+    pub residual_rms: f64,
+    /// Where the equations came from.
+    pub rows: RowCounts,
+    /// The `--params` of the identified robot (the prior's where the data says nothing).
+    pub params: Params,
+    /// Physical parameters the data cannot fix, and why.
+    pub not_identifiable: Vec<String>,
+    /// Things to look at: estimates clamped to their range, a prior that does not fit.
+    pub warnings: Vec<String>,
+}
+
+/// Why a recording cannot be identified.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    /// The recording cannot be loaded.
+    #[error(transparent)]
+    Load(#[from] tilting_record::LoadError),
+    /// The recording cannot be read.
+    #[error(transparent)]
+    Read(#[from] tilting_record::ReadError),
+    /// The recording holds another robot.
+    #[error("{path}: robot {asked:?} is not in the file (it holds {found})")]
+    Robot {
+        /// The file.
+        path: String,
+        /// The name asked for.
+        asked: String,
+        /// The robot(s) found.
+        found: String,
+    },
+    /// Too little usable motion.
+    #[error(
+        "the recording is too short: {usable:.3} s of usable intervals ({equations} equations), \
+         at least {min} s needed"
+    )]
+    TooShort {
+        /// Usable time (s).
+        usable: f64,
+        /// Equations.
+        equations: usize,
+        /// Minimum (s).
+        min: f64,
+    },
+    /// The regressor is singular: the motion does not excite some combination.
+    #[error(
+        "the regressor is singular (condition number {condition:.3e} > {MAX_CONDITION:e}): the \
+         motion does not separate {direction}; {advice}"
+    )]
+    Singular {
+        /// Scaled condition number.
+        condition: f64,
+        /// The combination of base parameters the data cannot fix.
+        direction: String,
+        /// What to record.
+        advice: String,
+    },
+    /// A friction estimate is negative beyond its error.
+    #[error(
+        "the friction estimate {field} = {value:.4e} is negative (standard error {std_error:.1e}); \
+         allowed: >= 0. The recording's torque may be offset or scaled, or not the joint's"
+    )]
+    NegativeFriction {
+        /// `b_v` or `tau_c`.
+        field: &'static str,
+        /// Estimate.
+        value: f64,
+        /// Standard error.
+        std_error: f64,
+    },
+}
+
+/// Identifies the robot of `trace`, with `tau[k]` the torque (N m) held over sample `k`'s
+/// interval (`None` where unknown).
+pub fn identify(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    opts: &Options,
+) -> Result<Identification, IdentifyError> {
+    let p = &opts.base;
+    let r = rows::build(trace, tau, p.f, p.g);
+    let used = r.flat + r.tilted;
+    let intervals = used + r.skipped;
+    let span =
+        trace.samples.last().map_or(0.0, |l| l.t) - trace.samples.first().map_or(0.0, |f| f.t);
+    let usable = if intervals == 0 {
+        0.0
+    } else {
+        span * used as f64 / intervals as f64
+    };
+    if usable < opts.min_duration || r.y.len() < 2 * N_BASE {
+        return Err(IdentifyError::TooShort {
+            usable,
+            equations: r.y.len(),
+            min: opts.min_duration,
+        });
+    }
+    let mut out = vec![None::<String>; N_BASE];
+    let merge35 = r.tilted == 0;
+    if merge35 {
+        out[0] = Some(
+            "m_f + m_l enters only the plate's equation while tilted: the recording has \
+                       no tilted interval (record tilts)"
+                .into(),
+        );
+        out[3] = Some(
+            "the rotor's share enters only while tilted: flat motion sees pi3 + pi5 \
+                       (record tilts)"
+                .into(),
+        );
+        out[2] = Some(
+            "flat motion sees only pi3 + pi5, the arm's inertia about the joint \
+                       (record tilts)"
+                .into(),
+        );
+        out[4] = out[2].clone();
+    }
+    if r.sliding_fwd + r.sliding_bwd == 0 {
+        for i in [5, 6] {
+            out[i] = Some("no interval with the joint sliding: friction is not seen".into());
+        }
+    }
+    // Active columns: a merged pi3 + pi5 is column 2 (the flat rows have equal columns).
+    let cols: Vec<usize> = (0..N_BASE)
+        .filter(|&i| out[i].is_none() || (merge35 && i == 2))
+        .collect();
+    let names: Vec<String> = cols
+        .iter()
+        .map(|&c| match (merge35, c) {
+            (true, 2) => "pi3+pi5 (m_l l_c^2 + i_l + n_g^2 j_m)".into(),
+            _ => format!("{} ({})", BASE[c].0, BASE[c].1),
+        })
+        .collect();
+    let fit = solve(&r, &cols, &names)?;
+    let mut value = [None; N_BASE];
+    let mut se = [None; N_BASE];
+    for (j, &c) in cols.iter().enumerate() {
+        if !(merge35 && c == 2) {
+            value[c] = Some(fit.x[j]);
+            se[c] = Some(fit.se[j]);
+        }
+    }
+    let mut base: Vec<Estimate> = (0..N_BASE)
+        .map(|i| Estimate {
+            name: BASE[i].0.into(),
+            combination: BASE[i].1.into(),
+            unit: BASE[i].2.into(),
+            value: value[i],
+            std_error: se[i],
+            not_identifiable: out[i].clone(),
+        })
+        .collect();
+    let sum35 = merge35.then(|| {
+        let j = cols.iter().position(|&c| c == 2).unwrap_or(0);
+        (fit.x[j], fit.se[j])
+    });
+    if let Some((v, s)) = sum35 {
+        base.push(Estimate {
+            name: "pi3+pi5".into(),
+            combination: "m_l l_c^2 + i_l + n_g^2 j_m".into(),
+            unit: "kg m^2".into(),
+            value: Some(v),
+            std_error: Some(s),
+            not_identifiable: None,
+        });
+    }
+    let rms_tau = (r.rhs.iter().map(|t| t * t).sum::<f64>() / r.rhs.len() as f64).sqrt();
+    let mut warnings = Vec::new();
+    let friction = check_friction(&value, &se, rms_tau, &mut warnings)?;
+    let (params, not_identifiable) =
+        derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
+    Ok(Identification {
+        base,
+        condition_number: fit.condition,
+        residual_rms: fit.residual_rms,
+        rows: RowCounts {
+            equations: r.y.len(),
+            flat: r.flat,
+            tilted: r.tilted,
+            skipped: r.skipped,
+        },
+        params,
+        not_identifiable,
+        warnings,
+    })
+}
+
+/// The friction estimates `(b_v, tau_c)`, clamped to 0 when negative within their noise (or
+/// below a 1e-6 share of the RMS torque); refused when negative beyond it.
+fn check_friction(
+    value: &[Option<f64>; N_BASE],
+    se: &[Option<f64>; N_BASE],
+    rms_tau: f64,
+    warnings: &mut Vec<String>,
+) -> Result<(f64, f64), IdentifyError> {
+    let mut out = [0.0; 2];
+    for (k, (i, field)) in [(5, "b_v"), (6, "tau_c")].into_iter().enumerate() {
+        let (Some(v), s) = (value[i], se[i].unwrap_or(0.0)) else {
+            continue;
+        };
+        // b_v's scale: the torque of 1 rad/s.
+        if v < 0.0 && -v > 3.0 * s && -v > 1e-6 * rms_tau {
+            return Err(IdentifyError::NegativeFriction {
+                field,
+                value: v,
+                std_error: s,
+            });
+        }
+        if v < 0.0 {
+            warnings.push(format!(
+                "{field} = {v:.3e} is negative within its noise: set to 0"
+            ));
+        }
+        out[k] = v.max(0.0);
+    }
+    Ok((out[0], out[1]))
+}
+
+struct Fit {
+    x: Vec<f64>,
+    se: Vec<f64>,
+    condition: f64,
+    residual_rms: f64,
+}
+
+/// Least squares on the columns `cols`, scaled to unit norm (the condition number is the
+/// scaled one); refused when singular, naming the weakest direction.
+fn solve(r: &rows::Rows, cols: &[usize], names: &[String]) -> Result<Fit, IdentifyError> {
+    let (n, p) = (r.y.len(), cols.len());
+    let mut a = DMatrix::from_fn(n, p, |i, j| r.y[i][cols[j]]);
+    let b = DVector::from_column_slice(&r.rhs);
+    let scale: Vec<f64> = (0..p).map(|j| a.column(j).norm()).collect();
+    for (j, s) in scale.iter().enumerate() {
+        if *s > 0.0 {
+            a.column_mut(j).scale_mut(1.0 / s);
+        }
+    }
+    let svd = a.clone().svd(true, true);
+    let sv = &svd.singular_values;
+    let (smax, smin) = (sv.max(), sv.min());
+    let condition = if smin > 0.0 {
+        smax / smin
+    } else {
+        f64::INFINITY
+    };
+    if condition.is_nan() || condition > MAX_CONDITION || scale.contains(&0.0) {
+        let weak = sv.imin();
+        let v_t = svd.v_t.as_ref().expect("v_t computed");
+        let dir: Vec<usize> = (0..p)
+            .filter(|&j| v_t[(weak, j)].abs() > 0.2 || scale[j] == 0.0)
+            .collect();
+        return Err(IdentifyError::Singular {
+            condition,
+            direction: dir
+                .iter()
+                .map(|&j| names[j].as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            advice: advice(&dir.iter().map(|&j| cols[j]).collect::<Vec<_>>()),
+        });
+    }
+    let xs = svd.solve(&b, 0.0).expect("u and v_t computed");
+    let resid = &b - &a * &xs;
+    let rss = resid.norm_squared();
+    let dof = (n - p).max(1) as f64;
+    let sigma2 = rss / dof;
+    let v_t = svd.v_t.as_ref().expect("v_t computed");
+    let x = (0..p).map(|j| xs[j] / scale[j]).collect();
+    let se = (0..p)
+        .map(|j| {
+            let var: f64 = (0..p).map(|k| (v_t[(k, j)] / sv[k]).powi(2)).sum();
+            (sigma2 * var).sqrt() / scale[j]
+        })
+        .collect();
+    Ok(Fit {
+        x,
+        se,
+        condition,
+        residual_rms: (rss / n as f64).sqrt(),
+    })
+}
+
+/// What to record to excite the base parameters `idx`.
+fn advice(idx: &[usize]) -> String {
+    let mut a: Vec<&str> = idx
+        .iter()
+        .map(|&i| match i {
+            0 => "tilts with varying amplitude (the plate's equation carries m_f + m_l)",
+            1 | 2 => "arm motion with varying acceleration over a range of angles",
+            3 | 4 => "arm accelerations both while flat and while tilted (the rotor's share)",
+            5 => "the arm moving at a range of speeds (viscous friction)",
+            _ => "the arm moving both ways (Coulomb friction is an offset of the sign of beta_dot)",
+        })
+        .collect();
+    a.dedup();
+    format!("record {}", a.join("; "))
+}
+
+mod derive;
