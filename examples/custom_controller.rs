@@ -14,7 +14,7 @@
 use clap::Parser;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_net::{subscribe_decoded, DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_plant::State;
 use tilting_proto::{PlantState, TorqueCommand};
@@ -39,8 +39,11 @@ async fn main() -> anyhow::Result<()> {
     // The law: beta_ddot = kd (0 - beta_dot) + kp (pi/2 - beta), made exact in every contact
     // mode by the inverse dynamics of the model.
     let law = ComputedTorque::new(ControlConfig {
-        kp: args.kp,
-        kd: args.kd,
+        law: LawSpec {
+            kp: args.kp,
+            kd: args.kd,
+            ..LawSpec::without_adaptation()
+        },
         ..ControlConfig::default()
     })?;
 

@@ -125,7 +125,8 @@ fn invalid_flags_exit_2_and_name_the_field() {
         (vec!["--rtol", "0"], "rtol"),
         (vec!["--torque-limit", "-5"], "torque_limit"),
         (vec!["--energy-avg", "nan"], "energy_avg"),
-        // A flat start with the adaptation on needs the energy of the orbit to stabilise.
+        // An adaptation other than the built-in one needs the energy of the orbit to
+        // stabilise, and the error says what differs from the built-in case.
         (
             vec![
                 "--mode",
@@ -133,12 +134,13 @@ fn invalid_flags_exit_2_and_name_the_field() {
                 "--x0",
                 "0,1.5707963267948966,0,0",
                 "--k",
-                "500",
+                "300",
             ],
-            "energy_avg",
+            "missing `energy_avg` (--energy-avg): required when k != 0 (k = 300)",
         ),
+        (vec!["--k", "300"], "here k = 300 (built-in 500)"),
         // So do gains the built-in E_av was not computed for.
-        (vec!["--kp", "150"], "energy_avg"),
+        (vec!["--kp", "150"], "here kp = 150 (built-in 100)"),
         (vec!["--plot", "out.svg"], "--plot"),
         // The robot's imperfections name the flag and the range.
         (
@@ -166,6 +168,29 @@ fn invalid_flags_exit_2_and_name_the_field() {
         );
         assert!(!err.contains("panicked"), "{args:?}: {err}");
         assert!(o.stdout.is_empty(), "{args:?}");
+    }
+}
+
+/// The report without its wall-clock time.
+fn without_times(mut r: SimulationReport) -> SimulationReport {
+    r.stats.wall_time_s = 0.0;
+    r
+}
+
+#[test]
+fn the_builtin_k_given_explicitly_is_the_default() {
+    // `--k 500` is the built-in k: the run is the one without it, bit for bit, from the
+    // built-in start and from a flat start.
+    for start in [
+        vec![],
+        vec!["--mode", "flat", "--x0", "0,1.5707963267948966,0,0"],
+    ] {
+        let mut args = vec!["--duration", "2"];
+        args.extend(&start);
+        let plain = simulate_json(&args);
+        args.extend(["--k", "500"]);
+        let explicit = simulate_json(&args);
+        assert_eq!(without_times(explicit), without_times(plain), "{start:?}");
     }
 }
 

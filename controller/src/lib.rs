@@ -12,80 +12,50 @@
 
 #![warn(missing_docs)]
 
+pub mod law;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod predict;
-pub mod reference;
+pub mod trajectory;
 pub mod wire;
 
+pub use law::{LawArgs, LawSpec};
 pub use predict::Predictor;
-pub use reference::Reference;
+pub use trajectory::Trajectory;
 
 use serde::{Deserialize, Serialize};
 use tilting_plant::dynamics::{energy_t, torque_for_beta_ddot_t, Terms};
-use tilting_plant::params::{finite, non_negative};
-use tilting_plant::{paper, ConfigError, Mode, Params, State, TorqueLaw};
+use tilting_plant::{ConfigError, Mode, Params, State, TorqueLaw};
 
-/// Settings of the computed-torque PD controller with energy adaptation.
+/// A law with the model it computes with: the settings of the computed-torque PD controller
+/// with energy adaptation. Its JSON is the law's, with the model as `params`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ControlConfig {
     /// Model parameters used for the inverse dynamics and the energy.
     pub params: Params,
-    /// Base stiffness gain `K_P0` (1/s^2).
-    pub kp: f64,
-    /// Damping gain `K_D` (1/s).
-    pub kd: f64,
-    /// Energy adaptation gain `k` (1/(J s^2)); 0 disables the adaptation.
-    pub k: f64,
-    /// Average energy `E_av` (J) of the orbit to stabilise.
-    pub energy_avg: f64,
-    /// Desired arm trajectory.
-    pub reference: Reference,
-    /// Torque limit (N m): the torque is clipped to `[-limit, limit]`; `None` for no limit.
-    pub torque_limit: Option<f64>,
+    /// The law.
+    #[serde(flatten)]
+    pub law: LawSpec,
 }
 
 impl Default for ControlConfig {
-    /// The paper's gains `K_P = 100`, `K_D = 14.14` ([`tilting_plant::paper`]), no
-    /// adaptation, hold upright, no limit.
+    /// The paper's model and gains `K_P = 100`, `K_D = 14.14` ([`tilting_plant::paper`]), no
+    /// adaptation, hold upright, no limit ([`LawSpec::without_adaptation`]).
     fn default() -> Self {
-        Self {
-            params: Params::default(),
-            kp: paper::ORBIT_KP,
-            kd: paper::ORBIT_KD,
-            k: 0.0,
-            energy_avg: 0.0,
-            reference: Reference::Hold,
-            torque_limit: None,
-        }
+        Self::new(Params::default(), LawSpec::without_adaptation())
     }
 }
 
 impl ControlConfig {
+    /// The law `law` computed with the model `params`.
+    pub fn new(params: Params, law: LawSpec) -> Self {
+        Self { params, law }
+    }
+
     /// Checks every field, naming the first bad one.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.params.validate()?;
-        non_negative("kp", self.kp)?;
-        non_negative("kd", self.kd)?;
-        non_negative("k", self.k)?;
-        finite("energy_avg", self.energy_avg)?;
-        if self.k > 0.0 && self.energy_avg <= 0.0 {
-            // The adaptation needs the orbit's average energy; 0 (the default) would make
-            // K_P = K_P0 - k E, a large negative stiffness.
-            return Err(ConfigError::OutOfRange {
-                field: "energy_avg",
-                value: self.energy_avg.to_string(),
-                allowed: "> 0 (the orbit's average energy in J) when k > 0",
-            });
-        }
-        if let Reference::Sinusoid { amplitude, omega } = self.reference {
-            finite("amplitude", amplitude)?;
-            tilting_plant::params::positive("omega", omega)?;
-        }
-        if let Some(l) = self.torque_limit {
-            tilting_plant::params::positive("torque_limit", l)?;
-        }
-        Ok(())
+        self.law.validate()
     }
 }
 
@@ -117,11 +87,12 @@ impl ComputedTorque {
 
     #[inline(always)]
     fn stiffness_t(&self, mode: Mode, x: &State, tr: &Terms) -> f64 {
-        if self.cfg.k == 0.0 {
-            self.cfg.kp
+        if self.cfg.law.k == 0.0 {
+            self.cfg.law.kp
         } else {
-            self.cfg.kp
-                + self.cfg.k * (self.cfg.energy_avg - energy_t(&self.cfg.params, mode, x, tr))
+            self.cfg.law.kp
+                + self.cfg.law.k
+                    * (self.cfg.law.energy_avg - energy_t(&self.cfg.params, mode, x, tr))
         }
     }
 
@@ -134,8 +105,8 @@ impl ComputedTorque {
 
     #[inline(always)]
     fn acceleration_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
-        let (bd, bd_dot, bd_ddot) = self.cfg.reference.at(t);
-        bd_ddot + self.cfg.kd * (bd_dot - x[3]) + self.stiffness_t(mode, x, tr) * (bd - x[1])
+        let (bd, bd_dot, bd_ddot) = self.cfg.law.reference.at(t);
+        bd_ddot + self.cfg.law.kd * (bd_dot - x[3]) + self.stiffness_t(mode, x, tr) * (bd - x[1])
     }
 
     /// The joint torque (N m): the inverse dynamics of `mode` applied to `v`, clipped to the
@@ -149,7 +120,7 @@ impl ComputedTorque {
     fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let v = self.acceleration_t(t, mode, x, tr);
         let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v);
-        match self.cfg.torque_limit {
+        match self.cfg.law.torque_limit {
             Some(l) => tau.clamp(-l, l),
             None => tau,
         }
@@ -182,11 +153,14 @@ mod tests {
     #[test]
     fn commanded_acceleration_is_achieved_in_every_mode() {
         let cfg = ControlConfig {
-            k: 300.0,
-            energy_avg: 20.0,
-            reference: Reference::Sinusoid {
-                amplitude: 0.2,
-                omega: 3.0,
+            law: LawSpec {
+                k: 300.0,
+                energy_avg: 20.0,
+                reference: Trajectory::Sinusoid {
+                    amplitude: 0.2,
+                    omega: 3.0,
+                },
+                ..LawSpec::without_adaptation()
             },
             ..ControlConfig::default()
         };
@@ -217,7 +191,10 @@ mod tests {
     #[test]
     fn torque_limit_clips() {
         let cfg = ControlConfig {
-            torque_limit: Some(1.5),
+            law: LawSpec {
+                torque_limit: Some(1.5),
+                ..LawSpec::without_adaptation()
+            },
             ..ControlConfig::default()
         };
         let c = ComputedTorque::new(cfg).unwrap();
@@ -232,37 +209,52 @@ mod tests {
         for (cfg, field) in [
             (
                 ControlConfig {
-                    kp: -1.0,
+                    law: LawSpec {
+                        kp: -1.0,
+                        ..LawSpec::without_adaptation()
+                    },
                     ..ControlConfig::default()
                 },
                 "kp",
             ),
             (
                 ControlConfig {
-                    kd: f64::NAN,
+                    law: LawSpec {
+                        kd: f64::NAN,
+                        ..LawSpec::without_adaptation()
+                    },
                     ..ControlConfig::default()
                 },
                 "kd",
             ),
             (
                 ControlConfig {
-                    k: 500.0,
+                    law: LawSpec {
+                        k: 500.0,
+                        ..LawSpec::without_adaptation()
+                    },
                     ..ControlConfig::default()
                 },
                 "energy_avg",
             ),
             (
                 ControlConfig {
-                    torque_limit: Some(0.0),
+                    law: LawSpec {
+                        torque_limit: Some(0.0),
+                        ..LawSpec::without_adaptation()
+                    },
                     ..ControlConfig::default()
                 },
                 "torque_limit",
             ),
             (
                 ControlConfig {
-                    reference: Reference::Sinusoid {
-                        amplitude: 0.3,
-                        omega: -1.0,
+                    law: LawSpec {
+                        reference: Trajectory::Sinusoid {
+                            amplitude: 0.3,
+                            omega: -1.0,
+                        },
+                        ..LawSpec::without_adaptation()
                     },
                     ..ControlConfig::default()
                 },
@@ -272,11 +264,11 @@ mod tests {
             let err = ComputedTorque::new(cfg).unwrap_err().to_string();
             assert!(err.contains(field), "{err}");
         }
-        assert!("sinusoid:0.3".parse::<Reference>().is_err());
-        assert!("sinusoid:0.3,0".parse::<Reference>().is_err());
+        assert!("sinusoid:0.3".parse::<Trajectory>().is_err());
+        assert!("sinusoid:0.3,0".parse::<Trajectory>().is_err());
         assert_eq!(
-            "sinusoid:0.33,5".parse::<Reference>().unwrap(),
-            Reference::Sinusoid {
+            "sinusoid:0.33,5".parse::<Trajectory>().unwrap(),
+            Trajectory::Sinusoid {
                 amplitude: 0.33,
                 omega: 5.0
             }

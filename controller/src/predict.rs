@@ -57,6 +57,32 @@ impl std::fmt::Display for Predict {
     }
 }
 
+/// The `--predict` flag, declared once for the controller node, `simulate` and `live`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+pub struct PredictArgs {
+    /// The controller predicts the plant's state over the round-trip delay with the hybrid
+    /// model (impacts and mode changes included) and answers for the predicted state: `auto`
+    /// (the default value) estimates the delay from the ages of the applied torques, as the
+    /// plant reports them, or give the delay in seconds, in [0, 60]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
+            value_parser = parse_predict, allow_negative_numbers = true)
+    )]
+    pub predict: Option<Predict>,
+}
+
+impl PredictArgs {
+    /// The flag for a child process (none without prediction): parsing it gives `self` back.
+    pub fn to_args(&self) -> Vec<String> {
+        match self.predict {
+            None => Vec::new(),
+            Some(p) => vec![format!("--predict={p}")],
+        }
+    }
+}
+
 /// The predictor of one controller: the model of the plant, the loop's period and delay, and
 /// the answers sent.
 #[derive(Debug, Clone)]
@@ -242,5 +268,38 @@ mod tests {
         ] {
             assert_eq!(parse_predict(&p.to_string()), Ok(p), "{p}");
         }
+    }
+}
+
+#[cfg(all(test, feature = "clap"))]
+mod flag_tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        p: PredictArgs,
+    }
+
+    #[test]
+    fn to_args_round_trips() {
+        for predict in [
+            None,
+            Some(Predict::Estimated),
+            Some(Predict::Given(0.0)),
+            Some(Predict::Given(0.1 + 0.2)),
+            Some(Predict::Given(60.0)),
+        ] {
+            let x = PredictArgs { predict };
+            let argv = std::iter::once("x".to_owned()).chain(x.to_args());
+            assert_eq!(Cli::try_parse_from(argv).unwrap().p, x);
+        }
+        // The bare flag estimates; a delay out of range is refused.
+        assert_eq!(
+            Cli::try_parse_from(["x", "--predict"]).unwrap().p.predict,
+            Some(Predict::Estimated)
+        );
+        assert!(Cli::try_parse_from(["x", "--predict", "-1"]).is_err());
     }
 }

@@ -1,24 +1,25 @@
-//! The law on the wire: conversions between the planner's message
-//! [`tilting_proto::Reference`] and the domain types [`ControlConfig`] and [`Reference`].
+//! The law on the wire: the one conversion between the planner's message
+//! [`tilting_proto::Reference`] and the law [`LawSpec`].
 //!
 //! The message carries everything of the law but the model parameters (each node keeps its own
-//! `--params`); a torque limit of 0 on the wire means none.
+//! `--params`); a torque limit of 0 on the wire means none. Its `kind` byte names the
+//! trajectory ([`Reference::HOLD`], [`Reference::SINUSOID`]).
 
-use crate::{ControlConfig, Reference};
+use crate::{ControlConfig, LawSpec, Trajectory};
 use tilting_plant::{ConfigError, Params};
-use tilting_proto::Reference as WireReference;
+use tilting_proto::Reference;
 
-impl From<&WireReference> for Reference {
-    /// The trajectory of a message: [`WireReference::SINUSOID`] gives the sinusoid, any other
+impl From<&Reference> for Trajectory {
+    /// The trajectory of a message: [`Reference::SINUSOID`] gives the sinusoid, any other
     /// kind (validated messages only carry 0 or 1) holds the arm upright.
-    fn from(r: &WireReference) -> Self {
-        if r.kind == WireReference::SINUSOID {
-            Reference::Sinusoid {
+    fn from(r: &Reference) -> Self {
+        if r.kind == Reference::SINUSOID {
+            Trajectory::Sinusoid {
                 amplitude: r.amplitude,
                 omega: r.omega,
             }
         } else {
-            Reference::Hold
+            Trajectory::Hold
         }
     }
 }
@@ -44,9 +45,9 @@ pub mod bounds {
     pub const TORQUE_LIMIT_MAX: f64 = 1e3;
 }
 
-/// Checks a law against [`bounds`] (after [`ControlConfig::validate`]), naming the field and
-/// its range.
-pub fn check_bounds(cfg: &ControlConfig) -> Result<(), ConfigError> {
+/// Checks a law against [`bounds`] (after [`LawSpec::validate`]), naming the field and its
+/// range.
+pub fn check_bounds(law: &LawSpec) -> Result<(), ConfigError> {
     use bounds::*;
     let out = |field: &'static str, value: f64, allowed: &'static str| {
         Err(ConfigError::OutOfRange {
@@ -55,19 +56,19 @@ pub fn check_bounds(cfg: &ControlConfig) -> Result<(), ConfigError> {
             allowed,
         })
     };
-    if cfg.kp > KP_MAX {
-        return out("kp", cfg.kp, "in [0, 1e4] 1/s^2");
+    if law.kp > KP_MAX {
+        return out("kp", law.kp, "in [0, 1e4] 1/s^2");
     }
-    if cfg.kd > KD_MAX {
-        return out("kd", cfg.kd, "in [0, 1e3] 1/s");
+    if law.kd > KD_MAX {
+        return out("kd", law.kd, "in [0, 1e3] 1/s");
     }
-    if cfg.k > K_MAX {
-        return out("k", cfg.k, "in [0, 1e4] 1/(J s^2)");
+    if law.k > K_MAX {
+        return out("k", law.k, "in [0, 1e4] 1/(J s^2)");
     }
-    if cfg.energy_avg.abs() > ENERGY_AVG_MAX {
-        return out("energy_avg", cfg.energy_avg, "in [-1e3, 1e3] J");
+    if law.energy_avg.abs() > ENERGY_AVG_MAX {
+        return out("energy_avg", law.energy_avg, "in [-1e3, 1e3] J");
     }
-    if let Reference::Sinusoid { amplitude, omega } = cfg.reference {
+    if let Trajectory::Sinusoid { amplitude, omega } = law.reference {
         if amplitude.abs() > AMPLITUDE_MAX {
             return out("amplitude", amplitude, "in [-1.5, 1.5] rad");
         }
@@ -75,7 +76,7 @@ pub fn check_bounds(cfg: &ControlConfig) -> Result<(), ConfigError> {
             return out("omega", omega, "in (0, 30] rad/s");
         }
     }
-    if let Some(l) = cfg.torque_limit {
+    if let Some(l) = law.torque_limit {
         if l > TORQUE_LIMIT_MAX {
             return out("torque_limit", l, "in (0, 1e3] N m, or 0 for none");
         }
@@ -83,32 +84,38 @@ pub fn check_bounds(cfg: &ControlConfig) -> Result<(), ConfigError> {
     Ok(())
 }
 
-impl ControlConfig {
-    /// The law of a planner's message with the model `params`, checked by
-    /// [`ControlConfig::validate`] and [`check_bounds`] (the error names the field and its
-    /// range).
-    pub fn from_wire(params: Params, r: &WireReference) -> Result<Self, ConfigError> {
-        let cfg = ControlConfig {
-            params,
+impl From<&Reference> for LawSpec {
+    /// The law a message carries, as it is (not checked: see [`LawSpec::from_wire`]).
+    fn from(r: &Reference) -> Self {
+        LawSpec {
             kp: r.kp,
             kd: r.kd,
             k: r.k,
             energy_avg: r.energy_avg,
-            reference: Reference::from(r),
+            reference: Trajectory::from(r),
             torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
-        };
-        cfg.validate()?;
-        check_bounds(&cfg)?;
-        Ok(cfg)
+        }
+    }
+}
+
+impl LawSpec {
+    /// The law of a planner's message, checked by [`LawSpec::validate`] and [`check_bounds`]
+    /// (the error names the field and its range).
+    pub fn from_wire(r: &Reference) -> Result<Self, ConfigError> {
+        let law = LawSpec::from(r);
+        law.validate()?;
+        check_bounds(&law)?;
+        Ok(law)
     }
 
-    /// The message that carries this law (the model parameters stay behind).
-    pub fn to_wire(&self) -> WireReference {
-        let (kind, amplitude, omega) = match self.reference {
-            Reference::Hold => (WireReference::HOLD, 0.0, 0.0),
-            Reference::Sinusoid { amplitude, omega } => (WireReference::SINUSOID, amplitude, omega),
+    /// The message that carries this law.
+    pub fn to_wire(&self) -> Reference {
+        let kind = match self.reference {
+            Trajectory::Hold => Reference::HOLD,
+            Trajectory::Sinusoid { .. } => Reference::SINUSOID,
         };
-        WireReference {
+        let (amplitude, omega) = self.reference.sinusoid();
+        Reference {
             kind,
             amplitude,
             omega,
@@ -121,6 +128,20 @@ impl ControlConfig {
     }
 }
 
+impl ControlConfig {
+    /// The law of a planner's message with the model `params` ([`LawSpec::from_wire`]).
+    pub fn from_wire(params: Params, r: &Reference) -> Result<Self, ConfigError> {
+        let cfg = ControlConfig::new(params, LawSpec::from_wire(r)?);
+        params.validate()?;
+        Ok(cfg)
+    }
+
+    /// The message that carries this law (the model parameters stay behind).
+    pub fn to_wire(&self) -> Reference {
+        self.law.to_wire()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -128,18 +149,21 @@ mod tests {
     #[test]
     fn a_law_survives_the_round_trip_through_the_message() {
         for reference in [
-            Reference::Hold,
-            Reference::Sinusoid {
+            Trajectory::Hold,
+            Trajectory::Sinusoid {
                 amplitude: 0.33,
                 omega: 1.8,
             },
         ] {
             for torque_limit in [None, Some(40.0)] {
                 let cfg = ControlConfig {
-                    k: 500.0,
-                    energy_avg: 19.9,
-                    reference,
-                    torque_limit,
+                    law: LawSpec {
+                        k: 500.0,
+                        energy_avg: 19.9,
+                        reference,
+                        torque_limit,
+                        ..LawSpec::without_adaptation()
+                    },
                     ..ControlConfig::default()
                 };
                 let wire = cfg.to_wire();
@@ -152,37 +176,40 @@ mod tests {
     #[test]
     fn laws_that_validate_but_lie_are_refused_by_the_bounds() {
         let ok = ControlConfig {
-            k: 500.0,
-            energy_avg: 19.9,
-            reference: Reference::Sinusoid {
-                amplitude: 0.33,
-                omega: 1.8,
+            law: LawSpec {
+                k: 500.0,
+                energy_avg: 19.9,
+                reference: Trajectory::Sinusoid {
+                    amplitude: 0.33,
+                    omega: 1.8,
+                },
+                ..LawSpec::without_adaptation()
             },
             ..ControlConfig::default()
         }
         .to_wire();
         assert!(ControlConfig::from_wire(Params::default(), &ok).is_ok());
         for (bad, field) in [
-            (WireReference { k: 1e12, ..ok }, "`k`"),
-            (WireReference { kp: 1e5, ..ok }, "`kp`"),
-            (WireReference { kd: 2e3, ..ok }, "`kd`"),
+            (Reference { k: 1e12, ..ok }, "`k`"),
+            (Reference { kp: 1e5, ..ok }, "`kp`"),
+            (Reference { kd: 2e3, ..ok }, "`kd`"),
             (
-                WireReference {
+                Reference {
                     energy_avg: 1e6,
                     ..ok
                 },
                 "`energy_avg`",
             ),
             (
-                WireReference {
+                Reference {
                     amplitude: 2.0,
                     ..ok
                 },
                 "`amplitude`",
             ),
-            (WireReference { omega: 1e3, ..ok }, "`omega`"),
+            (Reference { omega: 1e3, ..ok }, "`omega`"),
             (
-                WireReference {
+                Reference {
                     torque_limit: 1e6,
                     ..ok
                 },
@@ -200,12 +227,15 @@ mod tests {
     #[test]
     fn an_invalid_law_is_refused_with_its_field() {
         let wire = ControlConfig {
-            k: 500.0,
-            energy_avg: 19.9,
+            law: LawSpec {
+                k: 500.0,
+                energy_avg: 19.9,
+                ..LawSpec::without_adaptation()
+            },
             ..ControlConfig::default()
         }
         .to_wire();
-        let bad = WireReference {
+        let bad = Reference {
             energy_avg: 0.0,
             ..wire
         };

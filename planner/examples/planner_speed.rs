@@ -13,7 +13,7 @@
 //! Run: `cargo run --release -p tilting-planner --example planner_speed`
 
 use std::time::Instant;
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::gains::range;
 use tilting_planner::orbit::{self, OrbitProblem};
@@ -32,8 +32,11 @@ fn time_into<T>(best: &mut f64, run: impl FnOnce() -> T) -> T {
 fn point_throughput(sw: &Sweep, k: f64) {
     let pb = &sw.problem;
     let law = ComputedTorque::new(ControlConfig {
-        k,
-        energy_avg: sw.energy_avg,
+        law: LawSpec {
+            k,
+            energy_avg: sw.energy_avg,
+            ..pb.control.law
+        },
         ..pb.control
     })
     .expect("valid law");

@@ -7,7 +7,7 @@ use crate::orbit::{self, OrbitProblem, OrbitSolution};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_plant::{Mode, Observer, Plant, SimConfig, TiltPeak};
 
 /// What to sweep.
@@ -152,8 +152,11 @@ pub fn classify(peaks: &[f64], tol: f64) -> Option<usize> {
 pub fn run_one(sw: &Sweep, k: f64) -> Row {
     let pb = &sw.problem;
     let control = ControlConfig {
-        k,
-        energy_avg: sw.energy_avg,
+        law: LawSpec {
+            k,
+            energy_avg: sw.energy_avg,
+            ..pb.control.law
+        },
         ..pb.control
     };
     let mut row = Row {
@@ -257,8 +260,11 @@ impl Observer for LastLeftTilt {
 pub fn attracting_orbit_guess(sw: &Sweep, k: f64, tilts: usize) -> Option<[f64; 3]> {
     let pb = &sw.problem;
     let control = ControlConfig {
-        k,
-        energy_avg: sw.energy_avg,
+        law: LawSpec {
+            k,
+            energy_avg: sw.energy_avg,
+            ..pb.control.law
+        },
         ..pb.control
     };
     let law = ComputedTorque::new(control).ok()?;

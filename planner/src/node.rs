@@ -19,9 +19,9 @@ use anyhow::{anyhow, Context as _};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use tilting_controller::{ControlConfig, Reference as Trajectory};
+use tilting_controller::law::LawRecord;
+use tilting_controller::{LawArgs, LawSpec};
 use tilting_net::{Qos, Role, TypedPublisher, ZenohArgs};
-use tilting_plant::paper::{ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP};
 use tilting_plant::{ImpactLaw, Params};
 use tilting_proto::{codec, Keys, Reference};
 use zenoh::{Session, Wait as _};
@@ -46,116 +46,37 @@ pub enum NodeError {
     Run(anyhow::Error),
 }
 
-/// The controller's law as flags (shared by `publish` and `live`).
-#[derive(Debug, Clone, PartialEq, clap::Args)]
-pub struct LawArgs {
-    /// Desired arm trajectory: hold or sinusoid:A,w (A in rad, w in rad/s)
-    #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
-    pub reference: Trajectory,
-    /// Base stiffness K_P0 (1/s^2)
-    #[arg(long, default_value_t = ORBIT_KP, value_name = "1/S2", allow_negative_numbers = true)]
-    pub kp: f64,
-    /// Damping K_D (1/s)
-    #[arg(long, default_value_t = ORBIT_KD, value_name = "1/S", allow_negative_numbers = true)]
-    pub kd: f64,
-    /// Energy adaptation gain k (1/(J s^2)); 0 = off
-    #[arg(long, default_value_t = ORBIT_K, value_name = "1/(J S2)", allow_negative_numbers = true)]
-    pub k: f64,
-    /// Target average energy E_av (J) of the adaptation (the default is the paper's stabilised
-    /// orbit)
-    #[arg(long, default_value_t = ORBIT_ENERGY_AVG, value_name = "J", allow_negative_numbers = true)]
-    pub energy_avg: f64,
-    /// Symmetric torque saturation (N m) applied by the controller; 0 = none
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        value_name = "NM",
-        allow_negative_numbers = true
-    )]
-    pub torque_limit: f64,
+/// The law the planner publishes, as flags (shared by `publish` and `live`): the law's own
+/// flags ([`LawArgs`], over the paper's orbit [`LawSpec::default`]) and `--from-orbit`.
+#[derive(Debug, Clone, Default, PartialEq, clap::Args)]
+pub struct PlannerLawArgs {
+    /// The law.
+    #[command(flatten)]
+    pub law: LawArgs,
     /// Take E_av from the smallest periodic tilting orbit of the loop without adaptation with
     /// --kp and --kd (paper model and impact law), computed by shooting (as `orbit`)
     #[arg(long, conflicts_with = "energy_avg")]
     pub from_orbit: bool,
 }
 
-impl Default for LawArgs {
-    fn default() -> Self {
-        Self {
-            reference: Trajectory::Hold,
-            kp: ORBIT_KP,
-            kd: ORBIT_KD,
-            k: ORBIT_K,
-            energy_avg: ORBIT_ENERGY_AVG,
-            torque_limit: 0.0,
-            from_orbit: false,
-        }
-    }
-}
-
-impl LawArgs {
-    /// The reference message the flags describe, checked like the controller checks it. With
+impl PlannerLawArgs {
+    /// The law the flags describe, checked like the controller checks a reference. With
     /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
-    pub fn resolve(&self) -> Result<Reference, NodeError> {
-        let mut energy_avg = self.energy_avg;
+    pub fn resolve(&self) -> Result<LawSpec, NodeError> {
+        let mut law = self.law.over(LawSpec::default());
         if self.from_orbit {
-            energy_avg = orbit_energy_avg(self.kp, self.kd)?;
+            law.energy_avg = orbit_energy_avg(law.kp, law.kd)?;
         }
-        let r = ControlConfig {
-            kp: self.kp,
-            kd: self.kd,
-            k: self.k,
-            energy_avg,
-            reference: self.reference,
-            torque_limit: (self.torque_limit > 0.0).then_some(self.torque_limit),
-            ..ControlConfig::default()
-        }
-        .to_wire();
-        check_reference(&r).map_err(NodeError::Invalid)?;
-        Ok(r)
-    }
-
-    /// The controller flags of the same law (for a `tilting-controller` child).
-    pub fn controller_flags(r: &Reference) -> Vec<String> {
-        let traj = Trajectory::from(r).to_string();
-        vec![
-            "--kp".into(),
-            r.kp.to_string(),
-            "--kd".into(),
-            r.kd.to_string(),
-            "--k".into(),
-            r.k.to_string(),
-            format!("--energy-avg={}", r.energy_avg),
-            "--reference".into(),
-            traj,
-            "--torque-limit".into(),
-            r.torque_limit.to_string(),
-        ]
+        check_reference(&law.to_wire()).map_err(NodeError::Invalid)?;
+        Ok(law)
     }
 }
 
 /// Checks a reference as the controller will: valid message and a valid control law.
 pub fn check_reference(r: &Reference) -> anyhow::Result<()> {
     r.validate().map_err(|e| anyhow!("{e}"))?;
-    ControlConfig::from_wire(Params::default(), r).map_err(|e| anyhow!("{e}"))?;
+    LawSpec::from_wire(r).map_err(|e| anyhow!("{e}"))?;
     Ok(())
-}
-
-/// One line describing a reference, e.g. `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J`.
-pub fn describe(r: &Reference) -> String {
-    format!(
-        "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit {}",
-        Trajectory::from(r),
-        r.kp,
-        r.kd,
-        r.k,
-        r.energy_avg,
-        if r.torque_limit > 0.0 {
-            format!("{} N m", r.torque_limit)
-        } else {
-            "none".to_owned()
-        }
-    )
 }
 
 /// `E_av` of the smallest periodic tilting orbit of the loop `K_P = kp`, `K_D = kd` without
@@ -294,7 +215,7 @@ pub struct PublishArgs {
     pub zenoh: ZenohArgs,
     /// The law to publish.
     #[command(flatten)]
-    pub law: LawArgs,
+    pub law: PlannerLawArgs,
     /// Repeat the reference on its key every this many seconds; 0 = only when it changes (the
     /// queryable answers late joiners either way)
     #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
@@ -302,6 +223,21 @@ pub struct PublishArgs {
     /// Stop after this many seconds [default: run until Ctrl-C]
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
+}
+
+/// The planner node's summary, one JSON object on stdout at the end.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PublishSummary {
+    /// The key the reference was published on.
+    pub key: String,
+    /// The published law.
+    pub reference: LawRecord,
+    /// Puts of the reference.
+    pub puts: u64,
+    /// Queries answered.
+    pub queries_answered: u64,
+    /// How long the node ran (s).
+    pub seconds: f64,
 }
 
 /// Checks a duration flag: positive and finite.
@@ -330,19 +266,17 @@ pub fn run(args: &PublishArgs) -> Result<(), NodeError> {
     }
     let keys = args.zenoh.keys().map_err(NodeError::Invalid)?;
     args.zenoh.config(Role::Peer).map_err(NodeError::Invalid)?;
-    let reference = args.law.resolve()?;
+    let law = args.law.resolve()?;
     let rt = tilting_net::runtime().map_err(NodeError::Run)?;
-    rt.block_on(serve(args, keys, reference))
-        .map_err(NodeError::Run)
+    rt.block_on(serve(args, keys, law)).map_err(NodeError::Run)
 }
 
-async fn serve(args: &PublishArgs, keys: Keys, reference: Reference) -> anyhow::Result<()> {
+async fn serve(args: &PublishArgs, keys: Keys, law: LawSpec) -> anyhow::Result<()> {
     let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
-    let publisher = ReferencePublisher::start(&session, &keys, reference).await?;
+    let publisher = ReferencePublisher::start(&session, &keys, law.to_wire()).await?;
     eprintln!(
-        "publishing on {}: {}; {}",
+        "publishing on {}: {law}; {}",
         keys.planner_reference(),
-        describe(&reference),
         match args.duration {
             Some(d) => format!("for {d} s"),
             None => "until Ctrl-C".to_owned(),
@@ -381,24 +315,15 @@ async fn serve(args: &PublishArgs, keys: Keys, reference: Reference) -> anyhow::
             }
         }
     }
-    let summary = serde_json::json!({
-        "key": keys.planner_reference(),
-        "reference": {
-            "kind": if reference.kind == Reference::SINUSOID { "sinusoid" } else { "hold" },
-            "amplitude": reference.amplitude,
-            "omega": reference.omega,
-            "kp": reference.kp,
-            "kd": reference.kd,
-            "k": reference.k,
-            "energy_avg": reference.energy_avg,
-            "torque_limit": reference.torque_limit,
-        },
-        "puts": publisher.puts(),
-        "queries_answered": publisher.queries_answered(),
-        "seconds": start.elapsed().as_secs_f64(),
-    });
+    let summary = PublishSummary {
+        key: keys.planner_reference().to_owned(),
+        reference: LawRecord::from(&law),
+        puts: publisher.puts(),
+        queries_answered: publisher.queries_answered(),
+        seconds: start.elapsed().as_secs_f64(),
+    };
     drop(publisher);
-    println!("{summary}");
+    println!("{}", serde_json::to_string(&summary)?);
     let _ = session.close().await;
     Ok(())
 }
@@ -407,6 +332,8 @@ async fn serve(args: &PublishArgs, keys: Keys, reference: Reference) -> anyhow::
 mod tests {
     use super::*;
     use clap::Parser;
+    use tilting_controller::Trajectory;
+    use tilting_plant::paper::{ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP};
 
     #[derive(Debug, Parser)]
     struct Cli {
@@ -417,8 +344,8 @@ mod tests {
     #[test]
     fn defaults_are_the_paper_orbit() {
         let a = Cli::try_parse_from(["x"]).unwrap().args;
-        assert_eq!(a.law, LawArgs::default());
-        let r = a.law.resolve().unwrap();
+        assert_eq!(a.law, PlannerLawArgs::default());
+        let r = a.law.resolve().unwrap().to_wire();
         assert_eq!(r.kind, Reference::HOLD);
         assert_eq!((r.kp, r.kd, r.k), (ORBIT_KP, ORBIT_KD, ORBIT_K));
         assert_eq!(r.energy_avg, ORBIT_ENERGY_AVG);
@@ -446,7 +373,8 @@ mod tests {
         ])
         .unwrap()
         .args;
-        let r = a.law.resolve().unwrap();
+        let law = a.law.resolve().unwrap();
+        let r = law.to_wire();
         assert_eq!(
             (
                 r.kind,
@@ -459,9 +387,24 @@ mod tests {
             ),
             (Reference::SINUSOID, 0.2, 4.0, 60.0, 12.0, 0.0, 5.0)
         );
-        let flags = LawArgs::controller_flags(&r);
-        assert!(flags.contains(&"sinusoid:0.2,4".to_owned()), "{flags:?}");
-        assert!(describe(&r).contains("sinusoid:0.2,4"));
+        // The controller's flags give the same law back.
+        let flags = law.to_args();
+        assert!(
+            flags.contains(&"--reference=sinusoid:0.2,4".to_owned()),
+            "{flags:?}"
+        );
+        let back = Cli::try_parse_from(std::iter::once("x".to_owned()).chain(flags))
+            .unwrap()
+            .args;
+        assert_eq!(back.law.resolve().unwrap(), law);
+        assert_eq!(
+            law.reference,
+            Trajectory::Sinusoid {
+                amplitude: 0.2,
+                omega: 4.0
+            }
+        );
+        assert!(law.to_string().contains("sinusoid:0.2,4"));
         // Bad laws are usage errors.
         let bad = Cli::try_parse_from(["x", "--kp=-1"]).unwrap().args;
         assert!(matches!(bad.law.resolve(), Err(NodeError::Invalid(_))));
@@ -470,6 +413,39 @@ mod tests {
             Cli::try_parse_from(["x", "--from-orbit", "--energy-avg", "3"]).is_err(),
             "--from-orbit and --energy-avg conflict"
         );
+    }
+
+    #[test]
+    fn the_summary_has_the_fields_of_the_message() {
+        let law = LawSpec {
+            torque_limit: Some(5.0),
+            ..LawSpec::default()
+        };
+        let v = serde_json::to_value(PublishSummary {
+            key: "k".into(),
+            reference: LawRecord::from(&law),
+            puts: 1,
+            queries_answered: 2,
+            seconds: 0.5,
+        })
+        .unwrap();
+        let r = law.to_wire();
+        let rv = &v["reference"];
+        assert_eq!(rv["kind"], "hold");
+        for (name, x) in [
+            ("amplitude", r.amplitude),
+            ("omega", r.omega),
+            ("kp", r.kp),
+            ("kd", r.kd),
+            ("k", r.k),
+            ("energy_avg", r.energy_avg),
+            ("torque_limit", r.torque_limit),
+        ] {
+            assert_eq!(rv[name].as_f64(), Some(x), "{name}");
+        }
+        for name in ["key", "puts", "queries_answered", "seconds"] {
+            assert!(v.get(name).is_some(), "{name}");
+        }
     }
 
     #[test]

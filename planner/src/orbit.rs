@@ -16,7 +16,7 @@
 use nalgebra::{Matrix2, Matrix3, Matrix4, SVector, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_plant::dynamics::rhs;
 use tilting_plant::ode::{Dop853, Tolerance};
 use tilting_plant::{
@@ -44,9 +44,11 @@ impl OrbitProblem {
             impact,
             control: ControlConfig {
                 params,
-                kp,
-                kd,
-                ..ControlConfig::default()
+                law: LawSpec {
+                    kp,
+                    kd,
+                    ..LawSpec::without_adaptation()
+                },
             },
             tol: Tolerance {
                 rtol: 1e-12,
@@ -57,8 +59,8 @@ impl OrbitProblem {
 
     /// The same loop with the energy adaptation `K_P = K_P0 + k (E_av - E)`.
     pub fn with_adaptation(mut self, k: f64, energy_avg: f64) -> Self {
-        self.control.k = k;
-        self.control.energy_avg = energy_avg;
+        self.control.law.k = k;
+        self.control.law.energy_avg = energy_avg;
         self
     }
 

@@ -4,7 +4,7 @@
 //! against the onset of period two in the sweep.
 
 use std::f64::consts::{FRAC_PI_2, PI};
-use tilting_controller::{ComputedTorque, ControlConfig, Reference};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec, Trajectory};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::orbit::{self, eigenvalues2, OrbitProblem, OrbitSolution};
 use tilting_planner::sinusoid::{self, Search};
@@ -175,9 +175,12 @@ fn sinusoid_solution_lands_on_time_in_a_closed_loop_simulation() {
         // the reference exactly because the start is on it (zero tracking error stays zero
         // until the first impact).
         let law = ComputedTorque::new(ControlConfig {
-            reference: Reference::Sinusoid {
-                amplitude: 0.33,
-                omega: sol.omega,
+            law: LawSpec {
+                reference: Trajectory::Sinusoid {
+                    amplitude: 0.33,
+                    omega: sol.omega,
+                },
+                ..LawSpec::without_adaptation()
             },
             ..ControlConfig::default()
         })
@@ -216,9 +219,12 @@ fn no_tilt_region_does_not_tilt_in_simulation() {
     let (a, w) = (0.1, 3.0);
     assert_eq!(sinusoid::tilt_start(&p, a, w), None);
     let law = ComputedTorque::new(ControlConfig {
-        reference: Reference::Sinusoid {
-            amplitude: a,
-            omega: w,
+        law: LawSpec {
+            reference: Trajectory::Sinusoid {
+                amplitude: a,
+                omega: w,
+            },
+            ..LawSpec::without_adaptation()
         },
         ..ControlConfig::default()
     })
@@ -272,8 +278,11 @@ fn a_sweep_row_is_a_plain_simulation_of_the_loop() {
         let row = bifurcation::run_one(&sw, k);
         assert!(row.fault.is_none(), "{:?}", row.fault);
         let law = ComputedTorque::new(ControlConfig {
-            k,
-            energy_avg: sw.energy_avg,
+            law: LawSpec {
+                k,
+                energy_avg: sw.energy_avg,
+                ..pb.control.law
+            },
             ..pb.control
         })
         .unwrap();

@@ -12,6 +12,7 @@
 //! - [`hybrid`]: the simulator ([`Plant`]) with event location, impacts and faults;
 //! - [`imperfect`]: what a real robot adds to the model (sensor noise, encoder quantisation,
 //!   actuator saturation and lag, a mass error), seeded and off by default;
+//! - [`flags`]: the `--params` flag and the `--x0` parser, shared by every command and node;
 //! - [`paper`]: the paper's numbers (the stabilised orbit and its gains), used as defaults everywhere.
 //!
 //! The model knows nothing of networks; the `node` feature adds the plant node (paced in real
@@ -29,6 +30,7 @@
 #![warn(missing_docs)]
 
 pub mod dynamics;
+pub mod flags;
 pub mod hybrid;
 pub mod impact;
 pub mod imperfect;
@@ -41,6 +43,7 @@ pub mod paper;
 pub mod params;
 
 pub use dynamics::Joint;
+pub use flags::{parse_x0, ParamsArgs};
 pub use hybrid::{Fault, JointEvent, Observer, Plant, SimConfig, TiltPeak, TorqueLaw, Transition};
 pub use impact::ImpactLaw;
 pub use kinematics::{energy, mirror};

@@ -222,10 +222,10 @@ fn main() {
     println!(
         "paper orbit: K_P0 = {}, K_D = {}, k = {}, E_av = {:?} J, start {:?} in mode {}, \
          {seconds} simulated s, rtol = {:e}, best of {REPEATS}",
-        continuous.kp,
-        continuous.kd,
-        continuous.k,
-        continuous.energy_avg,
+        continuous.law.kp,
+        continuous.law.kd,
+        continuous.law.k,
+        continuous.law.energy_avg,
         continuous.x0,
         continuous.mode,
         continuous.rtol

@@ -470,13 +470,14 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
         "simulated {} s of {} s ({coupling}; K_P0 = {}, K_D = {}, k = {}{}; {} impact law)",
         r.final_state.t,
         sc.duration,
-        sc.kp,
-        sc.kd,
-        sc.k,
-        sc.energy_avg
-            .filter(|_| sc.k != 0.0)
-            .map(|e| format!(", E_av = {e} J"))
-            .unwrap_or_default(),
+        sc.law.kp,
+        sc.law.kd,
+        sc.law.k,
+        if sc.law.k != 0.0 {
+            format!(", E_av = {} J", sc.law.energy_avg)
+        } else {
+            String::new()
+        },
         sc.impact.as_str(),
     );
     let _ = writeln!(
@@ -567,7 +568,10 @@ mod tests {
         // Without the adaptation (k = 0) the built-in start is on the K_P0 orbit.
         let r = run(ScenarioFile {
             duration: Some(1.0),
-            k: Some(0.0),
+            law: tilting_controller::LawArgs {
+                k: Some(0.0),
+                ..Default::default()
+            },
             ..Default::default()
         });
         assert!(r.fault.is_none());

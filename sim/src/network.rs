@@ -221,12 +221,9 @@ pub use tilting_link::NetworkArgs;
 /// The flags that change the loop ([`LoopOptions`]), shared by `simulate` and the nodes.
 #[derive(Debug, Clone, Copy, Default, clap::Args)]
 pub struct LoopArgs {
-    /// The controller predicts the plant's state over the round-trip delay with the hybrid
-    /// model and answers for the predicted state: `auto` (the default value) estimates the delay
-    /// from the ages of the applied torques, or give the delay in seconds, in [0, 60]
-    #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
-          value_parser = tilting_controller::predict::parse_predict, allow_negative_numbers = true)]
-    pub predict: Option<Predict>,
+    /// Prediction over the round-trip delay (`--predict`).
+    #[command(flatten)]
+    pub predict: tilting_controller::predict::PredictArgs,
     /// The plant sends an extra state at each mode transition; its answer takes effect as
     /// soon as it arrives
     #[arg(long)]
@@ -237,7 +234,7 @@ impl LoopArgs {
     /// The options these flags ask for.
     pub fn options(&self) -> LoopOptions {
         LoopOptions {
-            predict: self.predict,
+            predict: self.predict.predict,
             sample_on_event: self.sample_on_event,
             model: None,
         }

@@ -190,11 +190,14 @@ fn fig5a_run_reports_the_peak_at_11_8346_s() {
         duration: Some(12.0),
         mode: Some(Mode::Flat),
         x0: Some([0.0, std::f64::consts::FRAC_PI_2, 0.0, a * w]),
-        k: Some(0.0),
-        reference: Some(tilting_controller::Reference::Sinusoid {
-            amplitude: a,
-            omega: w,
-        }),
+        law: tilting_controller::LawArgs {
+            k: Some(0.0),
+            reference: Some(tilting_controller::Trajectory::Sinusoid {
+                amplitude: a,
+                omega: w,
+            }),
+            ..Default::default()
+        },
         ..Default::default()
     };
     let r = simulate(&Scenario::resolve(&[&file]), SimOptions::default()).unwrap();

@@ -1,6 +1,6 @@
 //! The plant's `--record` CSV and the offline closed loop it must reproduce.
 
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_plant::{paper, Observer, Plant, SimConfig, Tolerance, Transition};
 
 /// One CSV row of `--record`: seq, t, mode, alpha, beta, alpha_dot, beta_dot, tau (empty on the
@@ -70,8 +70,11 @@ pub fn offline_with_events(duration: f64, period: f64) -> (Vec<Row>, Vec<Transit
     };
     let mut plant = Plant::new(cfg, 0.0, paper::ORBIT_MODE, paper::orbit_state()).unwrap();
     let c = ComputedTorque::new(ControlConfig {
-        k: paper::ORBIT_K,
-        energy_avg: paper::ORBIT_ENERGY_AVG,
+        law: LawSpec {
+            k: paper::ORBIT_K,
+            energy_avg: paper::ORBIT_ENERGY_AVG,
+            ..LawSpec::without_adaptation()
+        },
         ..ControlConfig::default()
     })
     .unwrap();

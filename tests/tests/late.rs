@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_plant::{paper, State};
 use tilting_proto::{codec, PlantState, TorqueCommand};
 use tilting_tests::zenoh;
@@ -35,8 +35,11 @@ async fn run(max_age: u64, delay: Duration) -> (PlantSummary, Option<tilting_pro
     let status = StatusWatch::new(&client).await;
     let law = Arc::new(
         ComputedTorque::new(ControlConfig {
-            k: paper::ORBIT_K,
-            energy_avg: paper::ORBIT_ENERGY_AVG,
+            law: LawSpec {
+                k: paper::ORBIT_K,
+                energy_avg: paper::ORBIT_ENERGY_AVG,
+                ..LawSpec::without_adaptation()
+            },
             ..ControlConfig::default()
         })
         .unwrap(),

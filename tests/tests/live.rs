@@ -276,7 +276,7 @@ fn a_late_controller_gets_the_published_reference() {
     assert_eq!(c.law.torque_limit, Some(5.0), "{c:?}");
     assert_eq!(
         c.law.reference,
-        tilting_controller::Reference::Sinusoid {
+        tilting_controller::Trajectory::Sinusoid {
             amplitude: 0.2,
             omega: 4.0
         },

@@ -5,7 +5,7 @@
 use std::f64::consts::FRAC_PI_2;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_plant::{Mode, State};
 use tilting_proto::{codec, PlantState, Reference, TorqueCommand};
 use tilting_tests::*;
@@ -13,19 +13,21 @@ use tilting_tests::*;
 /// The law the controller must use for the planner's reference `r`.
 fn law(r: &Reference) -> ComputedTorque {
     ComputedTorque::new(ControlConfig {
-        kp: r.kp,
-        kd: r.kd,
-        k: r.k,
-        energy_avg: r.energy_avg,
-        reference: if r.kind == Reference::SINUSOID {
-            tilting_controller::Reference::Sinusoid {
-                amplitude: r.amplitude,
-                omega: r.omega,
-            }
-        } else {
-            tilting_controller::Reference::Hold
+        law: LawSpec {
+            kp: r.kp,
+            kd: r.kd,
+            k: r.k,
+            energy_avg: r.energy_avg,
+            reference: if r.kind == Reference::SINUSOID {
+                tilting_controller::Trajectory::Sinusoid {
+                    amplitude: r.amplitude,
+                    omega: r.omega,
+                }
+            } else {
+                tilting_controller::Trajectory::Hold
+            },
+            torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
         },
-        torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
         ..ControlConfig::default()
     })
     .unwrap()
@@ -123,8 +125,11 @@ async fn controller_started_after_the_planner_receives_the_reference() {
             .copied()
     };
     let flags_law = ComputedTorque::new(ControlConfig {
-        k: 500.0,
-        energy_avg: 19.963439703027,
+        law: LawSpec {
+            k: 500.0,
+            energy_avg: 19.963439703027,
+            ..LawSpec::without_adaptation()
+        },
         ..ControlConfig::default()
     })
     .unwrap();
@@ -198,7 +203,7 @@ async fn controller_started_after_the_planner_receives_the_reference() {
     assert_eq!(c.references_dropped, 0);
     assert_eq!(c.law.kp, 30.0);
     assert_eq!(c.law.torque_limit, Some(5.0));
-    assert_eq!(c.law.reference, tilting_controller::Reference::Hold);
+    assert_eq!(c.law.reference, tilting_controller::Trajectory::Hold);
 }
 
 /// A reference from a peer while no planner holds the planner's liveliness token is not

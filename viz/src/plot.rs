@@ -76,9 +76,9 @@ pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
     };
     let title = format!(
         "Tilting system: K_P0 = {}, K_D = {}, k = {}, {coupling}, {} impact law{}",
-        sc.kp,
-        sc.kd,
-        sc.k,
+        sc.law.kp,
+        sc.law.kd,
+        sc.law.k,
         sc.impact.as_str(),
         if r.stopped_early {
             " (stopped by a fault)"

@@ -26,7 +26,7 @@ use std::time::Instant;
 use diffsol::{
     NalgebraLU, NalgebraMat, OdeBuilder, OdeEquations, OdeSolverMethod, OdeSolverStopReason,
 };
-use tilting_controller::{ComputedTorque, ControlConfig};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
 use tilting_plant::dynamics::{accelerations_t, vertical_force, Terms};
 use tilting_plant::ode::Dop853;
 use tilting_plant::{
@@ -272,10 +272,13 @@ const T_END: f64 = 20.0;
 
 fn controller() -> ComputedTorque {
     ComputedTorque::new(ControlConfig {
-        kp: 100.0,
-        kd: 14.14,
-        k: 500.0,
-        energy_avg: 19.958_818_058_0,
+        law: LawSpec {
+            kp: 100.0,
+            kd: 14.14,
+            k: 500.0,
+            energy_avg: 19.958_818_058_0,
+            ..LawSpec::without_adaptation()
+        },
         ..ControlConfig::default()
     })
     .unwrap()

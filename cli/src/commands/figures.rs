@@ -9,7 +9,6 @@ use serde::{Deserialize, Serialize};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_plant::Params;
 use tilting_viz::figures::{Figures, Settings, Summary, ALL};
 
 /// Flags of `tilting figures`.
@@ -71,10 +70,7 @@ pub struct FigureReport {
 /// `tilting figures`: the PNGs of the paper's Figs. 4 to 8.
 pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
     let start = Instant::now();
-    let params = match &args.model.params {
-        Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into()))?,
-        None => Params::default(),
-    };
+    let params = args.model.params()?;
     let out = prepare_out(&args.out)?;
     let mut which: Vec<u8> = if args.only.is_empty() {
         ALL.collect()

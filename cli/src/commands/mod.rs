@@ -16,16 +16,14 @@ use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
-use tilting_plant::{ImpactLaw, Params};
+use tilting_plant::{ImpactLaw, Params, ParamsArgs};
 
 /// Model flags shared by the planning commands.
 #[derive(Debug, Clone, Args)]
 pub struct ModelArgs {
-    /// TOML file with the physical parameters (m_f, m_l, l, f, g); missing fields keep the
-    /// paper's values
-    #[arg(long, value_name = "FILE.toml")]
-    pub params: Option<PathBuf>,
+    /// The model's parameter file.
+    #[command(flatten)]
+    pub params: ParamsArgs,
     /// Landing impact law
     #[arg(long, default_value = "paper", value_parser = parse_impact)]
     pub impact: ImpactLaw,
@@ -41,10 +39,9 @@ fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
 impl ModelArgs {
     /// The parameters of `--params`, or the paper's.
     pub fn params(&self) -> Result<Params, CommandError> {
-        match &self.params {
-            Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into())),
-            None => Ok(Params::default()),
-        }
+        self.params
+            .params()
+            .map_err(|e| CommandError::Usage(e.into()))
     }
 }
 

@@ -8,6 +8,7 @@ use anyhow::anyhow;
 use clap::Args;
 use serde::Serialize;
 use std::time::Instant;
+use tilting_controller::{LawArgs, LawSpec, Trajectory};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
 use tilting_planner::{gains, sinusoid};
@@ -15,23 +16,40 @@ use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 
 /// `orbit`: the periodic orbits of approach 2 for one gain pair.
 #[derive(Debug, Clone, Args)]
+#[command(mut_arg("k", |a| a.help(
+    "Energy adaptation gain k (1/(J s^2)); with k > 0 the orbit of the adapted loop \
+     K_P = K_P0 + k (E_av - E) is computed, E_av taken from the k = 0 orbit unless given \
+     [default: 0]"
+)))]
+#[command(mut_arg("energy_avg", |a| a.help(
+    "Average energy E_av (J) for the adaptation [default: that of the k = 0 orbit]"
+)))]
+#[command(mut_arg("reference", |a| a.hide(true)))]
+#[command(mut_arg("torque_limit", |a| a.hide(true)))]
 pub struct OrbitArgs {
-    /// Stiffness gain K_P (1/s^2)
-    #[arg(long, default_value_t = ORBIT_KP, allow_negative_numbers = true)]
-    pub kp: f64,
-    /// Damping gain K_D (1/s)
-    #[arg(long, default_value_t = ORBIT_KD, allow_negative_numbers = true)]
-    pub kd: f64,
-    /// Energy adaptation gain k (1/(J s^2)); with k > 0 the orbit of the adapted loop
-    /// K_P = K_P0 + k (E_av - E) is computed, E_av taken from the k = 0 orbit unless given
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub k: f64,
-    /// Average energy E_av (J) for the adaptation
-    #[arg(long, allow_negative_numbers = true)]
-    pub energy_avg: Option<f64>,
+    /// The law: the gains K_P (--kp) and K_D (--kd), and the adaptation (--k, --energy-avg);
+    /// the orbits hold the arm upright without a torque limit.
+    #[command(flatten)]
+    pub law: LawArgs,
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+impl OrbitArgs {
+    /// The law of the flags over the paper's gains without adaptation (`k = 0`); a reference
+    /// other than hold or a torque limit is a usage error.
+    pub fn law(&self) -> Result<LawSpec, CommandError> {
+        let law = self.law.over(LawSpec::without_adaptation());
+        if law.reference != Trajectory::Hold || law.torque_limit.is_some() {
+            return Err(usage(
+                "`plan orbit` takes no --reference or --torque-limit: its orbits hold the arm \
+                 upright without a torque limit"
+                    .into(),
+            ));
+        }
+        Ok(law)
+    }
 }
 
 /// The JSON of `orbit`.
@@ -52,13 +70,14 @@ pub struct OrbitReport {
 /// Runs `orbit`.
 pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
-    check("kp", args.kp, args.kp > 0.0, "finite and > 0")?;
-    check("kd", args.kd, args.kd > 0.0, "finite and > 0")?;
-    check("k", args.k, args.k >= 0.0, "finite and >= 0")?;
-    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let law = args.law()?;
+    check("kp", law.kp, law.kp > 0.0, "finite and > 0")?;
+    check("kd", law.kd, law.kd > 0.0, "finite and > 0")?;
+    check("k", law.k, law.k >= 0.0, "finite and >= 0")?;
+    let pb = OrbitProblem::new(params, args.model.impact, law.kp, law.kd);
     let base = orbit::find_all(&pb);
-    let (solutions, e_av) = if args.k > 0.0 {
-        let e_av = match args.energy_avg {
+    let (solutions, e_av) = if law.k > 0.0 {
+        let e_av = match args.law.energy_avg {
             Some(e) => check("energy-avg", e, e > 0.0, "finite and > 0 (J)")?,
             None => base.first().map(|s| s.energy_avg).ok_or_else(|| {
                 usage("no k = 0 orbit to take E_av from: give --energy-avg".into())
@@ -69,10 +88,10 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
             .filter_map(|s| {
                 // Continue each branch from k = 0 in steps, the orbit moves with k.
                 let mut g = [s.beta0, s.beta_dot0, s.t_end];
-                let n = (args.k / 100.0).ceil().max(1.0) as usize;
+                let n = (law.k / 100.0).ceil().max(1.0) as usize;
                 let mut last = None;
                 for i in 1..=n {
-                    let kk = args.k * i as f64 / n as f64;
+                    let kk = law.k * i as f64 / n as f64;
                     let sol = orbit::solve(&pb.with_adaptation(kk, e_av), g).ok()?;
                     g = [sol.beta0, sol.beta_dot0, sol.t_end];
                     last = Some(sol);
@@ -86,18 +105,18 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
         (base, None)
     };
     let report = OrbitReport {
-        kp: args.kp,
-        kd: args.kd,
-        k: args.k,
+        kp: law.kp,
+        kd: law.kd,
+        k: law.k,
         energy_avg_adaptation: e_av,
         solutions,
     };
     emit(args.model.json, &report, || {
         let mut s = format!(
             "periodic orbits for K_P = {}, K_D = {}, k = {} ({} found)\n",
-            args.kp,
-            args.kd,
-            args.k,
+            law.kp,
+            law.kd,
+            law.k,
             report.solutions.len()
         );
         for o in &report.solutions {
@@ -272,8 +291,8 @@ fn base_orbit(pb: &OrbitProblem) -> Result<OrbitSolution, CommandError> {
     orbit::smallest(pb).ok_or_else(|| {
         CommandError::Failed(anyhow!(
             "no periodic orbit for K_P = {}, K_D = {}",
-            pb.control.kp,
-            pb.control.kd
+            pb.control.law.kp,
+            pb.control.law.kd
         ))
     })
 }

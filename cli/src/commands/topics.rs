@@ -85,7 +85,7 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
         }
         Topic::Reference => {
             let r: Reference = codec::decode(bytes).map_err(|e| e.to_string())?;
-            out(&r, json, tilting_planner::node::describe(&r))
+            out(&r, json, tilting_controller::LawSpec::from(&r).to_string())
         }
     })
 }

@@ -58,9 +58,10 @@ use nodes::Topology;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tap::Tap;
+use tilting_controller::LawSpec;
 use tilting_link::{Impairment, Jitter, LinkSpec, NetworkArgs};
-use tilting_planner::node::{check_seconds, describe, LawArgs};
-use tilting_proto::{Keys, Reference};
+use tilting_planner::node::{check_seconds, PlannerLawArgs};
+use tilting_proto::Keys;
 
 /// Flags of `tilting live`.
 #[derive(Debug, Clone, clap::Args)]
@@ -104,7 +105,7 @@ pub struct LiveArgs {
     pub certs: Option<PathBuf>,
     /// The controller's law (also published as the planner's reference).
     #[command(flatten)]
-    pub law: LawArgs,
+    pub law: PlannerLawArgs,
     /// An impaired link between plant and controller, emulated by the plant on the wall clock
     /// (the flags of `simulate`).
     #[command(flatten)]
@@ -113,12 +114,9 @@ pub struct LiveArgs {
     /// periods old
     #[arg(long, default_value_t = tilting_plant::node::DEFAULT_MAX_AGE, value_name = "PERIODS")]
     pub max_age: u64,
-    /// The controller predicts the state over the round-trip delay (its --predict): `auto`
-    /// (the default value) estimates the delay from the ages in the plant's status, or give it
-    /// in seconds, in [0, 60]
-    #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
-          value_parser = tilting_controller::predict::parse_predict)]
-    pub predict: Option<tilting_controller::predict::Predict>,
+    /// The controller's --predict.
+    #[command(flatten)]
+    pub predict: tilting_controller::predict::PredictArgs,
 }
 
 /// Largest `--max-age` (periods), as the plant allows.
@@ -150,7 +148,7 @@ struct Job<'a> {
     /// The robot's keys.
     keys: Keys,
     /// The law, published by the planner and given to the controller.
-    reference: Reference,
+    reference: LawSpec,
     /// The link the plant emulates, if impaired.
     impairment: Option<Impairment>,
     /// The output directory.
@@ -235,7 +233,7 @@ fn announce(job: &Job) {
         args.duration,
         args.rate,
         job.keys.robot(),
-        describe(&job.reference)
+        job.reference
     );
     eprintln!("live: recording to {}", job.dir.display());
     if let Some(imp) = &job.impairment {
@@ -269,7 +267,7 @@ async fn live(job: &Job<'_>, bins: &NodeBinaries, signals: Signals) -> anyhow::R
     }
     let mut plant = nodes::spawn_plant(job, &topo, bins)?;
     let zargs = topo.planner_session(job.keys.robot());
-    let tap = Tap::open(&zargs, &job.keys, &recorder, job.reference).await?;
+    let tap = Tap::open(&zargs, &job.keys, &recorder, job.reference.to_wire()).await?;
     let early_end = monitor::wait_for_first_state(&recorder, &mut plant, &signals).await;
     let mut controller = match early_end {
         None => Some(nodes::spawn_controller(job, &topo, bins)?),

@@ -13,7 +13,6 @@ use anyhow::Context as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tilting_net::ZenohArgs;
-use tilting_planner::node::LawArgs;
 
 /// The router of a `--secure` run.
 pub(super) struct Secure {
@@ -183,8 +182,7 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
         "--duration".into(),
         args.duration.to_string(),
     ]);
-    let limit = job.reference.torque_limit;
-    if limit > 0.0 {
+    if let Some(limit) = job.reference.torque_limit {
         // The controller saturates already; the plant's hard limit is the same.
         v.extend(["--torque-limit".into(), limit.to_string()]);
     }
@@ -200,10 +198,8 @@ fn controller_args(job: &Job, topo: &Topology) -> Vec<String> {
     let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
     let peers = [topo.plant_port, topo.my_port];
     v.extend(topo.session_flags("controller", topo.ctl_port, &peers));
-    v.extend(LawArgs::controller_flags(&job.reference));
-    if let Some(p) = job.args.predict {
-        v.push(format!("--predict={p}"));
-    }
+    v.extend(job.reference.to_args());
+    v.extend(job.args.predict.to_args());
     v
 }
 
@@ -289,6 +285,6 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(ctl.predict, live.predict);
-        assert_eq!(ctl.control_config().unwrap().to_wire(), job.reference);
+        assert_eq!(ctl.control_config().unwrap().law, job.reference);
     }
 }

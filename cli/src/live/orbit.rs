@@ -6,8 +6,8 @@
 
 use super::summary::{OrbitState, OrbitVerdict};
 use anyhow::Context as _;
+use tilting_controller::LawSpec;
 use tilting_planner::margins::{self, peaks_hold, Criteria, LAST_PEAKS, SECONDS_PER_TILT};
-use tilting_proto::Reference;
 use tilting_sim::Scenario;
 
 /// Longest wait for the next tilt (s of plant time) before the orbit counts as lost: three
@@ -27,18 +27,14 @@ pub(super) struct OrbitCheck {
 /// and the check against its orbit (`tilting plan margins`' criterion: the same law at 1 kHz
 /// over a perfect network, simulated here in about 0.1 s); no check when the law has no orbit.
 pub(super) async fn nominal(
-    reference: &Reference,
+    law: &LawSpec,
     rate: f64,
     duration: f64,
 ) -> anyhow::Result<(Scenario, Option<OrbitCheck>)> {
     let scenario = Scenario {
-        kp: reference.kp,
-        kd: reference.kd,
-        k: reference.k,
-        energy_avg: Some(reference.energy_avg),
+        law: *law,
         control_period: 1.0 / rate,
         duration,
-        torque_limit: (reference.torque_limit > 0.0).then_some(reference.torque_limit),
         ..Scenario::default()
     };
     let criteria = Criteria::default();

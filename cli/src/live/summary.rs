@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use tilting_controller::node::ControllerSummary;
 use tilting_plant::node::PlantSummary;
-use tilting_proto::{Reference, Status};
+use tilting_proto::Status;
 
 /// How a live run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -64,46 +64,8 @@ impl OrbitVerdict {
     }
 }
 
-/// The law that was published, as in the `Reference` message.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct LawRecord {
-    /// `hold` or `sinusoid`.
-    pub kind: String,
-    /// Sinusoid amplitude (rad).
-    pub amplitude: f64,
-    /// Sinusoid frequency (rad/s).
-    pub omega: f64,
-    /// `K_P0` (1/s^2).
-    pub kp: f64,
-    /// `K_D` (1/s).
-    pub kd: f64,
-    /// `k` (1/(J s^2)).
-    pub k: f64,
-    /// `E_av` (J).
-    pub energy_avg: f64,
-    /// Torque limit (N m), 0 for none.
-    pub torque_limit: f64,
-}
-
-impl From<&Reference> for LawRecord {
-    fn from(r: &Reference) -> Self {
-        Self {
-            kind: if r.kind == Reference::SINUSOID {
-                "sinusoid"
-            } else {
-                "hold"
-            }
-            .to_owned(),
-            amplitude: r.amplitude,
-            omega: r.omega,
-            kp: r.kp,
-            kd: r.kd,
-            k: r.k,
-            energy_avg: r.energy_avg,
-            torque_limit: r.torque_limit,
-        }
-    }
-}
+/// The law that was published, in the layout of the `Reference` message.
+pub use tilting_controller::law::LawRecord;
 
 /// The zenoh endpoints of the three sessions.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]

@@ -5,8 +5,8 @@
 //! `TorqueCommand { seq: state.seq, tau }` on `tilting/{robot}/controller/torque` at once, from
 //! the subscriber's callback (no queue, no extra thread hop).
 //!
-//! The law starts from the flags (`--kp`, `--kd`, `--k`, `--energy-avg`, `--reference`,
-//! `--torque-limit`, `--params`). A valid `Reference` on `tilting/{robot}/planner/reference`
+//! The law starts from the flags ([`LawArgs`]: `--kp`, `--kd`, `--k`, `--energy-avg`,
+//! `--reference`, `--torque-limit`; the model from `--params`). A valid `Reference` on `tilting/{robot}/planner/reference`
 //! replaces its gains and reference (the model parameters stay those of `--params`), unless
 //! `--ignore-planner`. A controller started after the planner still gets the reference: it
 //! queries the planner's queryable on the same key at start-up and each time a planner's
@@ -16,18 +16,17 @@
 //! At Ctrl-C or SIGTERM the node prints a JSON summary of its counters on stdout.
 
 use anyhow::Context as _;
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
-use tilting_plant::{paper, Params, State};
+use tilting_plant::{ParamsArgs, State};
 use tilting_proto::{Keys, PlantState, Status, TorqueCommand};
 
-use crate::predict::{Predict, Predictor};
-use crate::{ComputedTorque, ControlConfig, Reference};
+use crate::predict::{Predict, PredictArgs, Predictor};
+use crate::{ComputedTorque, ControlConfig, LawArgs, LawSpec};
 
 /// Flags of `tilting-controller`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -42,68 +41,32 @@ pub struct ControllerArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
-    /// Base stiffness K_P0 (1/s^2)
-    #[arg(long, default_value_t = paper::ORBIT_KP)]
-    pub kp: f64,
-    /// Damping K_D (1/s)
-    #[arg(long, default_value_t = paper::ORBIT_KD)]
-    pub kd: f64,
-    /// Energy adaptation gain k (1/(J s^2)); 0 = off
-    #[arg(long, default_value_t = paper::ORBIT_K)]
-    pub k: f64,
-    /// Target average energy E_av (J) of the adaptation
-    #[arg(long, default_value_t = paper::ORBIT_ENERGY_AVG)]
-    pub energy_avg: f64,
-    /// Desired arm trajectory: hold or sinusoid:A,w (A in rad, w in rad/s)
-    #[arg(long, default_value = "hold", value_name = "hold|sinusoid:A,w")]
-    pub reference: Reference,
-    /// Symmetric torque saturation (N m); 0 = none
-    #[arg(long, default_value_t = 0.0, value_name = "NM")]
-    pub torque_limit: f64,
-    /// Model parameters of the inverse dynamics (TOML: m_f, m_l, l, f, g); default: the paper's
-    #[arg(long, value_name = "FILE.toml")]
-    pub params: Option<PathBuf>,
+    /// The law, until a planner's reference replaces it (its model stays `--params`).
+    #[command(flatten)]
+    pub law: LawArgs,
+    /// The model of the inverse dynamics and the energy.
+    #[command(flatten)]
+    pub params: ParamsArgs,
     /// Keep the law of the flags: ignore references published by a planner
     #[arg(long)]
     pub ignore_planner: bool,
-    /// Predict the plant's state over the round-trip delay with the hybrid model (impacts and
-    /// mode changes included) and answer for the predicted state: `auto` (the default value)
-    /// estimates the delay from the torque ages in the plant's status, or give the delay in
-    /// seconds, in [0, 60]
-    #[arg(long, value_name = "auto|SECONDS", num_args = 0..=1, default_missing_value = "auto",
-          value_parser = crate::predict::parse_predict)]
-    pub predict: Option<Predict>,
+    /// Prediction over the round-trip delay.
+    #[command(flatten)]
+    pub predict: PredictArgs,
 }
 
 impl ControllerArgs {
     /// The controller settings the flags describe.
     pub fn control_config(&self) -> anyhow::Result<ControlConfig> {
-        let params = match &self.params {
-            Some(p) => Params::from_toml_file(p)?,
-            None => Params::default(),
-        };
-        anyhow::ensure!(
-            self.torque_limit.is_finite() && self.torque_limit >= 0.0,
-            "--torque-limit must be >= 0 (0 = none), got {}",
-            self.torque_limit
-        );
-        let cfg = ControlConfig {
-            params,
-            kp: self.kp,
-            kd: self.kd,
-            k: self.k,
-            energy_avg: self.energy_avg,
-            reference: self.reference,
-            torque_limit: (self.torque_limit > 0.0).then_some(self.torque_limit),
-        };
+        let cfg = ControlConfig::new(self.params.params()?, self.law.over(LawSpec::default()));
         cfg.validate()?;
-        crate::wire::check_bounds(&cfg)?;
+        crate::wire::check_bounds(&cfg.law)?;
         Ok(cfg)
     }
 }
 
 struct Node {
-    params: Params,
+    params: tilting_plant::Params,
     law: Mutex<ComputedTorque>,
     states: DropCounter,
     references: DropCounter,
@@ -286,14 +249,7 @@ impl Node {
             references_dropped: self.references.dropped(),
             references_rejected: self.references_rejected.load(Ordering::Relaxed),
             references_applied: self.references_applied.load(Ordering::Relaxed),
-            law: LawSummary {
-                kp: law.kp,
-                kd: law.kd,
-                k: law.k,
-                energy_avg: law.energy_avg,
-                torque_limit: law.torque_limit,
-                reference: law.reference,
-            },
+            law: law.law,
         }
     }
 }
@@ -321,7 +277,7 @@ pub struct ControllerSummary {
     /// References applied.
     pub references_applied: u64,
     /// The law in force at the end.
-    pub law: LawSummary,
+    pub law: LawSpec,
     /// With `--predict`: the delay predicted over at the end and the counts.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prediction: Option<PredictionSummary>,
@@ -340,23 +296,6 @@ pub struct PredictionSummary {
     pub predictions: u64,
     /// Predictions the model could not make (answered for the state as received).
     pub fallbacks: u64,
-}
-
-/// The law in force, as the controller summary reports it.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct LawSummary {
-    /// `K_P0` (1/s^2).
-    pub kp: f64,
-    /// `K_D` (1/s).
-    pub kd: f64,
-    /// `k` (1/(J s^2)).
-    pub k: f64,
-    /// `E_av` (J).
-    pub energy_avg: f64,
-    /// Torque limit (N m), `null` for none.
-    pub torque_limit: Option<f64>,
-    /// The desired arm trajectory.
-    pub reference: Reference,
 }
 
 impl ControllerSummary {
@@ -410,7 +349,7 @@ async fn run_async(
         ignore_planner: args.ignore_planner,
         planner: _planner.clone(),
         torque,
-        predict: args.predict.map(|p| {
+        predict: args.predict.predict.map(|p| {
             let (delay, estimate) = match p {
                 Predict::Given(d) => (d, false),
                 Predict::Estimated => (0.0, true),
@@ -494,15 +433,16 @@ async fn run_async(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Trajectory;
     use clap::Parser;
 
     #[test]
     fn flags_parse_with_defaults() {
         let a = ControllerArgs::try_parse_from(["tilting-controller"]).unwrap();
-        let c = a.control_config().unwrap();
+        let c = a.control_config().unwrap().law;
         assert_eq!((c.kp, c.kd, c.k), (100.0, 14.14, 500.0));
         assert_eq!(c.energy_avg, 19.963439703027);
-        assert_eq!(c.reference, Reference::Hold);
+        assert_eq!(c.reference, Trajectory::Hold);
         assert_eq!(c.torque_limit, None);
         let a = ControllerArgs::try_parse_from([
             "tilting-controller",
@@ -514,10 +454,10 @@ mod tests {
             "0",
         ])
         .unwrap();
-        let c = a.control_config().unwrap();
+        let c = a.control_config().unwrap().law;
         assert_eq!(
             c.reference,
-            Reference::Sinusoid {
+            Trajectory::Sinusoid {
                 amplitude: 0.33,
                 omega: 5.0
             }
@@ -542,10 +482,10 @@ mod tests {
             energy_avg: 1.0,
             torque_limit: 0.0,
         };
-        let c = ControlConfig::from_wire(Params::default(), &r).unwrap();
+        let c = LawSpec::from_wire(&r).unwrap();
         assert_eq!(
             c.reference,
-            Reference::Sinusoid {
+            Trajectory::Sinusoid {
                 amplitude: 0.2,
                 omega: 3.0
             }
@@ -556,7 +496,7 @@ mod tests {
             torque_limit: 5.0,
             ..r
         };
-        let c = ControlConfig::from_wire(Params::default(), &hold).unwrap();
-        assert_eq!((c.reference, c.torque_limit), (Reference::Hold, Some(5.0)));
+        let c = LawSpec::from_wire(&hold).unwrap();
+        assert_eq!((c.reference, c.torque_limit), (Trajectory::Hold, Some(5.0)));
     }
 }

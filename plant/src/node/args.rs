@@ -85,15 +85,14 @@ pub struct PlantArgs {
     pub mode: Mode,
     /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad/s) [default: the start of the
     /// paper's tilting orbit, `tilting_plant::paper::orbit_x0`]
-    #[arg(long, value_name = "A,B,AD,BD", value_parser = parse_x0, allow_hyphen_values = true)]
+    #[arg(long, value_name = "A,B,AD,BD", value_parser = crate::parse_x0, allow_hyphen_values = true)]
     pub x0: Option<[f64; 4]>,
     /// Landing impact law: paper or striking-edge
     #[arg(long, default_value = "paper")]
     pub impact: ImpactLaw,
-    /// Physical parameters (TOML: m_f, m_l, l, f, g, and the hardware keys l_c, i_l, j_m, n_g,
-    /// b_v, tau_c of docs/model.md); default: the paper's
-    #[arg(long, value_name = "FILE.toml")]
-    pub params: Option<PathBuf>,
+    /// The model's parameter file.
+    #[command(flatten)]
+    pub params: crate::ParamsArgs,
     /// Relative tolerance of the integrator (the absolute one is rtol/100, as in `simulate`)
     #[arg(long, default_value_t = Tolerance::default().rtol)]
     pub rtol: f64,
@@ -122,20 +121,6 @@ pub struct PlantArgs {
     /// Realtime clock: try SCHED_FIFO at this priority for the pacing thread (needs privileges)
     #[arg(long, value_name = "1-99")]
     pub rt_priority: Option<i32>,
-}
-
-pub(super) fn parse_x0(s: &str) -> Result<[f64; 4], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| format!("`{s}`: {e}; expected alpha,beta,alpha_dot,beta_dot"))?;
-    match v.as_slice() {
-        [a, b, c, d] if v.iter().all(|x| x.is_finite()) => Ok([*a, *b, *c, *d]),
-        _ => Err(format!(
-            "`{s}`: expected four finite numbers alpha,beta,alpha_dot,beta_dot"
-        )),
-    }
 }
 
 /// Allowed control periods (s): 100 us (10 kHz; a faster loop spends its period in the
@@ -272,10 +257,7 @@ impl PlantArgs {
     /// The simulator settings (the same convention as `simulate`: `atol = rtol / 100`), with
     /// `--mass-error` applied to the arm mass of `--params`.
     pub fn sim_config(&self) -> anyhow::Result<SimConfig> {
-        let params = match &self.params {
-            Some(p) => Params::from_toml_file(p)?,
-            None => Params::default(),
-        };
+        let params = self.params.params()?;
         let params = self.imperfections()?.plant_params(&params);
         Ok(SimConfig {
             params,

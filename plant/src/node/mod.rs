@@ -73,7 +73,7 @@ use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_proto::{Keys, ModeEvent, PlantState, Status, TorqueCommand};
 
 use crate::{
-    paper, Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, Tolerance,
+    paper, Fault, ImpactLaw, Mode, Observer, Plant, SimConfig, State, TiltPeak, Tolerance,
     Transition,
 };
 pub use args::{

@@ -8,28 +8,15 @@ use super::*;
 pub struct ScenarioArgs {
     /// Initial state alpha,beta,alpha_dot,beta_dot (rad, rad, rad/s, rad/s) [default: start of
     /// the paper's orbit, 0,1.5705814493798966,0,0.498257789692]
-    #[arg(long, value_name = "A,B,AD,BD", value_parser = parse_x0, allow_hyphen_values = true)]
+    #[arg(long, value_name = "A,B,AD,BD", value_parser = tilting_plant::parse_x0, allow_hyphen_values = true)]
     pub x0: Option<[f64; 4]>,
     /// Initial mode: flat, left or right [default: left]
     #[arg(long, value_name = "MODE")]
     pub mode: Option<Mode>,
-    /// Base stiffness gain K_P0 (1/s^2) [default: 100]
-    #[arg(long, allow_negative_numbers = true)]
-    pub kp: Option<f64>,
-    /// Damping gain K_D (1/s) [default: 14.14]
-    #[arg(long, allow_negative_numbers = true)]
-    pub kd: Option<f64>,
-    /// Energy adaptation gain k (1/(J s^2)), 0 to disable [default: 500]
-    #[arg(long, allow_negative_numbers = true)]
-    pub k: Option<f64>,
-    /// Average orbit energy E_av (J) for the adaptation; required when k != 0 unless k and the
-    /// model are the defaults [default: 19.963439703027 with the default k]
-    #[arg(long, allow_negative_numbers = true)]
-    pub energy_avg: Option<f64>,
-    /// Desired arm trajectory: hold (beta_d = pi/2) or sinusoid:A,w (beta_d = A sin(w t) + pi/2,
-    /// A in rad, w in rad/s) [default: hold]
-    #[arg(long, value_name = "hold|sinusoid:A,w")]
-    pub reference: Option<Reference>,
+    /// The law (`simulate` keeps the built-in E_av only with the built-in model, gains and
+    /// reference).
+    #[command(flatten)]
+    pub law: LawArgs,
     /// Landing impact law: paper or striking-edge [default: paper]
     #[arg(long, value_name = "LAW")]
     pub impact: Option<ImpactLaw>,
@@ -39,20 +26,16 @@ pub struct ScenarioArgs {
     /// Zero-order-hold period of the controller (s); 0 for continuous coupling [default: 0]
     #[arg(long, allow_negative_numbers = true)]
     pub control_period: Option<f64>,
-    /// Torque limit (N m) [default: none]
-    #[arg(long, allow_negative_numbers = true)]
-    pub torque_limit: Option<f64>,
     /// Relative tolerance of the integrator; the absolute one is rtol/100 [default: the
     /// plant's default, tilting_plant::Tolerance::default().rtol]
     #[arg(long, allow_negative_numbers = true)]
     pub rtol: Option<f64>,
-    /// Scenario file (TOML); flags override its values
+    /// Scenario file (TOML); flags override its values (--params its [params] table)
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: Option<PathBuf>,
-    /// Parameter file (TOML: m_f, m_l, l, f, g, and the hardware keys l_c, i_l, j_m, n_g, b_v,
-    /// tau_c of docs/model.md); overrides the scenario's [params] table
-    #[arg(long, value_name = "FILE.toml")]
-    pub params: Option<PathBuf>,
+    /// The model's parameter file; overrides the scenario's [params] table.
+    #[command(flatten)]
+    pub params: ParamsArgs,
     /// The plant's own parameter file (model mismatch: the controller keeps --params); overrides
     /// the scenario's [plant_params] table [default: the plant is the controller's model]
     #[arg(long, value_name = "FILE.toml")]
@@ -67,15 +50,10 @@ impl ScenarioArgs {
             plant_params: None,
             x0: self.x0,
             mode: self.mode,
-            kp: self.kp,
-            kd: self.kd,
-            k: self.k,
-            energy_avg: self.energy_avg,
-            reference: self.reference,
+            law: self.law,
             impact: self.impact,
             duration: self.duration,
             control_period: self.control_period,
-            torque_limit: self.torque_limit,
             rtol: self.rtol,
         }
     }
@@ -101,6 +79,7 @@ impl ScenarioArgs {
         let params = ScenarioFile {
             params: self
                 .params
+                .params
                 .as_ref()
                 .map(|p| read(p, "--params"))
                 .transpose()?,
@@ -115,20 +94,4 @@ impl ScenarioArgs {
         s.validate()?;
         Ok(s)
     }
-}
-
-/// Parses `alpha,beta,alpha_dot,beta_dot`.
-pub fn parse_x0(s: &str) -> Result<[f64; 4], String> {
-    let bad = || {
-        format!(
-            "invalid x0 `{s}`: must be four comma-separated numbers alpha,beta,alpha_dot,beta_dot \
-             (rad, rad, rad/s, rad/s)"
-        )
-    };
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| bad())?;
-    v.try_into().map_err(|_| bad())
 }

@@ -16,25 +16,16 @@ pub struct ScenarioFile {
     pub x0: Option<[f64; 4]>,
     /// Initial mode: `"flat"`, `"left"` or `"right"`.
     pub mode: Option<Mode>,
-    /// Base stiffness gain `K_P0` (1/s^2).
-    pub kp: Option<f64>,
-    /// Damping gain `K_D` (1/s).
-    pub kd: Option<f64>,
-    /// Energy adaptation gain `k` (1/(J s^2)).
-    pub k: Option<f64>,
-    /// Average orbit energy `E_av` (J) for the adaptation.
-    pub energy_avg: Option<f64>,
-    /// Desired arm trajectory: `"hold"` or `"sinusoid:A,w"`.
-    #[serde(default, with = "reference_text")]
-    pub reference: Option<Reference>,
+    /// The law's keys (`kp`, `kd`, `k`, `energy_avg`, `reference` as `"hold"` or
+    /// `"sinusoid:A,w"`, `torque_limit`).
+    #[serde(flatten)]
+    pub law: LawArgs,
     /// Landing impact law: `"paper"` or `"striking-edge"`.
     pub impact: Option<ImpactLaw>,
     /// Simulated time (s).
     pub duration: Option<f64>,
     /// Zero-order-hold period of the controller (s); 0 for continuous coupling.
     pub control_period: Option<f64>,
-    /// Torque limit (N m).
-    pub torque_limit: Option<f64>,
     /// Relative tolerance of the integrator.
     pub rtol: Option<f64>,
 }
@@ -53,23 +44,5 @@ impl ScenarioFile {
         };
         let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
         Self::from_toml_str(&text).map_err(|m| err(format!("invalid scenario file: {m}")))
-    }
-}
-
-/// The reference as text in TOML: `"hold"` or `"sinusoid:A,w"`.
-mod reference_text {
-    use super::*;
-
-    pub fn serialize<S: Serializer>(r: &Option<Reference>, s: S) -> Result<S::Ok, S::Error> {
-        match r {
-            Some(r) => s.serialize_some(&r.to_string()),
-            None => s.serialize_none(),
-        }
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Reference>, D::Error> {
-        let s = Option::<String>::deserialize(d)?;
-        s.map(|s| s.parse().map_err(serde::de::Error::custom))
-            .transpose()
     }
 }

@@ -21,7 +21,7 @@
 //! impact = "paper"              # or "striking-edge"
 //! duration = 10                 # s
 //! control_period = 0            # s, 0 = continuous coupling
-//! torque_limit = 200            # N m, omit for none
+//! torque_limit = 200            # N m, 0 or omit for none
 //! rtol = 3e-11                  # the absolute tolerance is rtol / 100
 //!
 //! [params]                      # missing entries keep the paper's values
@@ -33,17 +33,19 @@ mod args;
 mod file;
 mod validate;
 
-pub use args::{parse_x0, ScenarioArgs};
+pub use args::ScenarioArgs;
 pub use file::ScenarioFile;
 use validate::from_config;
 pub use validate::ScenarioError;
 
-use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use tilting_controller::{ComputedTorque, ControlConfig, Reference};
+use tilting_controller::{ComputedTorque, ControlConfig, LawArgs, LawSpec};
 use tilting_plant::dynamics::accelerations;
 use tilting_plant::paper::{orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE};
-use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, SimConfig, State, Tolerance};
+use tilting_plant::{
+    ConfigError, ImpactLaw, Mode, Params, ParamsArgs, SimConfig, State, Tolerance,
+};
 
 /// Default run length (s).
 pub const DEFAULT_DURATION: f64 = 10.0;
@@ -53,7 +55,8 @@ pub const RTOL_RANGE: (f64, f64) = (1e-13, 1e-3);
 pub const MAX_PERIODS: f64 = 1e8;
 
 /// A complete simulation scenario. [`Default`] is the paper's stabilised orbit: start of a left
-/// tilt on the orbit, `K_P0 = 100`, `K_D = 14.14`, `k = 500`, 10 s, continuous coupling.
+/// tilt on the orbit, the law [`LawSpec::default`] (`K_P0 = 100`, `K_D = 14.14`, `k = 500`),
+/// 10 s, continuous coupling.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Scenario {
     /// Physical parameters: the controller's model, and the plant's unless `plant_params` is
@@ -66,17 +69,10 @@ pub struct Scenario {
     pub x0: [f64; 4],
     /// Initial mode.
     pub mode: Mode,
-    /// Base stiffness gain `K_P0` (1/s^2).
-    pub kp: f64,
-    /// Damping gain `K_D` (1/s).
-    pub kd: f64,
-    /// Energy adaptation gain `k` (1/(J s^2)); 0 disables the adaptation.
-    pub k: f64,
-    /// Average orbit energy `E_av` (J); required when `k != 0`.
-    pub energy_avg: Option<f64>,
-    /// Desired arm trajectory.
-    #[serde(serialize_with = "serialize_reference")]
-    pub reference: Reference,
+    /// The control law (its model is `params`). With `k != 0` its `energy_avg` is required:
+    /// 0 stands for none given (see [`Scenario::resolve`]).
+    #[serde(flatten)]
+    pub law: LawSpec,
     /// Landing impact law.
     pub impact: ImpactLaw,
     /// Simulated time (s), from `t = 0`.
@@ -84,14 +80,8 @@ pub struct Scenario {
     /// Zero-order-hold period of the controller (s); 0 for continuous coupling (the torque law
     /// evaluated inside the integrator).
     pub control_period: f64,
-    /// Torque limit (N m); `None` for none.
-    pub torque_limit: Option<f64>,
     /// Relative tolerance of the integrator (the absolute one is `rtol / 100`).
     pub rtol: f64,
-}
-
-fn serialize_reference<S: Serializer>(r: &Reference, s: S) -> Result<S::Ok, S::Error> {
-    s.collect_str(r)
 }
 
 impl Default for Scenario {
@@ -101,15 +91,10 @@ impl Default for Scenario {
             plant_params: None,
             x0: orbit_x0(),
             mode: ORBIT_MODE,
-            kp: ORBIT_KP,
-            kd: ORBIT_KD,
-            k: ORBIT_K,
-            energy_avg: Some(ORBIT_ENERGY_AVG),
-            reference: Reference::Hold,
+            law: LawSpec::default(),
             impact: ImpactLaw::Paper,
             duration: DEFAULT_DURATION,
             control_period: 0.0,
-            torque_limit: None,
             rtol: Tolerance::default().rtol,
         }
     }
@@ -118,13 +103,13 @@ impl Default for Scenario {
 impl Scenario {
     /// Stacks `layers` (later ones win) on the defaults, without validating.
     ///
-    /// The built-in `E_av` belongs to the built-in `k` and to the model and gains the orbit was
-    /// computed with: it is dropped (so that [`Scenario::validate`] asks for it when `k != 0`)
-    /// unless some layer gives `energy_avg` explicitly, or no layer sets `k` and the params,
-    /// `kp`, `kd`, impact law and reference are the paper's.
+    /// The built-in `E_av` belongs to the built-in law and to the model it was computed with:
+    /// it is dropped (set to 0, so that [`Scenario::validate`] asks for it when `k != 0`)
+    /// unless some layer gives `energy_avg` explicitly, or the params, `kp`, `kd`, `k`, impact
+    /// law and reference are the built-in ones ([`Scenario::builtin_differences`]), whether
+    /// given or not.
     pub fn resolve(layers: &[&ScenarioFile]) -> Self {
         let mut s = Self::default();
-        let mut k_given = false;
         let mut e_given = false;
         for l in layers {
             if let Some(v) = l.params {
@@ -139,23 +124,8 @@ impl Scenario {
             if let Some(v) = l.mode {
                 s.mode = v;
             }
-            if let Some(v) = l.kp {
-                s.kp = v;
-            }
-            if let Some(v) = l.kd {
-                s.kd = v;
-            }
-            if let Some(v) = l.k {
-                s.k = v;
-                k_given = true;
-            }
-            if let Some(v) = l.energy_avg {
-                s.energy_avg = Some(v);
-                e_given = true;
-            }
-            if let Some(v) = l.reference {
-                s.reference = v;
-            }
+            s.law = l.law.over(s.law);
+            e_given |= l.law.energy_avg.is_some();
             if let Some(v) = l.impact {
                 s.impact = v;
             }
@@ -165,27 +135,48 @@ impl Scenario {
             if let Some(v) = l.control_period {
                 s.control_period = v;
             }
-            if let Some(v) = l.torque_limit {
-                s.torque_limit = Some(v);
-            }
             if let Some(v) = l.rtol {
                 s.rtol = v;
             }
         }
-        if !e_given && (k_given || !s.is_paper_model()) {
-            s.energy_avg = None;
+        if !e_given && !s.builtin_differences().is_empty() {
+            s.law.energy_avg = 0.0;
         }
         s
     }
 
-    /// Are the params, gains, impact law and reference those the built-in orbit (and its
-    /// `E_av`) was computed with?
-    pub fn is_paper_model(&self) -> bool {
-        self.params == Params::default()
-            && self.kp == ORBIT_KP
-            && self.kd == ORBIT_KD
-            && self.impact == ImpactLaw::Paper
-            && self.reference == Reference::Hold
+    /// What differs from the built-in scenario among the settings its `E_av` was computed
+    /// for (the params, `kp`, `kd`, `k`, impact law and reference), e.g. `["k = 300 (built-in
+    /// 500)"]`; empty when none does.
+    pub fn builtin_differences(&self) -> Vec<String> {
+        let b = Self::default();
+        let mut d = Vec::new();
+        if self.params != b.params {
+            d.push("params (built-in: the paper's)".to_owned());
+        }
+        for (name, v, bv) in [
+            ("kp", self.law.kp, b.law.kp),
+            ("kd", self.law.kd, b.law.kd),
+            ("k", self.law.k, b.law.k),
+        ] {
+            if v != bv {
+                d.push(format!("{name} = {v} (built-in {bv})"));
+            }
+        }
+        if self.impact != b.impact {
+            d.push(format!(
+                "impact = {} (built-in {})",
+                self.impact.as_str(),
+                b.impact.as_str()
+            ));
+        }
+        if self.law.reference != b.law.reference {
+            d.push(format!(
+                "reference = {} (built-in {})",
+                self.law.reference, b.law.reference
+            ));
+        }
+        d
     }
 
     /// Parses and validates scenario TOML text (missing keys keep the defaults).
@@ -238,15 +229,7 @@ impl Scenario {
 
     /// The controller settings (its model is `params`, whatever the plant's).
     pub fn control_config(&self) -> ControlConfig {
-        ControlConfig {
-            params: self.params,
-            kp: self.kp,
-            kd: self.kd,
-            k: self.k,
-            energy_avg: self.energy_avg.unwrap_or(0.0),
-            reference: self.reference,
-            torque_limit: self.torque_limit,
-        }
+        ControlConfig::new(self.params, self.law)
     }
 
     /// The controller.
@@ -259,49 +242,110 @@ impl Scenario {
 mod tests {
     use super::*;
     use std::f64::consts::FRAC_PI_2;
+    use tilting_controller::Trajectory;
 
     #[test]
     fn default_is_valid_and_the_orbit() {
         let s = Scenario::default();
         s.validate().unwrap();
         assert_eq!(s.mode, Mode::Left);
-        assert_eq!(s.energy_avg, Some(ORBIT_ENERGY_AVG));
+        assert_eq!(s.law.energy_avg, ORBIT_ENERGY_AVG);
         assert_eq!(Scenario::resolve(&[]), s);
     }
 
+    fn law(law: LawArgs) -> ScenarioFile {
+        ScenarioFile {
+            law,
+            ..Default::default()
+        }
+    }
+
     #[test]
-    fn explicit_k_needs_explicit_energy() {
-        let l = ScenarioFile {
+    fn another_k_needs_explicit_energy() {
+        let l = law(LawArgs {
             k: Some(300.0),
             ..Default::default()
-        };
+        });
         let s = Scenario::resolve(&[&l]);
-        assert_eq!(s.energy_avg, None);
+        assert_eq!(s.law.energy_avg, 0.0);
         let e = s.validate().unwrap_err().to_string();
-        assert!(e.contains("energy_avg"), "{e}");
-        let l2 = ScenarioFile {
+        // The error says what differs from the built-in scenario.
+        assert!(
+            e.contains("`energy_avg`") && e.contains("k = 300 (built-in 500)"),
+            "{e}"
+        );
+        let l2 = law(LawArgs {
             energy_avg: Some(20.0),
             ..Default::default()
-        };
+        });
         // The energy from a lower layer survives a k from a higher one.
         let s = Scenario::resolve(&[&l2, &l]);
-        assert_eq!(s.energy_avg, Some(20.0));
+        assert_eq!(s.law.energy_avg, 20.0);
         s.validate().unwrap();
         // k = 0 needs no energy.
-        let l0 = ScenarioFile {
+        let l0 = law(LawArgs {
             k: Some(0.0),
             ..Default::default()
-        };
+        });
         Scenario::resolve(&[&l0]).validate().unwrap();
     }
 
     #[test]
-    fn other_gains_drop_the_builtin_energy() {
-        let l = ScenarioFile {
-            kp: Some(120.0),
+    fn the_builtin_k_given_explicitly_keeps_the_builtin_energy() {
+        // `--k 500` is the default: the scenario is the built-in one, with or without it.
+        let l = law(LawArgs {
+            k: Some(ORBIT_K),
+            ..Default::default()
+        });
+        let flat = ScenarioFile {
+            mode: Some(Mode::Flat),
+            x0: Some([0.0, FRAC_PI_2, 0.0, 0.0]),
             ..Default::default()
         };
-        assert_eq!(Scenario::resolve(&[&l]).energy_avg, None);
+        for layers in [vec![&l], vec![&flat, &l]] {
+            let s = Scenario::resolve(&layers);
+            s.validate().unwrap();
+            assert_eq!(s, Scenario::resolve(&layers[..layers.len() - 1]));
+            assert_eq!(s.law.energy_avg, ORBIT_ENERGY_AVG);
+        }
+    }
+
+    #[test]
+    fn other_gains_drop_the_builtin_energy_and_say_so() {
+        for (l, what) in [
+            (
+                law(LawArgs {
+                    kp: Some(120.0),
+                    ..Default::default()
+                }),
+                "kp = 120 (built-in 100)",
+            ),
+            (
+                law(LawArgs {
+                    reference: Some(Trajectory::Sinusoid {
+                        amplitude: 0.1,
+                        omega: 2.0,
+                    }),
+                    ..Default::default()
+                }),
+                "reference = sinusoid:0.1,2 (built-in hold)",
+            ),
+            (
+                ScenarioFile {
+                    impact: Some(ImpactLaw::StrikingEdge),
+                    ..Default::default()
+                },
+                "impact = striking-edge (built-in paper)",
+            ),
+        ] {
+            let s = Scenario::resolve(&[&l]);
+            assert_eq!(s.law.energy_avg, 0.0);
+            let e = s.validate().unwrap_err().to_string();
+            assert!(
+                e.contains("missing `energy_avg`") && e.contains(what),
+                "{e}"
+            );
+        }
     }
 
     #[test]
@@ -315,8 +359,8 @@ mod tests {
         assert_eq!(s.params.l, 1.5);
         assert_eq!(s.params.m_f, 1.0);
         assert_eq!(
-            s.reference,
-            Reference::Sinusoid {
+            s.law.reference,
+            Trajectory::Sinusoid {
                 amplitude: 0.3,
                 omega: 5.0
             }
@@ -357,10 +401,10 @@ mod tests {
                 "control_period",
             ),
             (
-                ScenarioFile {
+                law(LawArgs {
                     kd: Some(-1.0),
                     ..Default::default()
-                },
+                }),
                 "kd",
             ),
             (
@@ -371,10 +415,10 @@ mod tests {
                 "rtol",
             ),
             (
-                ScenarioFile {
-                    torque_limit: Some(0.0),
+                law(LawArgs {
+                    torque_limit: Some(-1.0),
                     ..Default::default()
-                },
+                }),
                 "torque_limit",
             ),
             (
@@ -436,14 +480,7 @@ mod tests {
             .map(|l| l.strip_prefix("//!").unwrap().trim_start().to_string() + "\n")
             .collect();
         let s = Scenario::from_toml_str(&text).unwrap();
-        assert_eq!(s.torque_limit, Some(200.0));
-        assert_eq!(s.energy_avg, Some(ORBIT_ENERGY_AVG));
-    }
-
-    #[test]
-    fn x0_parser() {
-        assert_eq!(parse_x0("0, 1.5,-2,3e-1").unwrap(), [0.0, 1.5, -2.0, 0.3]);
-        assert!(parse_x0("0,1,2").is_err());
-        assert!(parse_x0("0,1,2,x").is_err());
+        assert_eq!(s.law.torque_limit, Some(200.0));
+        assert_eq!(s.law.energy_avg, ORBIT_ENERGY_AVG);
     }
 }

@@ -73,6 +73,25 @@ pub(super) fn from_config(e: ConfigError, prefix: &str, flag: &str) -> ScenarioE
     }
 }
 
+/// Maps an error of the law onto the scenario's naming: the key and its flag (the sinusoid's
+/// amplitude and frequency are set by `--reference`).
+fn law_error(e: ConfigError) -> ScenarioError {
+    match e {
+        ConfigError::OutOfRange {
+            field,
+            value,
+            allowed,
+        } => {
+            let flag = match field {
+                "amplitude" | "omega" => "--reference".to_owned(),
+                f => format!("--{}", f.replace('_', "-")),
+            };
+            out_of_range(field, &flag, value, allowed)
+        }
+        other => from_config(other, "", "law"),
+    }
+}
+
 impl Scenario {
     /// Checks every value, naming the first bad one and its allowed range.
     pub fn validate(&self) -> Result<(), ScenarioError> {
@@ -88,49 +107,14 @@ impl Scenario {
                 )
             })?;
         }
-        let gain = |field: &str, v: f64| {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(out_of_range(
-                    field,
-                    &format!("--{field}"),
-                    v,
-                    "finite and >= 0",
-                ))
-            }
-        };
-        gain("kp", self.kp)?;
-        gain("kd", self.kd)?;
-        gain("k", self.k)?;
-        match self.energy_avg {
-            Some(e) if !e.is_finite() => {
-                return Err(out_of_range("energy_avg", "--energy-avg", e, "finite (J)"))
-            }
-            None if self.k != 0.0 => {
-                return Err(ScenarioError::Missing {
-                    field: "energy_avg".into(),
-                    flag: "--energy-avg".into(),
-                    why: format!(
-                        "required when k != 0 (k = {}): the built-in E_av = {ORBIT_ENERGY_AVG} J \
-                         is the average energy of the paper's orbit and goes only with the \
-                         built-in k and the paper's params, kp = {ORBIT_KP}, kd = {ORBIT_KD}, \
-                         impact law and hold reference; give --energy-avg E (J) or --k 0",
-                        self.k
-                    ),
-                });
-            }
-            _ => {}
-        }
-        if let Reference::Sinusoid { amplitude, omega } = self.reference {
-            if !(amplitude.is_finite() && omega.is_finite() && omega > 0.0) {
-                return Err(out_of_range(
-                    "reference",
-                    "--reference",
-                    self.reference,
-                    "hold or sinusoid:A,w with A finite (rad) and w finite and > 0 (rad/s)",
-                ));
-            }
+        match self.law.validate() {
+            // No E_av given (0) while the adaptation is on: say what differs from the built-in
+            // scenario, whose E_av would do.
+            Err(ConfigError::OutOfRange {
+                field: "energy_avg",
+                ..
+            }) if self.law.energy_avg == 0.0 => return Err(self.missing_energy()),
+            r => r.map_err(law_error)?,
         }
         if !(self.duration.is_finite() && self.duration > 0.0) {
             return Err(out_of_range(
@@ -164,16 +148,6 @@ impl Scenario {
                 ),
             ));
         }
-        if let Some(l) = self.torque_limit {
-            if !(l.is_finite() && l > 0.0) {
-                return Err(out_of_range(
-                    "torque_limit",
-                    "--torque-limit",
-                    l,
-                    "finite and > 0 (N m); omit it for no limit",
-                ));
-            }
-        }
         if !(self.rtol.is_finite() && self.rtol >= RTOL_RANGE.0 && self.rtol <= RTOL_RANGE.1) {
             return Err(out_of_range(
                 "rtol",
@@ -186,6 +160,27 @@ impl Scenario {
         // The controller and plant check again; they must agree with the checks above.
         self.controller()?;
         Ok(())
+    }
+
+    /// The error for an adaptation (`k != 0`) without `E_av`.
+    fn missing_energy(&self) -> ScenarioError {
+        let differs = self.builtin_differences();
+        ScenarioError::Missing {
+            field: "energy_avg".into(),
+            flag: "--energy-avg".into(),
+            why: format!(
+                "required when k != 0 (k = {}): the built-in E_av = {ORBIT_ENERGY_AVG} J is the \
+                 average energy of the paper's orbit and goes only with the built-in k = \
+                 {ORBIT_K}, the paper's params, kp = {ORBIT_KP}, kd = {ORBIT_KD}, impact law and \
+                 hold reference; here {}; give --energy-avg E (J) or --k 0",
+                self.law.k,
+                if differs.is_empty() {
+                    "energy_avg is 0".to_owned()
+                } else {
+                    differs.join(", ")
+                }
+            ),
+        }
     }
 
     fn validate_initial_state(&self) -> Result<(), ScenarioError> {

@@ -105,13 +105,15 @@ pub(super) fn fig5(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig5Summary> {
                 let w = sol.omega;
                 let law = ComputedTorque::new(ControlConfig {
                     params: p,
-                    kp: KP,
-                    kd: KD,
-                    reference: Reference::Sinusoid {
-                        amplitude: FIG5_A,
-                        omega: w,
+                    law: LawSpec {
+                        kp: KP,
+                        kd: KD,
+                        reference: Trajectory::Sinusoid {
+                            amplitude: FIG5_A,
+                            omega: w,
+                        },
+                        ..LawSpec::without_adaptation()
                     },
-                    ..ControlConfig::default()
                 })?;
                 let x0 = State::new(0.0, FRAC_PI_2, 0.0, FIG5_A * w);
                 let duration = ctx.set.periods * sol.period;

@@ -44,8 +44,11 @@ pub(super) fn fig7(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig7Summary> {
     tick();
     let law = |k: f64| {
         ComputedTorque::new(ControlConfig {
-            k,
-            energy_avg: o.energy_avg,
+            law: LawSpec {
+                k,
+                energy_avg: o.energy_avg,
+                ..pb.control.law
+            },
             ..pb.control
         })
     };

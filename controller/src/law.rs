@@ -1,0 +1,400 @@
+//! The law specification: one home for the control law's settings (gains, energy target,
+//! desired trajectory, torque limit), in every form they take.
+//!
+//! - [`LawSpec`]: a complete law, as the controller runs it, the planner publishes it and a
+//!   scenario simulates it; its JSON is the `law` of the controller's summary;
+//! - [`LawArgs`]: the same settings as flags (`--kp`, `--kd`, `--k`, `--energy-avg`,
+//!   `--reference`, `--torque-limit`) and as scenario-file keys (`kp`, `kd`, `k`, `energy_avg`,
+//!   `reference`, `torque_limit`), every one optional: a layer over a lower one
+//!   ([`LawArgs::over`]). It is flattened into each command and node that takes a law, and
+//!   [`LawArgs::to_args`] turns it back into the flags for a child process;
+//! - [`LawRecord`]: the law in the flat layout of the wire message, for the planner's summary
+//!   and `live`'s `summary.json`;
+//! - the wire message itself ([`tilting_proto::Reference`]) is converted in one place,
+//!   [`crate::wire`].
+//!
+//! A torque limit of 0 means none, in the flags, the files and on the wire.
+
+use crate::Trajectory;
+use serde::{Deserialize, Serialize};
+use tilting_plant::paper;
+use tilting_plant::params::{finite, non_negative};
+use tilting_plant::ConfigError;
+
+/// A complete control law: the computed-torque PD
+/// `v = beta_d_ddot + K_D (beta_d_dot - beta_dot) + K_P (beta_d - beta)` with the adapted
+/// stiffness `K_P = K_P0 + k (E_av - E)`, tracking `reference`, the torque clipped to
+/// `torque_limit`. [`Default`] is the paper's stabilised
+/// orbit (`K_P0 = 100`, `K_D = 14.14`, `k = 500`, `E_av` of the orbit, hold, no limit), the
+/// default of every command.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LawSpec {
+    /// Base stiffness gain `K_P0` (1/s^2).
+    pub kp: f64,
+    /// Damping gain `K_D` (1/s).
+    pub kd: f64,
+    /// Energy adaptation gain `k` (1/(J s^2)); 0 disables the adaptation.
+    pub k: f64,
+    /// Average energy `E_av` (J) of the orbit to stabilise (unused when `k = 0`).
+    pub energy_avg: f64,
+    /// Torque limit (N m): the torque is clipped to `[-limit, limit]`; `None` (`null`) for no
+    /// limit.
+    pub torque_limit: Option<f64>,
+    /// Desired arm trajectory.
+    pub reference: Trajectory,
+}
+
+impl Default for LawSpec {
+    /// The paper's stabilised orbit ([`tilting_plant::paper`]).
+    fn default() -> Self {
+        Self {
+            kp: paper::ORBIT_KP,
+            kd: paper::ORBIT_KD,
+            k: paper::ORBIT_K,
+            energy_avg: paper::ORBIT_ENERGY_AVG,
+            torque_limit: None,
+            reference: Trajectory::Hold,
+        }
+    }
+}
+
+impl LawSpec {
+    /// The paper's gains without adaptation (`k = 0`, `E_av = 0`), holding upright, no limit.
+    pub fn without_adaptation() -> Self {
+        Self {
+            k: 0.0,
+            energy_avg: 0.0,
+            ..Self::default()
+        }
+    }
+
+    /// Checks every setting, naming the first bad one and its range (the model parameters are
+    /// checked by [`crate::ControlConfig::validate`]).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        non_negative("kp", self.kp)?;
+        non_negative("kd", self.kd)?;
+        non_negative("k", self.k)?;
+        finite("energy_avg", self.energy_avg)?;
+        if self.k > 0.0 && self.energy_avg <= 0.0 {
+            // The adaptation needs the orbit's average energy; 0 (the default) would make
+            // K_P = K_P0 - k E, a large negative stiffness.
+            return Err(ConfigError::OutOfRange {
+                field: "energy_avg",
+                value: self.energy_avg.to_string(),
+                allowed: "> 0 (the orbit's average energy in J) when k > 0",
+            });
+        }
+        if let Trajectory::Sinusoid { amplitude, omega } = self.reference {
+            finite("amplitude", amplitude)?;
+            tilting_plant::params::positive("omega", omega)?;
+        }
+        if let Some(l) = self.torque_limit {
+            if !(l.is_finite() && l > 0.0) {
+                return Err(ConfigError::OutOfRange {
+                    field: "torque_limit",
+                    value: l.to_string(),
+                    allowed: "finite and > 0 (N m), or 0 for none",
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The flags that give this law to a child process (every setting explicit, a torque
+    /// limit of 0 for none): `LawArgs::parse(to_args()).over(anything)` is `self`.
+    pub fn to_args(&self) -> Vec<String> {
+        LawArgs::from(*self).to_args()
+    }
+}
+
+impl std::fmt::Display for LawSpec {
+    /// One line: `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J, torque limit none`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit ",
+            self.reference, self.kp, self.kd, self.k, self.energy_avg
+        )?;
+        match self.torque_limit {
+            Some(l) => write!(f, "{l} N m"),
+            None => f.write_str("none"),
+        }
+    }
+}
+
+/// The law's settings as flags and scenario-file keys, each optional: an unset one keeps the
+/// value of the layer below ([`LawArgs::over`]). Flatten it with `#[command(flatten)]` into a
+/// command's flags and with `#[serde(flatten)]` into a file's keys.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+pub struct LawArgs {
+    /// Base stiffness gain K_P0 (1/s^2) [default: 100]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "1/S2", allow_negative_numbers = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kp: Option<f64>,
+    /// Damping gain K_D (1/s) [default: 14.14]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "1/S", allow_negative_numbers = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kd: Option<f64>,
+    /// Energy adaptation gain k (1/(J s^2)); 0 = off [default: 500]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "1/(J S2)", allow_negative_numbers = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<f64>,
+    /// Target average energy E_av (J) of the adaptation [default: 19.963439703027, the paper's
+    /// stabilised orbit; `simulate` keeps it only with the built-in model, gains and reference]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "J", allow_negative_numbers = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy_avg: Option<f64>,
+    /// Desired arm trajectory: hold (beta_d = pi/2) or sinusoid:A,w (beta_d = A sin(w t) + pi/2,
+    /// A in rad, w in rad/s) [default: hold]
+    #[cfg_attr(feature = "clap", arg(long, value_name = "hold|sinusoid:A,w"))]
+    #[serde(
+        default,
+        with = "crate::trajectory::text",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub reference: Option<Trajectory>,
+    /// Symmetric torque saturation (N m); 0 = none [default: none]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "NM", allow_negative_numbers = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub torque_limit: Option<f64>,
+}
+
+impl LawArgs {
+    /// The law of these settings over `base`: each setting given here replaces `base`'s (a
+    /// torque limit of 0 meaning none). Not validated.
+    pub fn over(&self, base: LawSpec) -> LawSpec {
+        LawSpec {
+            kp: self.kp.unwrap_or(base.kp),
+            kd: self.kd.unwrap_or(base.kd),
+            k: self.k.unwrap_or(base.k),
+            energy_avg: self.energy_avg.unwrap_or(base.energy_avg),
+            torque_limit: match self.torque_limit {
+                Some(0.0) => None,
+                Some(l) => Some(l),
+                None => base.torque_limit,
+            },
+            reference: self.reference.unwrap_or(base.reference),
+        }
+    }
+
+    /// The flags of the settings given (as `--flag=value`, so that negative numbers pass):
+    /// parsing them gives `self` back.
+    pub fn to_args(&self) -> Vec<String> {
+        let num = |name: &str, v: Option<f64>| v.map(|v| format!("--{name}={v}"));
+        [
+            num("kp", self.kp),
+            num("kd", self.kd),
+            num("k", self.k),
+            num("energy-avg", self.energy_avg),
+            self.reference.map(|r| format!("--reference={r}")),
+            num("torque-limit", self.torque_limit),
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+}
+
+impl From<LawSpec> for LawArgs {
+    /// Every setting given (no torque limit as 0).
+    fn from(l: LawSpec) -> Self {
+        Self {
+            kp: Some(l.kp),
+            kd: Some(l.kd),
+            k: Some(l.k),
+            energy_avg: Some(l.energy_avg),
+            reference: Some(l.reference),
+            torque_limit: Some(l.torque_limit.unwrap_or(0.0)),
+        }
+    }
+}
+
+/// The law in the flat layout of the wire message ([`tilting_proto::Reference`]) with the
+/// trajectory's kind by name: the `reference` of the planner's summary and of `live`'s
+/// `summary.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LawRecord {
+    /// `hold` or `sinusoid` ([`Trajectory::name`]).
+    pub kind: String,
+    /// Sinusoid amplitude (rad); 0 for hold.
+    pub amplitude: f64,
+    /// Sinusoid frequency (rad/s); 0 for hold.
+    pub omega: f64,
+    /// `K_P0` (1/s^2).
+    pub kp: f64,
+    /// `K_D` (1/s).
+    pub kd: f64,
+    /// `k` (1/(J s^2)).
+    pub k: f64,
+    /// `E_av` (J).
+    pub energy_avg: f64,
+    /// Torque limit (N m), 0 for none.
+    pub torque_limit: f64,
+}
+
+impl From<&LawSpec> for LawRecord {
+    fn from(l: &LawSpec) -> Self {
+        let (amplitude, omega) = l.reference.sinusoid();
+        Self {
+            kind: l.reference.name().to_owned(),
+            amplitude,
+            omega,
+            kp: l.kp,
+            kd: l.kd,
+            k: l.k,
+            energy_avg: l.energy_avg,
+            torque_limit: l.torque_limit.unwrap_or(0.0),
+        }
+    }
+}
+
+#[cfg(all(test, feature = "clap"))]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        law: LawArgs,
+    }
+
+    fn parse(args: &[String]) -> LawArgs {
+        let argv = std::iter::once("x".to_owned()).chain(args.iter().cloned());
+        Cli::try_parse_from(argv).unwrap().law
+    }
+
+    #[test]
+    fn to_args_round_trips() {
+        let sin = Trajectory::Sinusoid {
+            amplitude: -0.33,
+            omega: 1.0 / 3.0,
+        };
+        let layers = [
+            LawArgs::default(),
+            LawArgs {
+                kp: Some(60.0),
+                ..LawArgs::default()
+            },
+            LawArgs {
+                kd: Some(0.1 + 0.2),
+                energy_avg: Some(-1e-300),
+                reference: Some(sin),
+                torque_limit: Some(0.0),
+                ..LawArgs::default()
+            },
+            LawArgs::from(LawSpec::default()),
+            LawArgs {
+                k: Some(1234.5678),
+                reference: Some(Trajectory::Hold),
+                torque_limit: Some(40.0),
+                ..LawArgs::from(LawSpec::without_adaptation())
+            },
+        ];
+        for x in layers {
+            assert_eq!(parse(&x.to_args()), x, "{:?}", x.to_args());
+        }
+        let specs = [
+            LawSpec::default(),
+            LawSpec::without_adaptation(),
+            LawSpec {
+                kp: 60.0,
+                kd: 12.0,
+                k: 2500.0,
+                energy_avg: 19.963439703027 * 3.0,
+                torque_limit: Some(5.5),
+                reference: sin,
+            },
+        ];
+        // Over a base that differs everywhere: every setting comes from the flags.
+        let other = LawSpec {
+            kp: 1.0,
+            kd: 2.0,
+            k: 3.0,
+            energy_avg: 4.0,
+            torque_limit: Some(7.0),
+            reference: Trajectory::Sinusoid {
+                amplitude: 0.1,
+                omega: 9.0,
+            },
+        };
+        for x in specs {
+            assert_eq!(parse(&x.to_args()).over(other), x, "{:?}", x.to_args());
+        }
+    }
+
+    #[test]
+    fn unset_flags_keep_the_base_and_zero_limit_is_none() {
+        let base = LawSpec {
+            torque_limit: Some(3.0),
+            ..LawSpec::default()
+        };
+        assert_eq!(LawArgs::default().over(base), base);
+        let l = parse(&[
+            "--kd".into(),
+            "2".into(),
+            "--torque-limit".into(),
+            "0".into(),
+        ]);
+        assert_eq!(
+            l.over(base),
+            LawSpec {
+                kd: 2.0,
+                torque_limit: None,
+                ..base
+            }
+        );
+    }
+
+    #[test]
+    fn the_help_states_the_defaults_of_the_spec() {
+        use clap::CommandFactory;
+        let help = Cli::command().render_long_help().to_string();
+        let d = LawSpec::default();
+        for v in [d.kp, d.kd, d.k, d.energy_avg] {
+            assert!(help.contains(&format!("[default: {v}")), "{v}: {help}");
+        }
+        assert!(help.contains(&format!("[default: {}]", d.reference)));
+    }
+
+    #[test]
+    fn json_forms() {
+        let l = LawSpec {
+            reference: Trajectory::Sinusoid {
+                amplitude: 0.2,
+                omega: 3.0,
+            },
+            ..LawSpec::default()
+        };
+        let v = serde_json::to_value(l).unwrap();
+        assert_eq!(v["reference"]["kind"], l.reference.name());
+        assert_eq!(v["torque_limit"], serde_json::Value::Null);
+        assert_eq!(serde_json::from_value::<LawSpec>(v).unwrap(), l);
+        let r = serde_json::to_value(LawRecord::from(&l)).unwrap();
+        assert_eq!(r["kind"], "sinusoid");
+        assert_eq!(
+            (r["omega"].as_f64(), r["torque_limit"].as_f64()),
+            (Some(3.0), Some(0.0))
+        );
+        // The scenario files' text form.
+        let a: LawArgs =
+            serde_json::from_str(r#"{"reference": "sinusoid:0.2,3", "k": 0}"#).unwrap();
+        assert_eq!((a.reference, a.k), (Some(l.reference), Some(0.0)));
+    }
+}
