@@ -24,12 +24,12 @@
 //!
 //! ```
 //! use tilting_proto::{encode, Keys, TorqueCommand, PlantState, Topic};
-//! use tilting_record::{read, Recorder};
+//! use tilting_record::{read, McapWriter};
 //!
 //! let dir = tempfile::tempdir().unwrap();
 //! let path = dir.path().join("run.mcap");
 //! let keys = Keys::new("demo").unwrap();
-//! let mut rec = Recorder::create(&path, &keys).unwrap();
+//! let mut rec = McapWriter::create(&path, &keys).unwrap();
 //! let s = PlantState { seq: 0, time: 0.0, alpha: 0.0, beta: 1.5, alpha_dot: 0.0, beta_dot: 0.0, mode: 0 };
 //! rec.record(Topic::State, &encode(&s)).unwrap();
 //! rec.record(Topic::Torque, &encode(&TorqueCommand { seq: 0, tau: 0.25 })).unwrap();
@@ -43,15 +43,19 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod csv;
 pub mod reader;
+pub mod recorder;
 pub mod schema;
+pub mod sink;
 pub mod trace;
 pub mod writer;
 
 pub use reader::{read, Entry, ReadError, Recording};
+pub use recorder::{Record, RecordError, RecordSender, RecordView, Recorder};
 pub use tilting_proto::Topic;
 pub use trace::{load, EventRecord, LoadError, Loaded, Sample, Trace, Window};
-pub use writer::{Recorder, FLUSH_INTERVAL};
+pub use writer::{McapWriter, FLUSH_INTERVAL};
 
 /// `message_encoding` of the channels.
 pub const JSON_ENCODING: &str = "json";

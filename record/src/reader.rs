@@ -315,7 +315,7 @@ impl Recording {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Recorder;
+    use crate::McapWriter;
     use tilting_proto::{encode, Keys, PlantState, TorqueCommand};
 
     fn state(seq: u64) -> PlantState {
@@ -334,7 +334,7 @@ mod tests {
     /// length at that flush.
     fn write(dir: &Path, n: u64, flushed: u64) -> (PathBuf, usize) {
         let path = dir.join("run.mcap");
-        let mut rec = Recorder::create(&path, &Keys::new("bot").unwrap()).unwrap();
+        let mut rec = McapWriter::create(&path, &Keys::new("bot").unwrap()).unwrap();
         let mut at_flush = 0;
         for k in 0..n {
             rec.record(Topic::State, &encode(&state(k))).unwrap();

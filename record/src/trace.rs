@@ -418,7 +418,7 @@ fn for_rows<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Recorder;
+    use crate::McapWriter;
     use tilting_proto::{encode, Keys};
 
     fn write(dir: &Path, state: &str, events: &str) {
@@ -513,7 +513,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let d = tmp.path();
         let mcap = d.join(RUN_MCAP);
-        let mut rec = Recorder::create(&mcap, &Keys::new("t").unwrap()).unwrap();
+        let mut rec = McapWriter::create(&mcap, &Keys::new("t").unwrap()).unwrap();
         let mut rows = format!("{STATE_HEADER}\n");
         for k in 0..1000u64 {
             let s = state(k, if k < 500 { 1 } else { 2 });

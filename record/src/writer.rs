@@ -1,4 +1,4 @@
-//! [`Recorder`]: writes a robot's messages into an MCAP file as they arrive.
+//! [`McapWriter`]: writes a robot's messages into an MCAP file as they arrive.
 
 use crate::{json_topic, schema, JSON_ENCODING};
 use mcap::records::{MessageHeader, Metadata};
@@ -45,7 +45,7 @@ pub enum WriteError {
 
 /// Writes the five topics of one robot into an MCAP file (see the crate documentation for the
 /// channels). Not thread-safe: one writer thread owns it.
-pub struct Recorder {
+pub struct McapWriter {
     writer: Writer<BufWriter<File>>,
     path: PathBuf,
     json: [u16; 5],
@@ -60,7 +60,7 @@ pub struct Recorder {
     dirty: bool,
 }
 
-impl Recorder {
+impl McapWriter {
     /// Creates `path` and writes the header, the schemas, the five channels and a `tilting`
     /// metadata record naming the robot.
     pub fn create(path: &Path, keys: &Keys) -> Result<Self, WriteError> {
@@ -119,7 +119,7 @@ impl Recorder {
 
     /// Records one wire payload of `topic` as its JSON object, at the plant time it carries
     /// (see the crate documentation). A payload that does not decode and validate is counted
-    /// ([`Recorder::invalid`]) and not written. Closes the current chunk when
+    /// ([`McapWriter::invalid`]) and not written. Closes the current chunk when
     /// [`FLUSH_INTERVAL`] has passed.
     pub fn record(&mut self, topic: Topic, wire: &[u8]) -> Result<(), WriteError> {
         let Ok((json, time)) = self.decode(topic, wire) else {

@@ -6,7 +6,7 @@
 use std::process::Command;
 use std::time::Duration;
 use tilting::commands::topics::{HzReport, InvalidPayload};
-use tilting_proto::{PlantState, TorqueCommand};
+use tilting_proto::{PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -97,6 +97,19 @@ async fn echo_and_hz_look_at_a_running_loop() {
         );
         assert_eq!(t.bytes_per_msg, Some(size), "{topic}");
     }
+
+    // record: 2 s of every topic as received, into an MCAP file that reads back complete with
+    // the counts the command printed.
+    let mcap = dir.path().join("record.mcap");
+    let text = look(&["record", "--out", mcap.to_str().unwrap(), "--seconds", "2"]);
+    let run = tilting_record::read(&mcap).unwrap();
+    assert!(run.complete());
+    let (states, torques) = (run.count(Topic::State), run.count(Topic::Torque));
+    assert!(states > 1000 && torques > 1000, "{text}");
+    assert!(
+        text.contains(&format!("{states} state, {torques} torque")),
+        "{text}"
+    );
     let _ = client.session.close().await;
     assert!(ctl.interrupt(Duration::from_secs(10)).success());
     assert!(plant.interrupt(Duration::from_secs(10)).success());

@@ -9,15 +9,11 @@ use anyhow::anyhow;
 use clap::Args;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{sync_channel, RecvTimeoutError, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tilting_net::{Qos, RawPublisher, Role, ZenohArgs};
 use tilting_proto::{Keys, Topic};
-use tilting_record::{Recorder, Recording};
-
-/// Capacity of the queue between the subscribers and the file (messages): 30 s at 1 kHz.
-const QUEUE: usize = 1 << 15;
+use tilting_record::{recorder, Record, Recorder, Recording};
 
 /// Flags of `tilting record`.
 #[derive(Debug, Clone, Args)]
@@ -48,28 +44,31 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
     check_seconds("--seconds", args.seconds)?;
     check_seconds("--wait", Some(args.wait))?;
     let keys = session_args(&args.zenoh)?;
-    let mut rec = Recorder::create(&args.out, &keys)
+    // Every message as received (re-publications too): the recording replays what was sent.
+    let opts = recorder::Options {
+        mcap: args.out.clone(),
+        csv_dir: None,
+        skip_repeats: false,
+    };
+    let rec = Recorder::with_options(&opts, &keys)
         .map_err(|e| CommandError::Failed(anyhow!("--out {e}")))?;
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     rt.block_on(async {
         let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
-        let (tx, rx) = sync_channel::<(Topic, Vec<u8>)>(QUEUE);
-        let dropped = Arc::new(AtomicU64::new(0));
+        let received = Arc::new(AtomicU64::new(0));
         let mut subs = Vec::new();
         for topic in Topic::ALL {
-            let tx = tx.clone();
-            let d = dropped.clone();
+            let tx = rec.sender();
+            let n = received.clone();
             let key = topic.key(&keys).to_owned();
             subs.push(
                 tilting_net::subscribe_bytes(&session, &key, move |bytes| {
-                    if let Err(TrySendError::Full(_)) = tx.try_send((topic, bytes.to_vec())) {
-                        d.fetch_add(1, Ordering::Relaxed);
-                    }
+                    n.fetch_add(1, Ordering::Relaxed);
+                    tx.send(Record::Wire(topic, bytes.to_vec()));
                 })
                 .await?,
             );
         }
-        drop(tx);
         eprintln!(
             "record: tilting/{}/** into {} (Ctrl-C stops)",
             keys.robot(),
@@ -79,22 +78,9 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
         let end = args.seconds.map(|s| start + Duration::from_secs_f64(s));
         let wait = Duration::from_secs_f64(args.wait);
         let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
-        let mut total = 0u64;
         let mut last_report = Instant::now();
-        loop {
-            if end.is_some_and(|e| Instant::now() >= e) {
-                break;
-            }
-            match rx.recv_timeout(Duration::ZERO) {
-                Ok((topic, bytes)) => {
-                    rec.record(topic, &bytes)?;
-                    total += 1;
-                    continue;
-                }
-                Err(RecvTimeoutError::Disconnected) => break,
-                Err(RecvTimeoutError::Timeout) => {}
-            }
-            rec.flush_if_due()?;
+        while end.is_none_or(|e| Instant::now() < e) {
+            let total = received.load(Ordering::Relaxed);
             if total == 0 && start.elapsed() >= wait {
                 drop(subs);
                 let _ = session.close().await;
@@ -117,28 +103,25 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
             }
             tokio::select! {
                 _ = &mut stop => break,
-                _ = tokio::time::sleep(Duration::from_millis(2)) => {}
+                _ = tokio::time::sleep(Duration::from_millis(20)) => {}
             }
         }
+        // What was queued before the subscribers went away is written by `finish`.
         drop(subs);
-        // What was queued before the subscribers went away.
-        while let Ok((topic, bytes)) = rx.try_recv() {
-            rec.record(topic, &bytes)?;
-        }
         let _ = session.close().await;
+        let dropped = rec.dropped();
+        let view = rec.finish()?;
         let counts: Vec<String> = Topic::ALL
             .iter()
-            .map(|&t| format!("{} {}", rec.count(t), t))
+            .map(|&t| format!("{} {}", view.count(t), t))
             .collect();
-        let invalid = rec.invalid();
-        rec.finish()?;
         eprintln!();
         print_stdout(&format!(
-            "recorded {} into {}: {}; invalid {invalid}, dropped {}\n",
+            "recorded {} into {}: {}; invalid {}, dropped {dropped}\n",
             keys.robot(),
             args.out.display(),
             counts.join(", "),
-            dropped.load(Ordering::Relaxed)
+            view.invalid,
         ))
         .map_err(|e| anyhow!("{e}"))?;
         anyhow::Ok(())

@@ -7,11 +7,12 @@ use super::print_stdout;
 use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
-use std::sync::mpsc::{sync_channel, TrySendError};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_net::{Role, ZenohArgs};
 use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
+use tilting_record::sink::{Drain, Sink};
 
 /// Parses a topic name for clap (`state`, `torque`, `event`, `status`, `reference`).
 pub fn parse_topic(s: &str) -> Result<Topic, String> {
@@ -136,53 +137,93 @@ pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
         let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
         // The callback only queues: printing (maybe into a slow pipe) must not hold a zenoh
         // thread. A full queue skips messages and says how many.
-        let (tx, rx) = sync_channel::<Vec<u8>>(4096);
-        let skipped = Arc::new(Mutex::new(0u64));
-        let sk = skipped.clone();
+        let printed = Arc::new(AtomicU64::new(0));
+        let failed = Arc::new(AtomicBool::new(false));
+        let printer = Printer {
+            topic: args.topic,
+            json: args.json,
+            limit: args.count,
+            printed: printed.clone(),
+            failed: failed.clone(),
+            error: None,
+        };
+        let sink = Sink::spawn("echo", 4096, Duration::from_millis(100), printer)?;
         let key = args.topic.key(&keys).to_owned();
-        let _sub = tilting_net::subscribe_bytes(&session, &key, move |bytes| {
-            if let Err(TrySendError::Full(_)) = tx.try_send(bytes.to_vec()) {
-                *sk.lock().unwrap_or_else(|e| e.into_inner()) += 1;
-            }
-        })
-        .await?;
+        let tx = sink.sender();
+        let sub =
+            tilting_net::subscribe_bytes(&session, &key, move |bytes| tx.send(bytes.to_vec()))
+                .await?;
         eprintln!("echo: {key} (Ctrl-C stops)");
         let end = args
             .seconds
             .map(|s| Instant::now() + Duration::from_secs_f64(s));
-        let mut n = 0u64;
         let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
-        loop {
-            if args.count.is_some_and(|c| n >= c) || end.is_some_and(|e| Instant::now() >= e) {
-                break;
+        while !(args
+            .count
+            .is_some_and(|c| printed.load(Ordering::Relaxed) >= c)
+            || end.is_some_and(|e| Instant::now() >= e)
+            || failed.load(Ordering::Relaxed))
+        {
+            tokio::select! {
+                _ = &mut stop => break,
+                _ = tokio::time::sleep(Duration::from_millis(2)) => {}
             }
-            let bytes = match rx.try_recv() {
-                Ok(b) => b,
-                Err(_) => {
-                    tokio::select! {
-                        _ = &mut stop => break,
-                        _ = tokio::time::sleep(Duration::from_millis(2)) => continue,
-                    }
-                }
-            };
-            n += 1;
-            let line = match describe(args.topic, &bytes, args.json) {
-                Ok(l) => l,
-                Err(invalid) if args.json => {
-                    serde_json::to_string(&InvalidPayload { invalid }).unwrap_or_default()
-                }
-                Err(e) => format!("invalid payload ({} bytes): {e}", bytes.len()),
-            };
-            print_stdout(&format!("{line}\n")).map_err(|e| anyhow!("{e}"))?;
         }
-        let skipped = *skipped.lock().unwrap_or_else(|e| e.into_inner());
+        drop(sub);
+        let skipped = sink.dropped();
+        // Messages queued before the stop are printed (up to `--count`).
+        let printed = sink.finish()?;
         if skipped > 0 {
             eprintln!("echo: skipped {skipped} messages (the output was too slow)");
         }
         let _ = session.close().await;
-        anyhow::Ok(())
+        printed.map_err(|e| anyhow!("{e}"))
     })
     .map_err(CommandError::Failed)
+}
+
+/// `echo`'s end of its queue: prints each payload as a line, up to `limit`.
+struct Printer {
+    topic: Topic,
+    json: bool,
+    limit: Option<u64>,
+    printed: Arc<AtomicU64>,
+    /// Set when stdout fails (the first error is kept in `error`).
+    failed: Arc<AtomicBool>,
+    error: Option<CommandError>,
+}
+
+impl Drain<Vec<u8>> for Printer {
+    type Output = Result<(), CommandError>;
+
+    fn message(&mut self, bytes: Vec<u8>) {
+        let n = self.printed.load(Ordering::Relaxed);
+        if self.error.is_some() || self.limit.is_some_and(|c| n >= c) {
+            return;
+        }
+        let line = match describe(self.topic, &bytes, self.json) {
+            Ok(l) => l,
+            Err(invalid) if self.json => {
+                serde_json::to_string(&InvalidPayload { invalid }).unwrap_or_default()
+            }
+            Err(e) => format!("invalid payload ({} bytes): {e}", bytes.len()),
+        };
+        match print_stdout(&format!("{line}\n")) {
+            Ok(()) => {
+                self.printed.store(n + 1, Ordering::Relaxed);
+            }
+            Err(e) => {
+                self.error = Some(e);
+                self.failed.store(true, Ordering::Relaxed);
+            }
+        }
+    }
+
+    fn idle(&mut self) {}
+
+    fn finish(self) -> Result<(), CommandError> {
+        self.error.map_or(Ok(()), Err)
+    }
 }
 
 /// Flags of `tilting hz`.

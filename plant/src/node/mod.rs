@@ -53,7 +53,8 @@
 mod args;
 pub mod clock;
 mod control_loop;
-pub mod csv;
+/// CSV files written by whole rows (the recordings' [`tilting_record::csv`]).
+pub use tilting_record::csv;
 mod emulation;
 mod inbox;
 mod recording;

@@ -11,7 +11,7 @@ use super::STATE_COLUMNS;
 use anyhow::Context as _;
 use std::path::Path;
 use tilting_proto::{encode, Keys, ModeEvent, PlantState, Status, Topic, TorqueCommand};
-use tilting_record::Recorder;
+use tilting_record::McapWriter;
 
 /// An open `--record` file.
 pub(super) enum Recording {
@@ -19,7 +19,7 @@ pub(super) enum Recording {
     Csv(RowWriter),
     /// Anything else: MCAP.
     Mcap {
-        rec: Box<Recorder>,
+        rec: Box<McapWriter>,
         last_state: Option<u64>,
     },
 }
@@ -37,7 +37,7 @@ impl Recording {
             )
         } else {
             Recording::Mcap {
-                rec: Box::new(Recorder::create(path, keys).context("--record")?),
+                rec: Box::new(McapWriter::create(path, keys).context("--record")?),
                 last_state: None,
             }
         })

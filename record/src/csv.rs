@@ -6,8 +6,8 @@
 //! the rows of the current interval in memory and writes them with one `write(2)` call when the
 //! interval ends (or the buffer grows past [`RowWriter::MAX_BUFFER`]): the file only ever grows
 //! by whole rows, and a kill loses at most the last interval. (A `write` to a regular file is
-//! not interrupted by a signal once it has started.) The plant's `--record` and the recording of
-//! `tilting live` both use it.
+//! not interrupted by a signal once it has started.) The plant's `--record` and the
+//! [`crate::Recorder`] of `tilting live` both use it.
 
 use std::fs::File;
 use std::io::Write as _;

@@ -1,0 +1,619 @@
+//! [`Recorder`]: the one recorder of a robot's topics as a subscriber receives them, for
+//! `tilting live` and `tilting record`. Streams with flat memory into an MCAP file
+//! ([`McapWriter`]) and optionally into the CSV files of a live run's directory
+//! ([`crate::trace`]: `state.csv`, `torque.csv`, `events.csv`, by [`RowWriter`]).
+//!
+//! Both files grow by whole records only, at least every 100 ms (MCAP: one closed chunk; CSV:
+//! whole rows): a run killed with SIGKILL leaves everything up to the last flush readable, and
+//! no torn row.
+//!
+//! Subscriber callbacks hand messages to a [`RecordSender`], which never blocks: one writer
+//! thread drains a bounded queue ([`Sink`]), and a message that finds the queue full is counted
+//! as dropped. With [`Options::skip_repeats`], repeated samples (the plant re-publishes state 0
+//! while it waits for a controller, and its controller answers each copy) are written once.
+//! A [`RecordView`] of what was written is kept for a status line and a summary.
+
+use crate::csv::RowWriter;
+use crate::sink::{Drain, Panicked, Sink, SinkSender};
+use crate::trace::{
+    EVENTS_CSV, EVENTS_HEADER, RUN_MCAP, STATE_CSV, STATE_HEADER, TORQUE_CSV, TORQUE_HEADER,
+};
+use crate::writer::{McapWriter, WriteError};
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tilting_proto::{
+    codec, encode, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand,
+};
+
+/// Capacity of the queue to the writer thread (messages): about 30 s of a 1 kHz loop.
+const QUEUE: usize = 1 << 15;
+/// Tilt peaks kept for the status line and the summary.
+const PEAKS: usize = 16;
+/// Longest time the view lags behind the files when messages are few.
+const VIEW_INTERVAL: Duration = Duration::from_millis(20);
+
+/// A message to record.
+#[derive(Debug, Clone)]
+pub enum Record {
+    /// A plant state.
+    State(PlantState),
+    /// A torque answer.
+    Torque(TorqueCommand),
+    /// A mode transition.
+    Event(ModeEvent),
+    /// A plant status.
+    Status(Status),
+    /// A reference of the planner.
+    Reference(Reference),
+    /// A payload as received on `topic`'s key, decoded (and counted as invalid if it does not
+    /// decode and validate) by the writer thread.
+    Wire(Topic, Vec<u8>),
+}
+
+/// What the recording has seen so far (for the status line and the summary).
+#[derive(Debug, Clone, Default)]
+pub struct RecordView {
+    /// The latest state written.
+    pub last_state: Option<PlantState>,
+    /// States recorded.
+    pub states: u64,
+    /// Torques recorded.
+    pub torques: u64,
+    /// Events recorded.
+    pub events: u64,
+    /// Status messages recorded.
+    pub statuses: u64,
+    /// References recorded.
+    pub references: u64,
+    /// Wire payloads that did not decode or validate (not written).
+    pub invalid: u64,
+    /// Flat → tilted events.
+    pub tilts: u64,
+    /// States skipped because their `seq` was not above the last one (re-publications).
+    pub repeated_states: u64,
+    /// Torques skipped likewise.
+    pub repeated_torques: u64,
+    /// States missing between two consecutive rows (gaps in `seq`).
+    pub missing_states: u64,
+    /// The last tilt peaks `(t, alpha)` seen in the sampled states (extreme `alpha` of each
+    /// completed tilt, and, once the recording ends, of a tilt in progress whose `|alpha|` has
+    /// already turned back), oldest first.
+    pub peaks: VecDeque<(f64, f64)>,
+}
+
+impl RecordView {
+    /// Messages recorded on `topic`.
+    pub fn count(&self, topic: Topic) -> u64 {
+        match topic {
+            Topic::State => self.states,
+            Topic::Torque => self.torques,
+            Topic::Event => self.events,
+            Topic::Status => self.statuses,
+            Topic::Reference => self.references,
+        }
+    }
+}
+
+/// What a [`Recorder`] writes.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The MCAP file.
+    pub mcap: PathBuf,
+    /// Also write the three CSV files into this directory.
+    pub csv_dir: Option<PathBuf>,
+    /// Write a state or a torque only if its `seq` is above the last one's.
+    pub skip_repeats: bool,
+}
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// A CSV file could not be created or written.
+    #[error("{path}: {cause}")]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        cause: std::io::Error,
+    },
+    /// The MCAP file could not be created or written.
+    #[error(transparent)]
+    Mcap(#[from] WriteError),
+    /// The writer thread could not start, or panicked.
+    #[error("the recording thread: {0}")]
+    Thread(String),
+}
+
+/// The recorder: a writer thread and what it has written so far.
+pub struct Recorder {
+    sink: Sink<Record, Writer>,
+    view: Arc<Mutex<RecordView>>,
+}
+
+/// A cheap, cloneable handle for subscriber callbacks.
+pub type RecordSender = SinkSender<Record>;
+
+impl Recorder {
+    /// The recording of a live run: [`RUN_MCAP`] for `keys`' robot in `dir`, with `csv` the
+    /// three CSV files (with their headers), repeats skipped.
+    pub fn create(dir: &Path, keys: &Keys, csv: bool) -> Result<Self, RecordError> {
+        let opts = Options {
+            mcap: dir.join(RUN_MCAP),
+            csv_dir: csv.then(|| dir.to_path_buf()),
+            skip_repeats: true,
+        };
+        Self::with_options(&opts, keys)
+    }
+
+    /// Creates the files of `opts` and starts the writer thread.
+    pub fn with_options(opts: &Options, keys: &Keys) -> Result<Self, RecordError> {
+        let csv = match &opts.csv_dir {
+            Some(dir) => {
+                let open = |name: &str, header: &str| {
+                    let path = dir.join(name);
+                    RowWriter::create(&path, header, RowWriter::INTERVAL)
+                        .map_err(|cause| RecordError::Csv { path, cause })
+                };
+                Some(CsvFiles {
+                    state: open(STATE_CSV, STATE_HEADER)?,
+                    torque: open(TORQUE_CSV, TORQUE_HEADER)?,
+                    events: open(EVENTS_CSV, EVENTS_HEADER)?,
+                    dir: dir.clone(),
+                })
+            }
+            None => None,
+        };
+        let view = Arc::new(Mutex::new(RecordView::default()));
+        let writer = Writer {
+            mcap: McapWriter::create(&opts.mcap, keys)?,
+            csv,
+            skip_repeats: opts.skip_repeats,
+            shared: view.clone(),
+            local: RecordView::default(),
+            pending: 0,
+            last_state: None,
+            last_torque: None,
+            tilt: None,
+            result: Ok(()),
+        };
+        let sink = Sink::spawn("record", QUEUE, VIEW_INTERVAL, writer)
+            .map_err(|e| RecordError::Thread(e.to_string()))?;
+        Ok(Self { sink, view })
+    }
+
+    /// A handle for callbacks.
+    pub fn sender(&self) -> RecordSender {
+        self.sink.sender()
+    }
+
+    /// A snapshot of what was written so far (at most [`VIEW_INTERVAL`] old while messages
+    /// are few, 64 messages behind while they stream).
+    pub fn view(&self) -> RecordView {
+        self.view.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+
+    /// Messages dropped because the writer fell behind.
+    pub fn dropped(&self) -> u64 {
+        self.sink.dropped()
+    }
+
+    /// Writes what is queued, flushes and closes the files; returns the final view. Messages
+    /// sent afterwards are ignored.
+    pub fn finish(self) -> Result<RecordView, RecordError> {
+        self.sink
+            .finish()
+            .map_err(|Panicked(p)| RecordError::Thread(format!("{p} panicked")))?
+    }
+}
+
+struct CsvFiles {
+    state: RowWriter,
+    torque: RowWriter,
+    events: RowWriter,
+    dir: PathBuf,
+}
+
+/// The current tilt, for peak tracking: its mode and extreme alpha so far.
+struct Tilt {
+    mode: u8,
+    /// Time and `alpha` of the sample of largest `|alpha|` so far.
+    t: f64,
+    alpha: f64,
+    /// `alpha` of the latest sample of the tilt.
+    last: f64,
+}
+
+/// The writer thread's state.
+struct Writer {
+    mcap: McapWriter,
+    csv: Option<CsvFiles>,
+    skip_repeats: bool,
+    /// The view the recorder reads, published every 64 messages or when idle.
+    shared: Arc<Mutex<RecordView>>,
+    local: RecordView,
+    pending: u32,
+    last_state: Option<u64>,
+    last_torque: Option<u64>,
+    tilt: Option<Tilt>,
+    /// The first error; the thread keeps draining after it so senders never block.
+    result: Result<(), RecordError>,
+}
+
+impl Writer {
+    fn publish(&mut self) {
+        self.pending = 0;
+        *self.shared.lock().unwrap_or_else(|e| e.into_inner()) = self.local.clone();
+    }
+
+    fn csv_error(&self, name: &str) -> impl FnOnce(std::io::Error) -> RecordError {
+        let path = self
+            .csv
+            .as_ref()
+            .map_or_else(PathBuf::new, |c| c.dir.join(name));
+        move |cause| RecordError::Csv { path, cause }
+    }
+
+    /// A wire payload as the message it encodes, `None` (counted) if it does not decode.
+    fn decode(&mut self, topic: Topic, wire: &[u8]) -> Option<Record> {
+        let r = match topic {
+            Topic::State => codec::decode(wire).map(Record::State),
+            Topic::Torque => codec::decode(wire).map(Record::Torque),
+            Topic::Event => codec::decode(wire).map(Record::Event),
+            Topic::Status => codec::decode(wire).map(Record::Status),
+            Topic::Reference => codec::decode(wire).map(Record::Reference),
+        };
+        if r.is_err() {
+            self.local.invalid += 1;
+        }
+        r.ok()
+    }
+
+    fn write(&mut self, rec: Record) -> Result<(), RecordError> {
+        match rec {
+            Record::Wire(topic, wire) => {
+                if let Some(r) = self.decode(topic, &wire) {
+                    self.write(r)?;
+                }
+            }
+            Record::State(s) => {
+                if self.skip_repeats && self.last_state.is_some_and(|l| s.seq <= l) {
+                    self.local.repeated_states += 1;
+                    return Ok(());
+                }
+                if let Some(last) = self.last_state.filter(|&last| s.seq > last) {
+                    self.local.missing_states += s.seq - last - 1;
+                }
+                self.last_state = Some(s.seq);
+                self.local.states += 1;
+                self.local.last_state = Some(s);
+                track_peak(&mut self.tilt, &s, &mut self.local.peaks);
+                self.mcap.record(Topic::State, &encode(&s))?;
+                if self.csv.is_some() {
+                    let e = self.csv_error(STATE_CSV);
+                    if let Some(c) = &mut self.csv {
+                        c.state
+                            .row(format_args!(
+                                "{},{},{},{},{},{},{}",
+                                s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                            ))
+                            .map_err(e)?;
+                    }
+                }
+            }
+            Record::Torque(t) => {
+                if self.skip_repeats && self.last_torque.is_some_and(|l| t.seq <= l) {
+                    self.local.repeated_torques += 1;
+                    return Ok(());
+                }
+                self.last_torque = Some(t.seq);
+                self.local.torques += 1;
+                self.mcap.record(Topic::Torque, &encode(&t))?;
+                if self.csv.is_some() {
+                    let e = self.csv_error(TORQUE_CSV);
+                    if let Some(c) = &mut self.csv {
+                        c.torque
+                            .row(format_args!("{},{}", t.seq, t.tau))
+                            .map_err(e)?;
+                    }
+                }
+            }
+            Record::Event(ev) => {
+                self.local.events += 1;
+                if ev.from == 0 && ev.to != 0 {
+                    self.local.tilts += 1;
+                }
+                self.mcap.record(Topic::Event, &encode(&ev))?;
+                if self.csv.is_some() {
+                    let e = self.csv_error(EVENTS_CSV);
+                    if let Some(c) = &mut self.csv {
+                        let (b, a) = (ev.x_before, ev.x_after);
+                        c.events
+                            .row(format_args!(
+                                "{},{},{},{},{},{},{},{},{},{},{}",
+                                ev.time,
+                                ev.from,
+                                ev.to,
+                                b[0],
+                                b[1],
+                                b[2],
+                                b[3],
+                                a[0],
+                                a[1],
+                                a[2],
+                                a[3]
+                            ))
+                            .map_err(e)?;
+                    }
+                }
+            }
+            Record::Status(st) => {
+                self.local.statuses += 1;
+                self.mcap.record(Topic::Status, &encode(&st))?;
+            }
+            Record::Reference(r) => {
+                self.local.references += 1;
+                self.mcap.record(Topic::Reference, &encode(&r))?;
+            }
+        }
+        Ok(())
+    }
+
+    fn flush_if_due(&mut self) -> Result<(), RecordError> {
+        self.mcap.flush_if_due()?;
+        if let Some(c) = &mut self.csv {
+            for (w, name) in [
+                (&mut c.state, STATE_CSV),
+                (&mut c.torque, TORQUE_CSV),
+                (&mut c.events, EVENTS_CSV),
+            ] {
+                w.flush_if_due().map_err(|cause| RecordError::Csv {
+                    path: c.dir.join(name),
+                    cause,
+                })?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drain<Record> for Writer {
+    type Output = Result<RecordView, RecordError>;
+
+    fn message(&mut self, rec: Record) {
+        if self.result.is_ok() {
+            self.result = self.write(rec);
+        }
+        self.pending += 1;
+        if self.pending >= 64 {
+            self.publish();
+        }
+    }
+
+    fn idle(&mut self) {
+        if self.result.is_ok() {
+            self.result = self.flush_if_due();
+        }
+        if self.pending > 0 {
+            self.publish();
+        }
+    }
+
+    fn finish(mut self) -> Result<RecordView, RecordError> {
+        finish_peak(&self.tilt, &mut self.local.peaks);
+        self.publish();
+        std::mem::replace(&mut self.result, Ok(()))?;
+        self.mcap.finish()?;
+        if let Some(mut c) = self.csv {
+            for (w, name) in [
+                (&mut c.state, STATE_CSV),
+                (&mut c.torque, TORQUE_CSV),
+                (&mut c.events, EVENTS_CSV),
+            ] {
+                w.flush().map_err(|cause| RecordError::Csv {
+                    path: c.dir.join(name),
+                    cause,
+                })?;
+            }
+        }
+        Ok(self.local)
+    }
+}
+
+fn push_peak(peaks: &mut VecDeque<(f64, f64)>, peak: (f64, f64)) {
+    if peaks.len() == PEAKS {
+        peaks.pop_front();
+    }
+    peaks.push_back(peak);
+}
+
+fn track_peak(tilt: &mut Option<Tilt>, s: &PlantState, peaks: &mut VecDeque<(f64, f64)>) {
+    let same = tilt.as_ref().is_some_and(|c| c.mode == s.mode);
+    if !same {
+        if let Some(done) = tilt.take() {
+            push_peak(peaks, (done.t, done.alpha));
+        }
+        if s.mode != 0 {
+            *tilt = Some(Tilt {
+                mode: s.mode,
+                t: s.time,
+                alpha: s.alpha,
+                last: s.alpha,
+            });
+        }
+    } else if let Some(c) = tilt {
+        c.last = s.alpha;
+        if s.alpha.abs() > c.alpha.abs() {
+            c.alpha = s.alpha;
+            c.t = s.time;
+        }
+    }
+}
+
+/// At the end of a recording: the tilt still in progress has reached its peak if `|alpha|` has
+/// come back down since its largest sample; that peak belongs to the run although the tilt has
+/// not landed. (A tilt whose `|alpha|` is still growing at the last sample has no peak yet.)
+fn finish_peak(tilt: &Option<Tilt>, peaks: &mut VecDeque<(f64, f64)>) {
+    if let Some(c) = tilt {
+        if c.last.abs() < c.alpha.abs() {
+            push_peak(peaks, (c.t, c.alpha));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(seq: u64, mode: u8, alpha: f64) -> PlantState {
+        PlantState {
+            seq,
+            time: seq as f64 * 1e-3,
+            alpha,
+            beta: 1.5,
+            alpha_dot: 0.0,
+            beta_dot: 0.0,
+            mode,
+        }
+    }
+
+    fn keys() -> Keys {
+        Keys::new("t").unwrap()
+    }
+
+    #[test]
+    fn a_peak_reached_in_the_unfinished_last_tilt_counts() {
+        // The truth is the samples themselves: alpha rises to its largest sample, then falls
+        // (a peak, though the tilt never lands) or only rises (no peak yet).
+        for (turned_back, want) in [(true, 1), (false, 0)] {
+            let tmp = tempfile::tempdir().unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false).unwrap();
+            let tx = rec.sender();
+            let n = if turned_back { 60 } else { 20 };
+            for k in 0..n {
+                tx.send(Record::State(state(k, 1, 0.03 * (k as f64 * 0.06).sin())));
+            }
+            let v = rec.finish().unwrap();
+            assert_eq!(v.peaks.len(), want, "turned back: {turned_back}");
+            if turned_back {
+                let best = (0..n)
+                    .max_by(|&a, &b| (a as f64 * 0.06).sin().total_cmp(&(b as f64 * 0.06).sin()));
+                let k = best.unwrap();
+                assert_eq!(
+                    v.peaks[0],
+                    (k as f64 * 1e-3, 0.03 * (k as f64 * 0.06).sin())
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn writes_dedups_and_tracks_peaks() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().to_path_buf();
+        let rec = Recorder::create(&dir, &keys(), true).unwrap();
+        let tx = rec.sender();
+        tx.send(Record::State(state(0, 1, 0.0)));
+        tx.send(Record::State(state(0, 1, 0.0))); // re-published
+        tx.send(Record::Torque(TorqueCommand { seq: 0, tau: 1.0 }));
+        tx.send(Record::Torque(TorqueCommand { seq: 0, tau: 1.0 }));
+        for k in 1..100u64 {
+            let (mode, alpha) = if k < 50 {
+                (1, 0.01 * (k as f64 * 0.06).sin())
+            } else {
+                (2, -0.02 * ((k - 50) as f64 * 0.06).sin())
+            };
+            tx.send(Record::State(state(k, mode, alpha)));
+            tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.5 }));
+        }
+        tx.send(Record::State(state(105, 0, 0.0))); // a gap of 5
+        tx.send(Record::Event(ModeEvent {
+            seq: 49,
+            time: 0.0495,
+            from: 1,
+            to: 0,
+            x_before: [0.0, 1.0, -0.1, 0.2],
+            x_after: [0.0, 1.0, 0.0, -0.2],
+        }));
+        tx.send(Record::Event(ModeEvent {
+            seq: 49,
+            time: 0.0495,
+            from: 0,
+            to: 2,
+            x_before: [0.0, 1.0, 0.0, -0.2],
+            x_after: [0.0, 1.0, 0.0, -0.2],
+        }));
+        let v = rec.finish().unwrap();
+        assert_eq!((v.states, v.torques, v.events, v.tilts), (101, 100, 2, 1));
+        assert_eq!((v.repeated_states, v.repeated_torques), (1, 1));
+        assert_eq!(v.missing_states, 5);
+        assert_eq!(v.peaks.len(), 2);
+        let want = (1..50)
+            .map(|k| 0.01 * (k as f64 * 0.06).sin())
+            .fold(0.0, f64::max);
+        assert_eq!(v.peaks[0].1, want);
+        assert!(v.peaks[1].1 < -0.019);
+        let text = std::fs::read_to_string(dir.join(STATE_CSV)).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some(STATE_HEADER));
+        assert_eq!(lines.next(), Some("0,0,1,0,1.5,0,0"));
+        assert_eq!(text.lines().count(), 102);
+        let ev = std::fs::read_to_string(dir.join(EVENTS_CSV)).unwrap();
+        assert_eq!(ev.lines().nth(2), Some("0.0495,0,2,0,1,0,-0.2,0,1,0,-0.2"));
+        // The MCAP recording holds the same, deduplicated.
+        let run = crate::read(&dir.join(RUN_MCAP)).unwrap();
+        assert!(run.complete());
+        assert_eq!(
+            (
+                run.count(Topic::State),
+                run.count(Topic::Torque),
+                run.count(Topic::Event)
+            ),
+            (101, 100, 2)
+        );
+        let tr = crate::load(&dir, Default::default(), None).unwrap().trace;
+        assert_eq!((tr.samples.len(), tr.events.len()), (101, 2));
+        assert_eq!(tr.end, 0.105);
+        // And so do the CSV files.
+        std::fs::remove_file(dir.join(RUN_MCAP)).unwrap();
+        let csv = crate::load(&dir, Default::default(), None).unwrap().trace;
+        assert_eq!(csv, tr);
+    }
+
+    /// Wire payloads as received: every copy kept without `skip_repeats`, one that does not
+    /// decode counted and not written.
+    #[test]
+    fn wire_payloads_are_decoded_and_kept_as_sent() {
+        let tmp = tempfile::tempdir().unwrap();
+        let opts = Options {
+            mcap: tmp.path().join("r.mcap"),
+            csv_dir: None,
+            skip_repeats: false,
+        };
+        let rec = Recorder::with_options(&opts, &keys()).unwrap();
+        let tx = rec.sender();
+        for _ in 0..3 {
+            tx.send(Record::Wire(Topic::State, encode(&state(0, 0, 0.0))));
+        }
+        tx.send(Record::Wire(Topic::Torque, vec![1, 2, 3]));
+        let v = rec.finish().unwrap();
+        assert_eq!((v.states, v.repeated_states, v.invalid), (3, 0, 1));
+        assert_eq!((v.count(Topic::State), v.count(Topic::Torque)), (3, 0));
+        let run = crate::read(&opts.mcap).unwrap();
+        assert_eq!(run.count(Topic::State), 3);
+    }
+
+    #[test]
+    fn a_full_queue_drops_without_blocking() {
+        let tmp = tempfile::tempdir().unwrap();
+        let rec = Recorder::create(tmp.path(), &keys(), false).unwrap();
+        let tx = rec.sender();
+        for k in 0..(4 * QUEUE as u64) {
+            tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.0 }));
+        }
+        let dropped = rec.dropped();
+        let v = rec.finish().unwrap();
+        assert_eq!(v.torques + dropped, 4 * QUEUE as u64);
+    }
+}
