@@ -112,6 +112,8 @@ const MODE_RANGE: &str = "0..=2 (0 flat, 1 left, 2 right)";
 
 /// Plant state sample, published by the plant once per control period; 49 bytes on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct PlantState {
     /// Sample number, strictly increasing from 0 for one plant run.
     pub seq: u64,
@@ -157,6 +159,8 @@ impl PlantState {
 
 /// Torque answer of the controller to one [`PlantState`]; 16 bytes on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct TorqueCommand {
     /// The `seq` of the [`PlantState`] this command answers.
     pub seq: u64,
@@ -182,14 +186,16 @@ const X_AFTER: [&str; 4] = ["x_after[0]", "x_after[1]", "x_after[2]", "x_after[3
 /// States are `[alpha, beta, alpha_dot, beta_dot]` in rad and rad/s, just before and just after
 /// the transition (equal across a tilt start; related by the impact map across a landing).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct ModeEvent {
     /// `seq` of the last [`PlantState`] published before the event.
     pub seq: u64,
     /// Plant time of the event, s.
     pub time: f64,
-    /// Mode before the event, a [`Mode`] byte.
+    /// Mode before the event, a [`Mode`] byte (0 flat, 1 left, 2 right).
     pub from: u8,
-    /// Mode after the event, a [`Mode`] byte.
+    /// Mode after the event, a [`Mode`] byte (0 flat, 1 left, 2 right).
     pub to: u8,
     /// State `[alpha, beta, alpha_dot, beta_dot]` just before the event.
     pub x_before: [f64; 4],
@@ -227,15 +233,18 @@ impl ModeEvent {
 /// [`Status::default`] is a plant that is starting: every counter and statistic zero, mode
 /// flat, no fault (a valid message).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct Status {
     /// `seq` of the last published [`PlantState`].
     pub seq: u64,
     /// Plant time, s.
     pub time: f64,
-    /// Run state: [`Status::STARTING`], [`Status::RUNNING`], [`Status::SAFE_MODE`],
-    /// [`Status::FAULTED`] or [`Status::STOPPED`].
+    /// Run state: 0 starting, 1 running, 2 safe mode, 3 faulted, 4 stopped
+    /// ([`Status::STARTING`], [`Status::RUNNING`], [`Status::SAFE_MODE`],
+    /// [`Status::FAULTED`], [`Status::STOPPED`]).
     pub state: u8,
-    /// Current contact mode, a [`Mode`] byte.
+    /// Current contact mode, a [`Mode`] byte (0 flat, 1 left, 2 right).
     pub mode: u8,
     /// Number of tilts (flat to left or right) since start.
     pub tilts: u64,
@@ -371,8 +380,10 @@ impl Status {
 /// `beta_d = pi/2` (hold) with `v = beta_d_ddot + kd (beta_d_dot - beta_dot) + K_P (beta_d - beta)`,
 /// `K_P = kp + k (energy_avg - E(t))`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct Reference {
-    /// [`Reference::HOLD`] or [`Reference::SINUSOID`].
+    /// 0 hold `beta_d = pi/2`, 1 sinusoid ([`Reference::HOLD`], [`Reference::SINUSOID`]).
     pub kind: u8,
     /// Sinusoid amplitude `A`, rad (ignored for hold).
     pub amplitude: f64,

@@ -1,166 +1,40 @@
 //! JSON Schemas of the five messages, and the JSON form of a wire payload.
 //!
 //! The JSON objects are the messages' serde form (field names as in `tilting_proto::msg`);
-//! the schemas are written here by hand, with units, and a test checks they list exactly the
-//! fields the JSON carries.
+//! the schemas are derived from the same structs (`schemars`, through `tilting-proto`'s
+//! `schema` feature: field names, JSON types, and the fields' documentation with units as
+//! descriptions), for the JSON the writer emits: every field required, no other field. A test
+//! checks each schema against the JSON of a message.
 
-use serde_json::{json, Map, Value};
+use schemars::generate::SchemaSettings;
+use schemars::JsonSchema;
+use serde_json::Value;
 use tilting_proto::{codec, DecodeError, ModeEvent, PlantState, Reference, Status, Topic};
 use tilting_proto::{Message, TorqueCommand};
-
-/// Kind of a JSON field.
-#[derive(Clone, Copy)]
-enum Kind {
-    /// Unsigned integer.
-    Int,
-    /// Finite number.
-    Num,
-    /// Four numbers `[alpha, beta, alpha_dot, beta_dot]`.
-    State4,
-    /// UTF-8 text.
-    Text,
-}
-
-use Kind::*;
-
-/// The fields of each message: name, kind, description with units.
-fn fields(topic: Topic) -> &'static [(&'static str, Kind, &'static str)] {
-    match topic {
-        Topic::State => &[
-            ("seq", Int, "sample number, strictly increasing from 0"),
-            ("time", Num, "plant time, s"),
-            (
-                "alpha",
-                Num,
-                "plate tilt angle, rad, counter-clockwise positive",
-            ),
-            (
-                "beta",
-                Num,
-                "arm angle relative to the plate, rad, pi/2 upright",
-            ),
-            ("alpha_dot", Num, "plate tilt rate, rad/s"),
-            ("beta_dot", Num, "arm rate relative to the plate, rad/s"),
-            ("mode", Int, "contact mode: 0 flat, 1 left, 2 right"),
-        ],
-        Topic::Torque => &[
-            ("seq", Int, "seq of the state this torque answers"),
-            ("tau", Num, "arm motor torque, N m"),
-        ],
-        Topic::Event => &[
-            (
-                "seq",
-                Int,
-                "seq of the last state published before the event",
-            ),
-            ("time", Num, "plant time of the event, s"),
-            ("from", Int, "mode before: 0 flat, 1 left, 2 right"),
-            ("to", Int, "mode after: 0 flat, 1 left, 2 right"),
-            (
-                "x_before",
-                State4,
-                "[alpha, beta, alpha_dot, beta_dot] just before, rad and rad/s",
-            ),
-            (
-                "x_after",
-                State4,
-                "[alpha, beta, alpha_dot, beta_dot] just after, rad and rad/s",
-            ),
-        ],
-        Topic::Status => &[
-            ("seq", Int, "seq of the last published state"),
-            ("time", Num, "plant time, s"),
-            (
-                "state",
-                Int,
-                "0 starting, 1 running, 2 safe mode, 3 faulted, 4 stopped",
-            ),
-            ("mode", Int, "contact mode: 0 flat, 1 left, 2 right"),
-            ("tilts", Int, "tilts (flat to left or right) since start"),
-            ("steps", Int, "control periods since start"),
-            (
-                "torques_received",
-                Int,
-                "torque commands received, valid or not",
-            ),
-            (
-                "torques_dropped",
-                Int,
-                "torque commands that did not decode or validate",
-            ),
-            (
-                "torques_stale",
-                Int,
-                "valid torque commands not applied (too old)",
-            ),
-            ("deadline_misses", Int, "periods whose torque came too late"),
-            ("watchdog_trips", Int, "entries into safe mode"),
-            ("jitter_p50_us", Num, "median period jitter, us"),
-            ("jitter_p99_us", Num, "99th percentile of period jitter, us"),
-            ("max_overrun_us", Num, "largest period overrun, us"),
-            ("latency_p50_us", Num, "median loop latency, us"),
-            ("latency_p99_us", Num, "99th percentile of loop latency, us"),
-            (
-                "torques_late",
-                Int,
-                "torques applied after their own period",
-            ),
-            ("torques_lost", Int, "states whose answer was never applied"),
-            (
-                "torques_reordered",
-                Int,
-                "torques that arrived after a newer one",
-            ),
-            ("age_p50", Num, "median age of the applied torques, periods"),
-            ("age_p99", Num, "99th percentile of the age, periods"),
-            ("age_max", Num, "largest age, periods"),
-            ("fault", Text, "fault description, empty if none"),
-        ],
-        Topic::Reference => &[
-            ("kind", Int, "0 hold beta_d = pi/2, 1 sinusoid"),
-            ("amplitude", Num, "sinusoid amplitude A, rad"),
-            ("omega", Num, "sinusoid angular frequency w, rad/s"),
-            ("kp", Num, "nominal proportional gain K_P0, 1/s^2"),
-            ("kd", Num, "derivative gain K_D, 1/s"),
-            ("k", Num, "energy adaptation gain k, 1/(J s^2)"),
-            ("energy_avg", Num, "target average energy E_av, J"),
-            ("torque_limit", Num, "torque saturation, N m (0 = none)"),
-        ],
-    }
-}
 
 /// The schema's name: `tilting.<MessageType>`.
 pub fn schema_name(topic: Topic) -> String {
     format!("tilting.{}", topic.message_type())
 }
 
-/// The JSON Schema (draft 2020-12) of `topic`'s JSON messages.
+/// The JSON Schema (draft 2020-12) of `topic`'s JSON messages, titled [`schema_name`].
 pub fn json_schema(topic: Topic) -> Value {
-    let mut props = Map::new();
-    for &(name, kind, description) in fields(topic) {
-        let p = match kind {
-            Int => json!({ "type": "integer", "minimum": 0, "description": description }),
-            Num => json!({ "type": "number", "description": description }),
-            Text => json!({ "type": "string", "description": description }),
-            State4 => json!({
-                "type": "array",
-                "items": { "type": "number" },
-                "minItems": 4,
-                "maxItems": 4,
-                "description": description
-            }),
-        };
-        props.insert(name.to_owned(), p);
+    fn of<T: JsonSchema>() -> Value {
+        SchemaSettings::draft2020_12()
+            .for_serialize()
+            .into_generator()
+            .into_root_schema_for::<T>()
+            .to_value()
     }
-    let required: Vec<&str> = fields(topic).iter().map(|f| f.0).collect();
-    json!({
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "title": schema_name(topic),
-        "type": "object",
-        "properties": props,
-        "required": required,
-        "additionalProperties": false
-    })
+    let mut v = match topic {
+        Topic::State => of::<PlantState>(),
+        Topic::Torque => of::<TorqueCommand>(),
+        Topic::Event => of::<ModeEvent>(),
+        Topic::Status => of::<Status>(),
+        Topic::Reference => of::<Reference>(),
+    };
+    v["title"] = schema_name(topic).into();
+    v
 }
 
 /// Decodes and validates a wire payload of `topic` and returns its JSON object (UTF-8).
@@ -297,17 +171,39 @@ mod tests {
             b.sort();
             assert_eq!(a, b, "{topic}");
             for (k, val) in obj {
-                let ty = props[k]["type"].as_str().unwrap();
+                let p = &props[k];
+                let ty = p["type"].as_str().unwrap();
                 let ok = match ty {
                     "integer" => val.is_u64(),
                     "number" => val.is_number(),
                     "string" => val.is_string(),
-                    "array" => val.as_array().is_some_and(|a| a.len() == 4),
+                    "array" => val.as_array().is_some_and(|a| {
+                        Some(a.len() as u64) == p["minItems"].as_u64()
+                            && Some(a.len() as u64) == p["maxItems"].as_u64()
+                            && a.iter().all(Value::is_number)
+                            && p["items"]["type"] == "number"
+                    }),
                     _ => false,
                 };
-                assert!(ok, "{topic}.{k}: {val} is not a {ty}");
+                assert!(ok, "{topic}.{k}: {val} is not a {ty}: {p}");
+                // Every field is documented (units included).
+                assert!(
+                    p["description"].as_str().is_some_and(|d| !d.is_empty()),
+                    "{topic}.{k}: {p}"
+                );
             }
-            assert_eq!(schema["required"].as_array().unwrap().len(), props.len());
+            let mut required: Vec<_> = schema["required"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|r| r.as_str().unwrap())
+                .collect();
+            required.sort();
+            let fields: Vec<&str> = a.iter().map(|k| k.as_str()).collect();
+            assert_eq!(required, fields, "{topic}: every field is required");
+            assert_eq!(schema["additionalProperties"], false, "{topic}");
+            assert_eq!(schema["title"], schema_name(topic));
+            assert_eq!(schema["type"], "object");
         }
     }
 
