@@ -14,12 +14,105 @@
 //!   [`crate::wire`].
 //!
 //! A torque limit of 0 means none, in the flags, the files and on the wire.
+//!
+//! **Adding a law.** [`LawKind`] names the laws and [`Controller`] runs the one a spec names
+//! (a [`TorqueLaw`] that every loop takes: `simulate`, the controller node, `live`). A new law
+//! is a variant of each (with its implementation and its [`LawKind::wire_tag`]), the range of
+//! the `kind` byte in `tilting_proto::Reference::validate`, and its line in
+//! `docs/protocol.md`; the flags (`--law`), the scenario key (`law`), the wire conversion and
+//! the summaries follow from the spec.
 
-use crate::Trajectory;
+use crate::{ComputedTorque, ControlConfig, Trajectory};
 use serde::{Deserialize, Serialize};
+use tilting_plant::dynamics::Terms;
 use tilting_plant::paper;
 use tilting_plant::params::{finite, non_negative};
-use tilting_plant::ConfigError;
+use tilting_plant::{ConfigError, Mode, Params, State, TorqueLaw};
+
+/// The control laws a spec can name (`--law`, the scenario key `law`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum LawKind {
+    /// The paper's computed-torque PD with energy adaptation ([`ComputedTorque`]).
+    #[default]
+    ComputedTorque,
+}
+
+impl LawKind {
+    /// Every law, in the order of their wire tags.
+    pub const ALL: [LawKind; 1] = [LawKind::ComputedTorque];
+
+    /// The law's tag on the wire: the `kind` byte of [`tilting_proto::Reference`] is
+    /// `2 * tag + trajectory` (0 for the paper's law, so its messages are those of before).
+    pub fn wire_tag(self) -> u8 {
+        match self {
+            LawKind::ComputedTorque => 0,
+        }
+    }
+
+    /// The law's name in the flags, the files and the JSON (`computed-torque`).
+    pub fn name(self) -> &'static str {
+        match self {
+            LawKind::ComputedTorque => "computed-torque",
+        }
+    }
+
+    /// The law of a wire tag, if any.
+    pub fn from_wire_tag(tag: u8) -> Option<Self> {
+        Self::ALL.into_iter().find(|l| l.wire_tag() == tag)
+    }
+
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The law a spec names, ready to run: a [`TorqueLaw`] for the loops (`simulate`, the
+/// controller node, `live`'s nominal run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Controller {
+    /// [`LawKind::ComputedTorque`].
+    ComputedTorque(ComputedTorque),
+}
+
+impl Controller {
+    /// The law of `cfg.law.law` with validated settings.
+    pub fn new(cfg: ControlConfig) -> Result<Self, ConfigError> {
+        Ok(match cfg.law.law {
+            LawKind::ComputedTorque => Controller::ComputedTorque(ComputedTorque::new(cfg)?),
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &ControlConfig {
+        match self {
+            Controller::ComputedTorque(c) => c.config(),
+        }
+    }
+
+    /// The joint torque (N m) at time `t` (s) in `mode` at the state `x`.
+    #[inline(always)]
+    pub fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        TorqueLaw::torque(self, t, mode, x)
+    }
+}
+
+impl TorqueLaw for Controller {
+    #[inline(always)]
+    fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        match self {
+            Controller::ComputedTorque(c) => c.torque(t, mode, x),
+        }
+    }
+
+    #[inline(always)]
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, params: &Params, terms: &Terms) -> f64 {
+        match self {
+            Controller::ComputedTorque(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
+        }
+    }
+}
 
 /// A complete control law: the computed-torque PD
 /// `v = beta_d_ddot + K_D (beta_d_dot - beta_dot) + K_P (beta_d - beta)` with the adapted
@@ -29,6 +122,9 @@ use tilting_plant::ConfigError;
 /// default of every command.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LawSpec {
+    /// Which law ([`LawKind`]); left out of the JSON for the paper's.
+    #[serde(default, skip_serializing_if = "LawKind::is_default")]
+    pub law: LawKind,
     /// Base stiffness gain `K_P0` (1/s^2).
     pub kp: f64,
     /// Damping gain `K_D` (1/s).
@@ -48,6 +144,7 @@ impl Default for LawSpec {
     /// The paper's stabilised orbit ([`tilting_plant::paper`]).
     fn default() -> Self {
         Self {
+            law: LawKind::ComputedTorque,
             kp: paper::ORBIT_KP,
             kd: paper::ORBIT_KD,
             k: paper::ORBIT_K,
@@ -110,6 +207,9 @@ impl LawSpec {
 impl std::fmt::Display for LawSpec {
     /// One line: `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J, torque limit none`.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if !self.law.is_default() {
+            write!(f, "{} law, ", self.law.name())?;
+        }
         write!(
             f,
             "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit ",
@@ -128,6 +228,10 @@ impl std::fmt::Display for LawSpec {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::Args))]
 pub struct LawArgs {
+    /// The control law [default: computed-torque]
+    #[cfg_attr(feature = "clap", arg(long, value_enum))]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<LawKind>,
     /// Base stiffness gain K_P0 (1/s^2) [default: 100]
     #[cfg_attr(
         feature = "clap",
@@ -180,6 +284,7 @@ impl LawArgs {
     /// torque limit of 0 meaning none). Not validated.
     pub fn over(&self, base: LawSpec) -> LawSpec {
         LawSpec {
+            law: self.law.unwrap_or(base.law),
             kp: self.kp.unwrap_or(base.kp),
             kd: self.kd.unwrap_or(base.kd),
             k: self.k.unwrap_or(base.k),
@@ -198,6 +303,7 @@ impl LawArgs {
     pub fn to_args(&self) -> Vec<String> {
         let num = |name: &str, v: Option<f64>| v.map(|v| format!("--{name}={v}"));
         [
+            self.law.map(|l| format!("--law={}", l.name())),
             num("kp", self.kp),
             num("kd", self.kd),
             num("k", self.k),
@@ -212,9 +318,11 @@ impl LawArgs {
 }
 
 impl From<LawSpec> for LawArgs {
-    /// Every setting given (no torque limit as 0).
+    /// Every setting given (no torque limit as 0); the law only if not the paper's, so that
+    /// a child of an older release reads the flags of the paper's law.
     fn from(l: LawSpec) -> Self {
         Self {
+            law: (!l.law.is_default()).then_some(l.law),
             kp: Some(l.kp),
             kd: Some(l.kd),
             k: Some(l.k),
@@ -230,6 +338,9 @@ impl From<LawSpec> for LawArgs {
 /// `summary.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LawRecord {
+    /// The law; left out for the paper's.
+    #[serde(default, skip_serializing_if = "LawKind::is_default")]
+    pub law: LawKind,
     /// `hold` or `sinusoid` ([`Trajectory::name`]).
     pub kind: String,
     /// Sinusoid amplitude (rad); 0 for hold.
@@ -252,6 +363,7 @@ impl From<&LawSpec> for LawRecord {
     fn from(l: &LawSpec) -> Self {
         let (amplitude, omega) = l.reference.sinusoid();
         Self {
+            law: l.law,
             kind: l.reference.name().to_owned(),
             amplitude,
             omega,
@@ -314,6 +426,7 @@ mod tests {
             LawSpec::default(),
             LawSpec::without_adaptation(),
             LawSpec {
+                law: LawKind::ComputedTorque,
                 kp: 60.0,
                 kd: 12.0,
                 k: 2500.0,
@@ -324,6 +437,7 @@ mod tests {
         ];
         // Over a base that differs everywhere: every setting comes from the flags.
         let other = LawSpec {
+            law: LawKind::ComputedTorque,
             kp: 1.0,
             kd: 2.0,
             k: 3.0,
@@ -371,6 +485,16 @@ mod tests {
             assert!(help.contains(&format!("[default: {v}")), "{v}: {help}");
         }
         assert!(help.contains(&format!("[default: {}]", d.reference)));
+    }
+
+    #[test]
+    fn law_names_agree_in_every_form() {
+        for l in LawKind::ALL {
+            assert_eq!(serde_json::to_value(l).unwrap(), l.name());
+            let argv = ["x".to_owned(), format!("--law={}", l.name())];
+            assert_eq!(Cli::try_parse_from(argv).unwrap().law.law, Some(l));
+            assert_eq!(LawKind::from_wire_tag(l.wire_tag()), Some(l));
+        }
     }
 
     #[test]

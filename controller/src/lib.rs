@@ -19,7 +19,7 @@ pub mod predict;
 pub mod trajectory;
 pub mod wire;
 
-pub use law::{LawArgs, LawSpec};
+pub use law::{Controller, LawArgs, LawKind, LawSpec};
 pub use predict::Predictor;
 pub use trajectory::Trajectory;
 

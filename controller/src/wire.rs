@@ -5,15 +5,16 @@
 //! `--params`); a torque limit of 0 on the wire means none. Its `kind` byte names the
 //! trajectory ([`Reference::HOLD`], [`Reference::SINUSOID`]).
 
+use crate::law::LawKind;
 use crate::{ControlConfig, LawSpec, Trajectory};
 use tilting_plant::{ConfigError, Params};
 use tilting_proto::Reference;
 
 impl From<&Reference> for Trajectory {
-    /// The trajectory of a message: [`Reference::SINUSOID`] gives the sinusoid, any other
-    /// kind (validated messages only carry 0 or 1) holds the arm upright.
+    /// The trajectory of a message: bit 0 of `kind` ([`Reference::SINUSOID`]) gives the
+    /// sinusoid, else the arm holds upright (the other bits name the law, [`LawKind::wire_tag`]).
     fn from(r: &Reference) -> Self {
-        if r.kind == Reference::SINUSOID {
+        if r.kind & 1 == Reference::SINUSOID {
             Trajectory::Sinusoid {
                 amplitude: r.amplitude,
                 omega: r.omega,
@@ -85,9 +86,11 @@ pub fn check_bounds(law: &LawSpec) -> Result<(), ConfigError> {
 }
 
 impl From<&Reference> for LawSpec {
-    /// The law a message carries, as it is (not checked: see [`LawSpec::from_wire`]).
+    /// The law a message carries, as it is (not checked: see [`LawSpec::from_wire`]; an
+    /// unknown law tag reads as the paper's law).
     fn from(r: &Reference) -> Self {
         LawSpec {
+            law: LawKind::from_wire_tag(r.kind >> 1).unwrap_or_default(),
             kp: r.kp,
             kd: r.kd,
             k: r.k,
@@ -102,6 +105,13 @@ impl LawSpec {
     /// The law of a planner's message, checked by [`LawSpec::validate`] and [`check_bounds`]
     /// (the error names the field and its range).
     pub fn from_wire(r: &Reference) -> Result<Self, ConfigError> {
+        if LawKind::from_wire_tag(r.kind >> 1).is_none() {
+            return Err(ConfigError::OutOfRange {
+                field: "kind",
+                value: r.kind.to_string(),
+                allowed: "2 * law + trajectory, with a law this controller knows",
+            });
+        }
         let law = LawSpec::from(r);
         law.validate()?;
         check_bounds(&law)?;
@@ -110,10 +120,11 @@ impl LawSpec {
 
     /// The message that carries this law.
     pub fn to_wire(&self) -> Reference {
-        let kind = match self.reference {
+        let trajectory = match self.reference {
             Trajectory::Hold => Reference::HOLD,
             Trajectory::Sinusoid { .. } => Reference::SINUSOID,
         };
+        let kind = 2 * self.law.wire_tag() + trajectory;
         let (amplitude, omega) = self.reference.sinusoid();
         Reference {
             kind,

@@ -29,7 +29,7 @@
 
 use std::hint::black_box;
 use std::time::Instant;
-use tilting_controller::ComputedTorque;
+use tilting_controller::Controller;
 use tilting_plant::dynamics::accelerations;
 use tilting_plant::{Mode, Observer, Plant, SimConfig, State, Tolerance, Transition};
 use tilting_sim::closed_loop::{run_sampled, simulate, SimOptions, SimulationReport};
@@ -54,7 +54,7 @@ fn vm_rss() -> String {
 
 /// Fixed-step RK4 of the left-tilt equations with the controller in the right-hand side.
 /// Returns the final state and the number of right-hand-side evaluations.
-fn rk4(sc: &Scenario, ctrl: &ComputedTorque, h: f64, t_end: f64) -> (State, u64) {
+fn rk4(sc: &Scenario, ctrl: &Controller, h: f64, t_end: f64) -> (State, u64) {
     let p = sc.params;
     let f = |t: f64, x: &State| {
         let tau = ctrl.torque(t, Mode::Left, x);

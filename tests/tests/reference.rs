@@ -14,6 +14,7 @@ use tilting_tests::*;
 fn law(r: &Reference) -> ComputedTorque {
     ComputedTorque::new(ControlConfig {
         law: LawSpec {
+            law: tilting_controller::LawKind::ComputedTorque,
             kp: r.kp,
             kd: r.kd,
             k: r.k,

@@ -1,7 +1,8 @@
 //! The `tilting-controller` node: answers every `PlantState` with the computed-torque law.
 //!
 //! For each valid state received on `tilting/{robot}/plant/state` it computes
-//! `tau = ComputedTorque::torque(state.time, mode, x)` and publishes
+//! `tau = Controller::torque(state.time, mode, x)` (the law of the flags or of the planner's
+//! reference) and publishes
 //! `TorqueCommand { seq: state.seq, tau }` on `tilting/{robot}/controller/torque` at once, from
 //! the subscriber's callback (no queue, no extra thread hop).
 //!
@@ -26,7 +27,7 @@ use tilting_plant::{ParamsArgs, State};
 use tilting_proto::{Keys, PlantState, Status, TorqueCommand};
 
 use crate::predict::{Predict, PredictArgs, Predictor};
-use crate::{ComputedTorque, ControlConfig, LawArgs, LawSpec};
+use crate::{ControlConfig, Controller, LawArgs, LawSpec};
 
 /// Flags of `tilting-controller`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -67,7 +68,7 @@ impl ControllerArgs {
 
 struct Node {
     params: tilting_plant::Params,
-    law: Mutex<ComputedTorque>,
+    law: Mutex<Controller>,
     states: DropCounter,
     references: DropCounter,
     torques_published: AtomicU64,
@@ -178,7 +179,7 @@ impl Node {
             }
             return;
         }
-        match ControlConfig::from_wire(self.params, &r).and_then(ComputedTorque::new) {
+        match ControlConfig::from_wire(self.params, &r).and_then(Controller::new) {
             Ok(c) => {
                 if live {
                     self.live_reference.store(true, Ordering::Release);
@@ -311,17 +312,13 @@ impl ControllerSummary {
 /// Runs the controller node until Ctrl-C or SIGTERM.
 pub fn run(args: ControllerArgs) -> anyhow::Result<ExitCode> {
     let cfg = args.control_config()?;
-    let law = ComputedTorque::new(cfg)?;
+    let law = Controller::new(cfg)?;
     let keys = args.zenoh.keys()?;
     let rt = tilting_net::runtime()?;
     rt.block_on(run_async(args, keys, law))
 }
 
-async fn run_async(
-    args: ControllerArgs,
-    keys: Keys,
-    law: ComputedTorque,
-) -> anyhow::Result<ExitCode> {
+async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow::Result<ExitCode> {
     let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
     // Ask the planner's queryable for the current reference now and whenever a planner appears.
     let (query_tx, mut query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();

@@ -40,7 +40,7 @@ pub use validate::ScenarioError;
 
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use tilting_controller::{ComputedTorque, ControlConfig, LawArgs, LawSpec};
+use tilting_controller::{ControlConfig, Controller, LawArgs, LawSpec};
 use tilting_plant::dynamics::accelerations;
 use tilting_plant::paper::{orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE};
 use tilting_plant::{
@@ -232,9 +232,9 @@ impl Scenario {
         ControlConfig::new(self.params, self.law)
     }
 
-    /// The controller.
-    pub fn controller(&self) -> Result<ComputedTorque, ScenarioError> {
-        ComputedTorque::new(self.control_config()).map_err(|e| from_config(e, "", "controller"))
+    /// The controller: the law the spec names ([`Controller`]).
+    pub fn controller(&self) -> Result<Controller, ScenarioError> {
+        Controller::new(self.control_config()).map_err(|e| from_config(e, "", "controller"))
     }
 }
 
