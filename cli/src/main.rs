@@ -3,7 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting::commands::{animate, figures, margins, plan, recording, simulate, topics};
+use tilting::commands::{animate, figures, identify, margins, plan, recording, simulate, topics};
 use tilting::live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -29,6 +29,10 @@ Look:
   record      Record a robot's topics into an MCAP file (opens in Foxglove, PlotJuggler)
   replay      Publish an MCAP recording back, byte for byte, at its pace or faster
   info        Summarise an MCAP recording: span, channels, counts, tilts, faults
+
+Identify:
+  identify    The robot's physical parameters from a recording (least squares on the
+              dynamics' regressor, per contact mode): estimates, standard errors, --params TOML
 
 Secure:
   certs       A development CA, one certificate per node and the zenoh TLS + access-control
@@ -79,6 +83,9 @@ enum Command {
     Replay(recording::ReplayArgs),
     /// Summarise an MCAP recording: plant-time span, channels, counts, tilts, faults
     Info(recording::InfoArgs),
+    /// The robot's physical parameters from a recording: least squares on the dynamics'
+    /// regressor per contact mode; standard errors, condition number, the --params TOML
+    Identify(identify::IdentifyArgs),
     /// A development certificate authority, one certificate per node (plant, controller,
     /// planner, logger, router) and the zenoh configurations with TLS and access control
     Certs(tilting::security::CertsArgs),
@@ -117,6 +124,7 @@ fn main() -> ExitCode {
         Command::Record(args) => recording::record(args),
         Command::Replay(args) => recording::replay(args),
         Command::Info(args) => recording::info(args),
+        Command::Identify(args) => identify::run(args),
         Command::Certs(args) => tilting::security::certs(args),
     };
     match result {

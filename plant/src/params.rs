@@ -167,6 +167,12 @@ impl Params {
         })
     }
 
+    /// The TOML text of these parameters, as `--params` reads it (the hardware keys left out
+    /// while at their defaults).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("parameters serialize as TOML")
+    }
+
     /// Total mass `m_f + m_l` (kg).
     pub fn total_mass(&self) -> f64 {
         self.m_f + self.m_l

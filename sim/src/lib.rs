@@ -27,6 +27,7 @@
 
 pub mod closed_loop;
 pub mod network;
+pub mod recording;
 pub mod scenario;
 
 pub use closed_loop::{run_continuous, run_sampled, simulate, SimOptions, SimulationReport};

@@ -5,6 +5,7 @@
 
 pub mod animate;
 pub mod figures;
+pub mod identify;
 pub mod margins;
 pub mod plan;
 pub mod recording;

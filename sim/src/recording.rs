@@ -1,0 +1,162 @@
+//! A sampled offline run kept whole, as a recording holds a live one: every state the
+//! controller read, the torque it answered, every mode transition ([`run_logged`]); written
+//! as an MCAP recording with the channels `live` writes for them ([`write_mcap`]), so an
+//! offline run can be identified (`tilting identify`) or drawn like a real one.
+
+use crate::{Scenario, ScenarioError};
+use std::cell::RefCell;
+use std::path::Path;
+use tilting_plant::dynamics::Terms;
+use tilting_plant::{Fault, Mode, Observer, Params, Plant, State, TorqueLaw, Transition};
+use tilting_proto::{encode, Keys, ModeEvent, PlantState, TorqueCommand};
+use tilting_record::{EventRecord, Recorder, Sample, Topic, Trace};
+
+/// A sampled run kept whole.
+#[derive(Debug, Clone)]
+pub struct Logged {
+    /// Every state the controller read (`samples[k]` at `t_k = k T`), and every transition.
+    pub trace: Trace,
+    /// The torque (N m) answered to `samples[k]`, held over `[t_k, t_{k+1}]`.
+    pub tau: Vec<f64>,
+    /// How the run ended.
+    pub fault: Option<Fault>,
+}
+
+/// Logs every sample the loop takes and the torque it answers.
+struct Logging<'a, L> {
+    law: &'a L,
+    log: RefCell<(Vec<Sample>, Vec<f64>)>,
+}
+
+impl<L: TorqueLaw> TorqueLaw for Logging<'_, L> {
+    fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        let tau = self.law.torque(t, mode, x);
+        self.push(t, mode, x, tau)
+    }
+    fn torque_t(&self, t: f64, mode: Mode, x: &State, p: &Params, tm: &Terms) -> f64 {
+        let tau = self.law.torque_t(t, mode, x, p, tm);
+        self.push(t, mode, x, tau)
+    }
+}
+
+impl<L> Logging<'_, L> {
+    fn push(&self, t: f64, mode: Mode, x: &State, tau: f64) -> f64 {
+        let mut l = self.log.borrow_mut();
+        l.0.push(Sample {
+            t,
+            mode,
+            x: (*x).into(),
+        });
+        l.1.push(tau);
+        tau
+    }
+}
+
+#[derive(Default)]
+struct Events(Vec<EventRecord>);
+
+impl Observer for Events {
+    fn transition(&mut self, ev: &Transition) {
+        self.0.push(EventRecord {
+            t: ev.t,
+            from: ev.from,
+            to: ev.to,
+            x_before: ev.x_before.into(),
+            x_after: ev.x_after.into(),
+        });
+    }
+}
+
+/// Runs the scenario's sampled loop ([`crate::run_sampled`], the perfect link: no network or
+/// sensor imperfections), keeping every sample and torque. Refuses a continuous scenario
+/// (`control_period` = 0: there are no samples to keep).
+pub fn run_logged(sc: &Scenario) -> Result<Logged, ScenarioError> {
+    sc.validate()?;
+    if !sc.is_sampled() {
+        return Err(ScenarioError::OutOfRange {
+            field: "control_period".into(),
+            flag: "--control-period".into(),
+            value: sc.control_period.to_string(),
+            allowed: "> 0 to record a run: a recording holds the controller's samples".into(),
+        });
+    }
+    let ctrl = sc.controller()?;
+    let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).map_err(|e| {
+        ScenarioError::File {
+            path: "initial state".into(),
+            message: e.to_string(),
+        }
+    })?;
+    let law = Logging {
+        law: &ctrl,
+        log: RefCell::new((Vec::new(), Vec::new())),
+    };
+    let mut ev = Events::default();
+    let (r, _) = crate::run_sampled(
+        &mut plant,
+        &law,
+        sc.control_period,
+        sc.duration,
+        &mut ev,
+        &mut |_| {},
+    );
+    let (samples, tau) = law.log.into_inner();
+    Ok(Logged {
+        trace: Trace {
+            samples,
+            events: ev.0,
+            end: plant.time(),
+            stopped_early: r.is_err(),
+        },
+        tau,
+        fault: r.err(),
+    })
+}
+
+/// Writes `run` as an MCAP recording of the robot `robot`: a `PlantState` (seq `k`) and its
+/// `TorqueCommand` per sample, a `ModeEvent` per transition, in time order.
+pub fn write_mcap(path: &Path, robot: &str, run: &Logged) -> Result<(), String> {
+    let keys = Keys::new(robot).map_err(|e| e.to_string())?;
+    let mut rec = Recorder::create(path, &keys).map_err(|e| e.to_string())?;
+    let mut events = run.trace.events.iter().peekable();
+    let mut seq_ev = 0u64;
+    for (k, (s, &tau)) in run.trace.samples.iter().zip(&run.tau).enumerate() {
+        while let Some(e) = events.next_if(|e| e.t <= s.t) {
+            rec.record(Topic::Event, &encode(&event(seq_ev, e)))
+                .map_err(|e| e.to_string())?;
+            seq_ev += 1;
+        }
+        let [alpha, beta, alpha_dot, beta_dot] = s.x;
+        let st = PlantState {
+            seq: k as u64,
+            time: s.t,
+            alpha,
+            beta,
+            alpha_dot,
+            beta_dot,
+            mode: s.mode.as_u8(),
+        };
+        rec.record(Topic::State, &encode(&st))
+            .map_err(|e| e.to_string())?;
+        let cmd = TorqueCommand { seq: k as u64, tau };
+        rec.record(Topic::Torque, &encode(&cmd))
+            .map_err(|e| e.to_string())?;
+    }
+    for e in events {
+        rec.record(Topic::Event, &encode(&event(seq_ev, e)))
+            .map_err(|e| e.to_string())?;
+        seq_ev += 1;
+    }
+    rec.finish().map_err(|e| e.to_string())
+}
+
+fn event(seq: u64, e: &EventRecord) -> ModeEvent {
+    ModeEvent {
+        seq,
+        time: e.t,
+        from: e.from.as_u8(),
+        to: e.to.as_u8(),
+        x_before: e.x_before,
+        x_after: e.x_after,
+    }
+}
