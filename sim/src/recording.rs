@@ -9,7 +9,7 @@ use std::path::Path;
 use tilting_plant::dynamics::Terms;
 use tilting_plant::{Fault, Mode, Observer, Params, Plant, State, TorqueLaw, Transition};
 use tilting_proto::{encode, Keys, ModeEvent, PlantState, TorqueCommand};
-use tilting_record::{EventRecord, Recorder, Sample, Topic, Trace};
+use tilting_record::{EventRecord, McapWriter, Sample, Topic, Trace};
 
 /// A sampled run kept whole.
 #[derive(Debug, Clone)]
@@ -117,7 +117,7 @@ pub fn run_logged(sc: &Scenario) -> Result<Logged, ScenarioError> {
 /// `TorqueCommand` per sample, a `ModeEvent` per transition, in time order.
 pub fn write_mcap(path: &Path, robot: &str, run: &Logged) -> Result<(), String> {
     let keys = Keys::new(robot).map_err(|e| e.to_string())?;
-    let mut rec = Recorder::create(path, &keys).map_err(|e| e.to_string())?;
+    let mut rec = McapWriter::create(path, &keys).map_err(|e| e.to_string())?;
     let mut events = run.trace.events.iter().peekable();
     let mut seq_ev = 0u64;
     for (k, (s, &tau)) in run.trace.samples.iter().zip(&run.tau).enumerate() {
