@@ -10,6 +10,8 @@
 //! - [`impact`]: the landing map with the paper's and the striking-edge law;
 //! - [`ode`]: the DOP853 integrator with dense output;
 //! - [`hybrid`]: the simulator ([`Plant`]) with event location, impacts and faults;
+//! - [`sampled`]: the sampled loop (zero-order hold on a period grid), written once for
+//!   `simulate` and the plant node, with the transport of states and torques as a parameter;
 //! - [`imperfect`]: what a real robot adds to the model (sensor noise, encoder quantisation,
 //!   actuator saturation and lag, a mass error), seeded and off by default;
 //! - [`flags`]: the `--params` flag and the `--x0` parser, shared by every command and node;
@@ -41,6 +43,7 @@ pub mod node;
 pub mod ode;
 pub mod paper;
 pub mod params;
+pub mod sampled;
 
 pub use dynamics::Joint;
 pub use flags::{parse_x0, ParamsArgs};

@@ -12,7 +12,8 @@ use crate::network::{run_sampled_over, Impairment, LoopOptions, NetStats};
 use crate::scenario::{Scenario, ScenarioError};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
-use tilting_plant::imperfect::Imperfections;
+use tilting_plant::imperfect::{Actuator, Imperfections};
+use tilting_plant::sampled::{self, Grid, Transport};
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TiltPeak, TorqueLaw, Transition};
 /// The trajectory types are the recordings' ([`tilting_record::trace`]): a simulated run and a
 /// recorded one are drawn alike.
@@ -202,12 +203,11 @@ const MIN_CHUNK: f64 = 1.0;
 /// Samples recorded for a plot, about.
 const PLOT_SAMPLES: f64 = 20_000.0;
 
-/// The sampled closed loop, the code that a lockstep plant node reproduces bit for bit: at
-/// `t_k = k T` (a product, not a running sum, which would drift) the controller reads the
-/// plant's state, and its torque is held over `[t_k, t_{k+1}]` ([`Plant::advance_held`]). The
-/// plant must stand at `t = 0`. The last period is cut at `t_end`; a remainder below a
-/// billionth of a period is merged into it (a zero-length hold would underflow the
-/// integrator's step). `progress` gets the plant time about a thousand times per run.
+/// The sampled closed loop over a perfect link, the code that a lockstep plant node reproduces
+/// bit for bit: at `t_k = k T` the controller reads the plant's state, and its torque is held
+/// over `[t_k, t_{k+1}]` ([`Plant::advance_held`]); the period grid and the cut of the last
+/// period are [`tilting_plant::sampled`]'s. The plant must stand at `t = 0`. `progress` gets
+/// the plant time about a thousand times per run.
 ///
 /// Returns how the run ended and the number of controller evaluations.
 pub fn run_sampled<L: TorqueLaw, O: Observer>(
@@ -218,33 +218,37 @@ pub fn run_sampled<L: TorqueLaw, O: Observer>(
     obs: &mut O,
     progress: &mut dyn FnMut(f64),
 ) -> (Result<(), Fault>, u64) {
-    let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
-    let mut next_update = every;
-    let mut samples = 0u64;
-    let mut k: u64 = 0;
-    loop {
-        let t_k = k as f64 * period;
-        debug_assert_eq!(t_k, plant.time());
+    let mut direct = Direct {
+        plant,
+        actuator: Actuator::new(&Imperfections::default()),
+        obs,
+        law,
+    };
+    let (r, n) = sampled::run(&mut direct, Grid { period, t_end }, progress);
+    (r.map(|_| ()), n)
+}
+
+/// The perfect link: the law reads the plant's true state at the sample instant and its torque
+/// acts at once, held by the perfect actuator.
+struct Direct<'a, L, O> {
+    plant: &'a mut Plant,
+    actuator: Actuator,
+    obs: &'a mut O,
+    law: &'a L,
+}
+
+impl<L: TorqueLaw, O: Observer> Transport for Direct<'_, L, O> {
+    type Observer = O;
+
+    #[inline]
+    fn parts(&mut self) -> (&mut Plant, &mut Actuator, &mut O) {
+        (self.plant, &mut self.actuator, self.obs)
+    }
+
+    #[inline]
+    fn sample(&mut self, _k: u64) -> Option<f64> {
         // law.torque(t_k, plant.mode(), &plant.state()), reusing the plant's terms.
-        let tau = plant.torque_now(law);
-        samples += 1;
-        let next = (k + 1) as f64 * period;
-        let t_next = if next >= t_end - 1e-9 * period {
-            t_end
-        } else {
-            next
-        };
-        if let Err(f) = plant.advance_held(tau, t_next, obs) {
-            return (Err(f), samples);
-        }
-        if t_next >= t_end {
-            return (Ok(()), samples);
-        }
-        k += 1;
-        if k >= next_update {
-            next_update += every;
-            progress(t_next);
-        }
+        Some(self.plant.torque_now(self.law))
     }
 }
 

@@ -9,10 +9,11 @@
 //!   lockstep plant node reproduces bit for bit) and [`simulate`], which runs a scenario and
 //!   reports its transitions, tilt peaks, final state and fault.
 //!
-//! The plant node and the controller node do not depend on this crate: the sampled loop calls
-//! the same [`Plant::advance_held`](tilting_plant::Plant::advance_held) and
-//! [`ComputedTorque`](tilting_controller::ComputedTorque) that they do, which is why a lockstep
-//! run over zenoh equals `simulate --control-period T` bit for bit (tested in `tests/`).
+//! The plant node and the controller node do not depend on this crate: the sampled loops here
+//! are transports of the stepper the plant node runs too
+//! ([`tilting_plant::sampled`]), with the same
+//! [`ComputedTorque`](tilting_controller::ComputedTorque), which is why a lockstep run over
+//! zenoh equals `simulate --control-period T` bit for bit (tested in `tests/`).
 //!
 //! ```
 //! use tilting_sim::{simulate, Scenario, SimOptions};

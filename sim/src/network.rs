@@ -38,7 +38,9 @@
 
 use serde::{Deserialize, Serialize};
 use tilting_controller::Predictor;
-use tilting_plant::imperfect::Hardware;
+use tilting_link::ImpairedHold;
+use tilting_plant::imperfect::{Actuator, Hardware};
+use tilting_plant::sampled::{self, Grid, Transport};
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TorqueLaw};
 
 pub use tilting_link::Impairment;
@@ -73,26 +75,6 @@ impl LoopOptions {
 
 /// Event answers in flight: `(period of the event, arrival time (s), torque (N m))`.
 type InFlight = Vec<(u64, f64, f64)>;
-
-/// Applies the event answers that have arrived by `t` (within `tol`), in arrival order.
-fn take_arrived(
-    pending: &mut InFlight,
-    hold: &mut tilting_link::ImpairedHold,
-    t: f64,
-    tol: f64,
-    now: u64,
-) {
-    while let Some(i) = pending
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.1 <= t + tol)
-        .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
-        .map(|(i, _)| i)
-    {
-        let (k, _, tau) = pending.swap_remove(i);
-        hold.take_extra(k, tau, now);
-    }
-}
 
 /// The controller's answer to the state `x` in `mode` sampled at `t` (s): the law at the state
 /// `predictor` forecasts for the answer's arrival, or at `x` itself without prediction.
@@ -129,91 +111,133 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     obs: &mut O,
     progress: &mut dyn FnMut(f64),
 ) -> (Result<(), Fault>, u64, NetStats) {
-    let mut hold = imp.hold(period);
-    let tol = 1e-9 * period;
-    let mut predictor = opts.predict.map(|p| {
+    let predictor = opts.predict.map(|p| {
         let d = match p {
             Predict::Given(d) => d,
             Predict::Estimated => 0.0,
         };
         Predictor::new(opts.model.unwrap_or(*plant.config()), period, d)
     });
-    let estimate = opts.predict == Some(Predict::Estimated);
-    let mut estimated = false;
-    let mut pending: InFlight = Vec::new();
-    let every = ((t_end / period) / 1000.0).ceil().max(1.0) as u64;
-    let mut next_update = every;
-    let mut samples = 0u64;
-    let mut k: u64 = 0;
-    let result = loop {
-        let t_k = k as f64 * period;
+    let mut links = OverLinks {
+        plant,
+        hw,
+        obs,
+        law,
+        hold: imp.hold(period),
+        period,
+        tol: 1e-9 * period,
+        predictor,
+        estimate: opts.predict == Some(Predict::Estimated),
+        estimated: false,
+        events: opts.sample_on_event,
+        pending: Vec::new(),
+    };
+    let (r, n) = sampled::run(&mut links, Grid { period, t_end }, progress);
+    (r.map(|_| ()), n, links.hold.stats().clone())
+}
+
+/// The transport of [`run_sampled_over`]: the state measured by the hardware crosses the state
+/// link, the controller answers it in place (predicting, if asked), the answer crosses the
+/// torque link, and the plant's rule for late torques picks the torque in force.
+struct OverLinks<'a, L, O> {
+    plant: &'a mut Plant,
+    hw: &'a mut Hardware,
+    obs: &'a mut O,
+    law: &'a L,
+    hold: ImpairedHold,
+    /// Sample period (s).
+    period: f64,
+    /// Arrivals within this time (s) of an instant count as arrived by then.
+    tol: f64,
+    predictor: Option<Predictor>,
+    /// The predictor reads the delay from the ages of the applied torques.
+    estimate: bool,
+    /// The first estimate was made.
+    estimated: bool,
+    /// Sampling on events.
+    events: bool,
+    /// Answers to extra states in flight.
+    pending: InFlight,
+}
+
+impl<L: TorqueLaw, O: Observer> OverLinks<'_, L, O> {
+    /// Applies the event answers that have arrived by `t` (within the tolerance), in arrival
+    /// order, during period `now`.
+    fn take_arrived(&mut self, t: f64, now: u64) {
+        while let Some(i) = self
+            .pending
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.1 <= t + self.tol)
+            .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
+            .map(|(i, _)| i)
+        {
+            let (k, _, tau) = self.pending.swap_remove(i);
+            self.hold.take_extra(k, tau, now);
+        }
+    }
+}
+
+impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
+    type Observer = O;
+
+    fn parts(&mut self) -> (&mut Plant, &mut Actuator, &mut O) {
+        (self.plant, &mut self.hw.actuator, self.obs)
+    }
+
+    fn sample(&mut self, k: u64) -> Option<f64> {
+        let t_k = k as f64 * self.period;
         // The plant reports the ages in its status, every ESTIMATE_EVERY periods and when the
         // first torque is applied.
-        if estimate && (k.is_multiple_of(ESTIMATE_EVERY) || !estimated) {
-            if let (Some(p), Some(a)) = (&mut predictor, hold.stats().age_median()) {
-                p.set_delay(a as f64 * period);
-                estimated = true;
+        if self.estimate && (k.is_multiple_of(ESTIMATE_EVERY) || !self.estimated) {
+            if let (Some(p), Some(a)) = (&mut self.predictor, self.hold.stats().age_median()) {
+                p.set_delay(a as f64 * self.period);
+                self.estimated = true;
             }
         }
-        let (mode, x) = (plant.mode(), hw.measure(plant));
-        let mut tau = hold.step(k, t_k, || answer(&mut predictor, law, t_k, mode, &x, true));
-        samples += 1;
-        let next = (k + 1) as f64 * period;
-        let t_next = if next >= t_end - 1e-9 * period {
-            t_end
-        } else {
-            next
-        };
-        if opts.sample_on_event || !pending.is_empty() {
-            take_arrived(&mut pending, &mut hold, t_k, tol, k);
-            tau = hold.torque();
+        let (mode, x) = (self.plant.mode(), self.hw.measure(self.plant));
+        let (predictor, law) = (&mut self.predictor, self.law);
+        let tau = self
+            .hold
+            .step(k, t_k, || answer(predictor, law, t_k, mode, &x, true));
+        if self.pending.is_empty() {
+            return Some(tau);
         }
-        if !opts.sample_on_event {
-            if let Err(f) = hw.advance(plant, tau, t_next, obs) {
-                break Err(f);
-            }
-        } else {
-            // Segments end at the period's end, at an event answer's arrival, or at an event.
-            let mut fault = None;
-            while plant.time() < t_next {
-                let t_seg = pending
-                    .iter()
-                    .map(|p| p.1)
-                    .filter(|&r| r > plant.time() + tol)
-                    .fold(t_next, f64::min);
-                match plant.advance_held_to_event(tau, t_seg, obs) {
-                    Err(f) => {
-                        fault = Some(f);
-                        break;
-                    }
-                    Ok(true) => {
-                        let (t_e, m, xe) = (plant.time(), plant.mode(), hw.measure(plant));
-                        let sent = hold
-                            .send_extra(t_e, || answer(&mut predictor, law, t_e, m, &xe, false));
-                        samples += 1;
-                        if let Some((r, tau_e)) = sent {
-                            pending.push((k, r, tau_e));
-                        }
-                    }
-                    Ok(false) => {}
-                }
-                take_arrived(&mut pending, &mut hold, plant.time(), tol, k);
-                tau = hold.torque();
-            }
-            if let Some(f) = fault {
-                break Err(f);
-            }
+        self.take_arrived(t_k, k);
+        Some(self.hold.torque())
+    }
+
+    fn samples_events(&self) -> bool {
+        self.events
+    }
+
+    fn extra(&mut self, k: u64) {
+        let (t_e, m, xe) = (
+            self.plant.time(),
+            self.plant.mode(),
+            self.hw.measure(self.plant),
+        );
+        let (predictor, law) = (&mut self.predictor, self.law);
+        let sent = self
+            .hold
+            .send_extra(t_e, || answer(predictor, law, t_e, m, &xe, false));
+        if let Some((r, tau_e)) = sent {
+            self.pending.push((k, r, tau_e));
         }
-        if t_next >= t_end {
-            break Ok(());
-        }
-        k += 1;
-        if k >= next_update {
-            next_update += every;
-            progress(t_next);
-        }
-    };
-    (result, samples, hold.stats().clone())
+    }
+
+    fn next_arrival(&self, t: f64) -> f64 {
+        self.pending
+            .iter()
+            .map(|p| p.1)
+            .filter(|&r| r > t + self.tol)
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    fn torque_at(&mut self, k: u64, t: f64) -> Option<f64> {
+        self.take_arrived(t, k);
+        Some(self.hold.torque())
+    }
 }
 
 pub use tilting_link::NetworkArgs;

@@ -3,6 +3,8 @@
 //! events and the next state, and keeps the statistics of the status and the summary.
 
 use super::*;
+use crate::imperfect::Actuator;
+use crate::sampled::{self, End, Grid, Transport};
 
 /// Collects what the simulator reports during one period.
 #[derive(Default)]
@@ -94,6 +96,10 @@ pub(super) struct Loop {
     pub(super) next_status: Instant,
     pub(super) status_interval: Duration,
     pub(super) next_timing_log: Instant,
+    /// When the period being integrated started (ns), for its cost.
+    pub(super) period_t0: u64,
+    /// `--sample-on-event`: the answer to the last extra state, until it takes effect.
+    pub(super) event_answer: Option<f64>,
 }
 
 /// Interval of the timing line in the log.
@@ -432,24 +438,20 @@ impl Loop {
         self.rec(|r| r.row(seq, t, mode, x, tau));
     }
 
-    /// Integrates one period with `tau` and publishes the events and the next state.
-    pub(super) fn step(&mut self, tau: f64) -> Result<bool, Fault> {
+    /// The start of a period holding `tau` (N m): the record's row, and the clock of the
+    /// period's cost.
+    fn begin_period(&mut self, tau: f64) -> f64 {
         self.write_record(Some(tau));
-        let h = self.h;
-        let next = (self.seq + 1) as f64 * h;
-        let (t_next, last) = match self.args.duration {
-            Some(d) if next >= d - 1e-9 * h => (d, true),
-            _ => (next, false),
-        };
         self.obs.transitions.clear();
-        let t0 = clock::now_ns();
-        let res = if self.args.sample_on_event {
-            self.advance_sampling_events(tau, t_next)
-        } else {
-            self.hw.advance(&mut self.plant, tau, t_next, &mut self.obs)
-        };
+        self.period_t0 = clock::now_ns();
+        tau
+    }
+
+    /// The end of a period: its cost, its events on `plant/event`, and (unless it faulted)
+    /// the next state.
+    fn end_period(&mut self, result: &Result<(), Fault>) {
         self.step_cost
-            .push(clock::now_ns().saturating_sub(t0) as f64 * 1e-3);
+            .push(clock::now_ns().saturating_sub(self.period_t0) as f64 * 1e-3);
         for ev in &self.obs.transitions {
             let msg = ModeEvent {
                 seq: self.seq,
@@ -475,58 +477,63 @@ impl Loop {
             }
             tracing::debug!(t = ev.t, from = %ev.from, to = %ev.to, "transition");
         }
-        res?;
-        self.seq += 1;
-        self.publish_state();
-        Ok(last)
+        if result.is_ok() {
+            self.seq += 1;
+            self.publish_state();
+        }
     }
 
-    /// `--sample-on-event` (perfect robot, no emulated links): integrates to `t_next` (s) with
-    /// `tau` (N m), stopping at each mode transition to publish the state there (the period's
-    /// `seq`, the transition's time) and switch to its answer, as `simulate --sample-on-event`
-    /// does over a perfect link. Without an answer within `--lockstep-timeout-ms` (lockstep) or
-    /// half a period (real time) the torque in force stays.
+    /// `--sample-on-event` (perfect robot, no emulated links), at a mode transition inside the
+    /// period: publishes the state there (the period's `seq`, the transition's time) and keeps
+    /// its answer for [`Loop::event_answer`], as `simulate --sample-on-event` does over a
+    /// perfect link. Without an answer within `--lockstep-timeout-ms` (lockstep) or half a
+    /// period (real time) the torque in force stays.
     ///
     /// In real time the plant integrates each period when it ends, so the transition lies up to
     /// one period in the wall-clock past when its state leaves; the answer then acts from the
     /// transition's instant of plant time, as in lockstep, and the next periodic state leaves
     /// later by the round trip (at most half a period).
-    fn advance_sampling_events(&mut self, mut tau: f64, t_next: f64) -> Result<(), Fault> {
+    fn extra_state(&mut self) {
         let timeout = match self.args.clock {
             ClockMode::Lockstep => Duration::from_millis(self.args.lockstep_timeout_ms),
             ClockMode::Realtime => Duration::from_secs_f64(0.5 * self.h),
         };
-        while self
-            .plant
-            .advance_held_to_event(tau, t_next, &mut self.obs)?
+        self.measured = None;
         {
-            self.measured = None;
-            {
-                // An answer to this period's state may still sit in the inbox (in real time the
-                // one in force, read without taking it; in lockstep a second answer to a
-                // re-published state): the wait below must not take it for the answer to the
-                // extra state, which carries the same `seq`.
-                let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
-                if inbox.is_some_and(|(c, _)| c.seq <= self.seq) {
-                    *inbox = None;
-                }
-            }
-            let t = self.t_pub;
-            self.publish_state();
-            self.t_pub = t;
-            self.extra_states += 1;
-            if let Some((cmd, _)) = self.wait_fresh(timeout) {
-                self.extra_answers += 1;
-                self.rec(|r| r.torque(&cmd));
-                tau = cmd.tau;
-                if self.args.torque_limit > 0.0 {
-                    tau = tau.clamp(-self.args.torque_limit, self.args.torque_limit);
-                }
+            // An answer to this period's state may still sit in the inbox (in real time the
+            // one in force, read without taking it; in lockstep a second answer to a
+            // re-published state): the wait below must not take it for the answer to the
+            // extra state, which carries the same `seq`.
+            let mut inbox = self.shared.inbox.lock().unwrap_or_else(|e| e.into_inner());
+            if inbox.is_some_and(|(c, _)| c.seq <= self.seq) {
+                *inbox = None;
             }
         }
-        Ok(())
+        let t = self.t_pub;
+        self.publish_state();
+        self.t_pub = t;
+        self.extra_states += 1;
+        if let Some((cmd, _)) = self.wait_fresh(timeout) {
+            self.extra_answers += 1;
+            self.rec(|r| r.torque(&cmd));
+            let mut tau = cmd.tau;
+            if self.args.torque_limit > 0.0 {
+                tau = tau.clamp(-self.args.torque_limit, self.args.torque_limit);
+            }
+            self.event_answer = Some(tau);
+        }
     }
 
+    /// The grid of the run: the period, and `--duration` (or none).
+    fn grid(&self) -> Grid {
+        Grid {
+            period: self.h,
+            t_end: self.args.duration.unwrap_or(f64::INFINITY),
+        }
+    }
+
+    /// Real time: at each deadline `start + (k + 1) h` the period that just ended is integrated
+    /// with the answer to `seq = k`, or the newest valid torque ([`Realtime`]).
     pub(super) fn run_realtime(&mut self) -> Outcome {
         clock::set_min_timer_slack();
         if let Some(p) = self.args.rt_priority {
@@ -535,36 +542,14 @@ impl Loop {
                 Err(e) => tracing::warn!("--rt-priority {p}: {e}; staying SCHED_OTHER"),
             }
         }
-        let h_ns = self.h * 1e9;
-        let spin = self.args.spin_us * 1000;
-        let start = clock::now_ns();
-        let mut k: u64 = 0;
-        loop {
-            if self.shared.stop.load(Ordering::Acquire) {
-                return Outcome::Stopped;
-            }
-            let deadline = start + ((k + 1) as f64 * h_ns).round() as u64;
-            let woke = clock::sleep_until(deadline, spin);
-            self.jitter.push((woke - deadline) as f64 * 1e-3);
-            let newest = self.take_newest();
-            let tau = self.choose_torque(newest, false);
-            match self.step(tau) {
-                Ok(true) => return Outcome::Completed,
-                Ok(false) => {}
-                Err(f) => return Outcome::Faulted(f),
-            }
-            let done = clock::now_ns();
-            let next_deadline = start + ((k + 2) as f64 * h_ns).round() as u64;
-            if done > next_deadline {
-                self.overruns += 1;
-                let o = (done - next_deadline) as f64 * 1e-3;
-                if o > self.step_overrun_max {
-                    self.step_overrun_max = o;
-                }
-            }
-            self.maybe_status();
-            k += 1;
-        }
+        let grid = self.grid();
+        let mut rt = Realtime {
+            h_ns: self.h * 1e9,
+            spin: self.args.spin_us * 1000,
+            start: clock::now_ns(),
+            lp: self,
+        };
+        outcome(sampled::run(&mut rt, grid, &mut |_| {}).0)
     }
 
     /// Lockstep: one period per answer. Without a controller (its token gone, or no answer
@@ -573,37 +558,8 @@ impl Loop {
     /// safe-mode torque at about real-time speed or faster (never one period per timeout), and
     /// a controller that comes back takes over at the period it answers.
     pub(super) fn run_lockstep(&mut self) -> Outcome {
-        let timeout = Duration::from_millis(self.args.lockstep_timeout_ms);
-        loop {
-            if self.shared.stop.load(Ordering::Acquire) {
-                return Outcome::Stopped;
-            }
-            let wait = if self.status_state == Status::SAFE_MODE {
-                SAFE_MODE_POLL.min(timeout)
-            } else {
-                timeout
-            };
-            let fresh = self.wait_fresh(wait);
-            if self.shared.stop.load(Ordering::Acquire) {
-                return Outcome::Stopped;
-            }
-            let fresh_tau = fresh.map(|(c, _)| c.tau);
-            let mut tau = self.choose_torque(fresh, true);
-            if let (Some(answer), Some(hold)) = (fresh_tau, self.hold.as_mut()) {
-                // The answer crosses the emulated links; the hold picks the torque in force,
-                // as `simulate` does with the same flags.
-                tau = hold.step(self.seq, self.plant.time(), || answer);
-                if self.args.torque_limit > 0.0 {
-                    tau = tau.clamp(-self.args.torque_limit, self.args.torque_limit);
-                }
-            }
-            match self.step(tau) {
-                Ok(true) => return Outcome::Completed,
-                Ok(false) => {}
-                Err(f) => return Outcome::Faulted(f),
-            }
-            self.maybe_status();
-        }
+        let grid = self.grid();
+        outcome(sampled::run(&mut Lockstep(self), grid, &mut |_| {}).0)
     }
 
     pub(super) fn run(&mut self) -> Outcome {
@@ -739,5 +695,137 @@ impl Loop {
                 peaks.iter().map(|p| [p.t, p.alpha]).collect()
             },
         }
+    }
+}
+
+/// The node's outcome of a sampled run.
+fn outcome(r: Result<End, Fault>) -> Outcome {
+    match r {
+        Ok(End::Completed) => Outcome::Completed,
+        Ok(End::Stopped) => Outcome::Stopped,
+        Err(f) => Outcome::Faulted(f),
+    }
+}
+
+/// The lockstep transport: the state goes out on zenoh and the plant waits for its answer
+/// (or, over emulated links, hands it to the hold that picks the torque in force, as
+/// `simulate` does with the same flags).
+struct Lockstep<'a>(&'a mut Loop);
+
+impl Transport for Lockstep<'_> {
+    type Observer = Obs;
+
+    fn parts(&mut self) -> (&mut Plant, &mut Actuator, &mut Obs) {
+        let lp = &mut *self.0;
+        (&mut lp.plant, &mut lp.hw.actuator, &mut lp.obs)
+    }
+
+    fn sample(&mut self, _k: u64) -> Option<f64> {
+        let lp = &mut *self.0;
+        if lp.shared.stop.load(Ordering::Acquire) {
+            return None;
+        }
+        let timeout = Duration::from_millis(lp.args.lockstep_timeout_ms);
+        let wait = if lp.status_state == Status::SAFE_MODE {
+            SAFE_MODE_POLL.min(timeout)
+        } else {
+            timeout
+        };
+        let fresh = lp.wait_fresh(wait);
+        if lp.shared.stop.load(Ordering::Acquire) {
+            return None;
+        }
+        let fresh_tau = fresh.map(|(c, _)| c.tau);
+        let mut tau = lp.choose_torque(fresh, true);
+        if let (Some(answer), Some(hold)) = (fresh_tau, lp.hold.as_mut()) {
+            // The answer crosses the emulated links; the hold picks the torque in force,
+            // as `simulate` does with the same flags.
+            tau = hold.step(lp.seq, lp.plant.time(), || answer);
+            if lp.args.torque_limit > 0.0 {
+                tau = tau.clamp(-lp.args.torque_limit, lp.args.torque_limit);
+            }
+        }
+        Some(lp.begin_period(tau))
+    }
+
+    fn samples_events(&self) -> bool {
+        self.0.args.sample_on_event
+    }
+
+    fn extra(&mut self, _k: u64) {
+        self.0.extra_state();
+    }
+
+    fn torque_at(&mut self, _k: u64, _t: f64) -> Option<f64> {
+        self.0.event_answer.take()
+    }
+
+    fn period_end(&mut self, _k: u64, last: bool, result: &Result<(), Fault>) {
+        self.0.end_period(result);
+        if result.is_ok() && !last {
+            self.0.maybe_status();
+        }
+    }
+}
+
+/// The real-time transport: the plant sleeps to the period's deadline on the wall clock, then
+/// takes the answer to the state of the period that just ended, or the newest valid torque.
+struct Realtime<'a> {
+    lp: &'a mut Loop,
+    /// The period (ns).
+    h_ns: f64,
+    /// The spin before each deadline (ns).
+    spin: u64,
+    /// Wall-clock start (ns).
+    start: u64,
+}
+
+impl Transport for Realtime<'_> {
+    type Observer = Obs;
+
+    fn parts(&mut self) -> (&mut Plant, &mut Actuator, &mut Obs) {
+        let lp = &mut *self.lp;
+        (&mut lp.plant, &mut lp.hw.actuator, &mut lp.obs)
+    }
+
+    fn sample(&mut self, k: u64) -> Option<f64> {
+        if self.lp.shared.stop.load(Ordering::Acquire) {
+            return None;
+        }
+        let deadline = self.start + ((k + 1) as f64 * self.h_ns).round() as u64;
+        let woke = clock::sleep_until(deadline, self.spin);
+        self.lp.jitter.push((woke - deadline) as f64 * 1e-3);
+        let newest = self.lp.take_newest();
+        let tau = self.lp.choose_torque(newest, false);
+        Some(self.lp.begin_period(tau))
+    }
+
+    fn samples_events(&self) -> bool {
+        self.lp.args.sample_on_event
+    }
+
+    fn extra(&mut self, _k: u64) {
+        self.lp.extra_state();
+    }
+
+    fn torque_at(&mut self, _k: u64, _t: f64) -> Option<f64> {
+        self.lp.event_answer.take()
+    }
+
+    fn period_end(&mut self, k: u64, last: bool, result: &Result<(), Fault>) {
+        self.lp.end_period(result);
+        if result.is_err() || last {
+            return;
+        }
+        let done = clock::now_ns();
+        let next_deadline = self.start + ((k + 2) as f64 * self.h_ns).round() as u64;
+        if done > next_deadline {
+            self.lp.overruns += 1;
+            let o = (done - next_deadline) as f64 * 1e-3;
+            if o > self.lp.step_overrun_max {
+                self.lp.step_overrun_max = o;
+            }
+        }
+        self.lp.maybe_status();
     }
 }

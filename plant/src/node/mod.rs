@@ -210,6 +210,8 @@ async fn run_async(
         next_status: Instant::now(),
         status_interval: Duration::from_millis(100),
         next_timing_log: Instant::now() + TIMING_LOG_INTERVAL,
+        period_t0: 0,
+        event_answer: None,
     };
     let (done_tx, done_rx) = tokio::sync::oneshot::channel();
     let pacing = std::thread::Builder::new()
