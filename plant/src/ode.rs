@@ -277,22 +277,75 @@ pub struct OdeStats {
     pub dense: u64,
 }
 
-/// The DOP853 stepper: tolerances plus the step-size memory carried from step to step.
+/// The step-size controller shared by the embedded Runge–Kutta pairs ([`Dop853`],
+/// [`Dopri5`]): tolerances, the step-size memory carried from step to step (plain data, so a
+/// plant carries it across zero-order-hold periods), and the work counters. One accepted step
+/// ([`StepControl::drive`]):
+///
+/// - the first step: the pair's own guess ([`Stepper::initial`]), kept as the memory, or the
+///   whole span, not kept;
+/// - the trial step `h = min(memory, h_max)`, stretched to end exactly on `t_end` when it would
+///   end within `1e-12` relative of it (or past it); a step below `16 eps max(|t|, 1)` is an
+///   underflow;
+/// - a trial whose new state is not finite is retried at a quarter of its size (down to
+///   `1e-9 s`, then it fails) and counts as a rejection;
+/// - the error norm `err` ([`Stepper::error`]) accepts at `err <= 1`; the next step is
+///   `h * clamp(0.9 err^(-1/q), MIN, MAX)` (`MAX` for `err = 0`, no growth right after a
+///   rejection), and a rejected one is retried at `h * max(0.9 err^(-1/q), MIN)`
+///   ([`Pair`]: `q`, `MIN`, `MAX`);
+/// - a step cut short at `t_end` keeps the larger of its suggestion and the memory (a sample
+///   instant does not shrink the next period's step); when the memory is already `MAX h` or
+///   more the norm's value is not needed, only whether it is at most 1, which a pair may
+///   decide more cheaply (`exact = false`).
 #[derive(Debug, Clone)]
-pub struct Dop853 {
+pub struct StepControl<P> {
     /// Error tolerances.
     pub tol: Tolerance,
     /// Largest step allowed (s); `f64::INFINITY` for none.
     pub h_max: f64,
-    /// Suggested size of the next step (s); 0 lets the stepper choose.
+    /// Suggested size of the next step (s); 0 means none yet.
     pub h_next: f64,
     reject: bool,
     /// Work counters.
     pub stats: OdeStats,
+    pair: std::marker::PhantomData<P>,
 }
 
-impl Dop853 {
-    /// A stepper with tolerances `tol` and no step memory.
+/// The constants of an embedded pair's step-size factor (see [`StepControl`]).
+pub trait Pair {
+    /// `-1/q`: the exponent of the error norm, `q` the order of the error estimate plus one.
+    const EXPONENT: f64;
+    /// Smallest factor of one step.
+    const MIN_FACTOR: f64;
+    /// Largest factor of one step.
+    const MAX_FACTOR: f64;
+}
+
+/// One step being taken by an embedded pair from a given `(t, y, f(t, y))`: what
+/// [`StepControl::drive`] asks of it.
+pub trait Stepper<P: Pair> {
+    /// A trial step (its stages and new state).
+    type Trial;
+    /// The accepted step handed to the caller.
+    type Accepted;
+    /// The first step size when the controller has no memory, to be kept as the memory
+    /// (`None`: try the whole span and keep nothing). `span`: `t_end - t` (s).
+    fn initial(&mut self, tol: &Tolerance, stats: &mut OdeStats, span: f64) -> Option<f64>;
+    /// A trial step of size `h` (s) ending at `t1` (s); `None` if its new state is not finite.
+    fn trial(&mut self, h: f64, t1: f64, stats: &mut OdeStats) -> Option<Self::Trial>;
+    /// The trial's error norm (accepted at `<= 1`). With `exact` false only whether it is at
+    /// most 1 matters: any value at most 1 (0, say) may stand for an acceptable one.
+    fn error(&self, trial: &Self::Trial, tol: &Tolerance, exact: bool) -> f64;
+    /// The accepted trial as the caller's step (or a failure found at its end).
+    fn accept(
+        &mut self,
+        trial: Self::Trial,
+        stats: &mut OdeStats,
+    ) -> Result<Self::Accepted, OdeError>;
+}
+
+impl<P: Pair> StepControl<P> {
+    /// A controller with tolerances `tol` and no step memory.
     pub fn new(tol: Tolerance) -> Self {
         Self {
             tol,
@@ -300,6 +353,7 @@ impl Dop853 {
             h_next: 0.0,
             reject: false,
             stats: OdeStats::default(),
+            pair: std::marker::PhantomData,
         }
     }
 
@@ -310,18 +364,118 @@ impl Dop853 {
         self.reject = false;
     }
 
-    fn initial_step<const N: usize, F>(
+    /// Takes one accepted step of `stepper` from `t` towards `t_end > t` (s), never past it.
+    #[inline]
+    pub fn drive<S: Stepper<P>>(
         &mut self,
-        f: &mut F,
+        stepper: &mut S,
         t: f64,
-        y: &SVector<f64, N>,
-        f0: &SVector<f64, N>,
-        span: f64,
-    ) -> f64
-    where
-        F: FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
-    {
-        let sk = y.map(|v| self.tol.atol + self.tol.rtol * v.abs());
+        t_end: f64,
+    ) -> Result<S::Accepted, OdeError> {
+        let span = t_end - t;
+        debug_assert!(span > 0.0);
+        if self.h_next <= 0.0 {
+            if let Some(h0) = stepper.initial(&self.tol, &mut self.stats, span) {
+                self.h_next = h0;
+            }
+        }
+        let mut h = if self.h_next > 0.0 { self.h_next } else { span }.min(self.h_max);
+        loop {
+            let mut t1 = t + h;
+            if h >= span * (1.0 - 1e-12) || t1 >= t_end {
+                h = span;
+                t1 = t_end;
+            }
+            if h <= 16.0 * f64::EPSILON * t.abs().max(1.0) {
+                return Err(OdeError::StepUnderflow { t, h });
+            }
+            let Some(trial) = stepper.trial(h, t1, &mut self.stats) else {
+                if h > 1e-9 {
+                    // A non-finite trial: shrink and retry before giving up.
+                    h *= 0.25;
+                    self.stats.rejected += 1;
+                    self.reject = true;
+                    continue;
+                }
+                return Err(OdeError::NonFinite { t });
+            };
+            let keep = self.h_next.min(self.h_max);
+            let cut = t1 == t_end;
+            let exact = !(cut && keep >= P::MAX_FACTOR * h);
+            let err = stepper.error(&trial, &self.tol, exact);
+            if err <= 1.0 {
+                self.h_next = if exact {
+                    let scale = if err == 0.0 {
+                        P::MAX_FACTOR
+                    } else {
+                        (0.9 * err.powf(P::EXPONENT)).clamp(P::MIN_FACTOR, P::MAX_FACTOR)
+                    };
+                    let h_sugg = if self.reject {
+                        h * scale.min(1.0)
+                    } else {
+                        h * scale
+                    };
+                    if cut {
+                        h_sugg.max(keep)
+                    } else {
+                        h_sugg
+                    }
+                } else {
+                    // The suggestion is at most MAX_FACTOR h <= keep.
+                    keep
+                };
+                self.reject = false;
+                self.stats.steps += 1;
+                return stepper.accept(trial, &mut self.stats);
+            }
+            self.stats.rejected += 1;
+            self.reject = true;
+            h *= (0.9 * err.powf(P::EXPONENT)).max(P::MIN_FACTOR);
+        }
+    }
+}
+
+/// The DOP853 pair: 8th order, error estimate of orders 5 and 3 combined (Hairer's).
+#[derive(Debug, Clone, Copy)]
+pub struct Dp853;
+
+impl Pair for Dp853 {
+    const EXPONENT: f64 = -0.125;
+    const MIN_FACTOR: f64 = 0.333;
+    const MAX_FACTOR: f64 = 6.0;
+}
+
+/// The DOP853 stepper: [`StepControl`] over the 8(5,3) pair, with a lazily built 7th-order
+/// dense output ([`Dop853::dense`]).
+pub type Dop853 = StepControl<Dp853>;
+
+/// One DOP853 step in progress from `(t, y)` with `f0 = f(t, y)`.
+struct Step853<'a, const N: usize, F> {
+    f: &'a mut F,
+    t: f64,
+    y: &'a SVector<f64, N>,
+    f0: &'a SVector<f64, N>,
+}
+
+/// A DOP853 trial: `(h, t1, y1, (y1 - y) / h, k1..k12)`.
+type Trial853<const N: usize> = (
+    f64,
+    f64,
+    SVector<f64, N>,
+    SVector<f64, N>,
+    [SVector<f64, N>; 12],
+);
+
+impl<const N: usize, F> Stepper<Dp853> for Step853<'_, N, F>
+where
+    F: FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
+{
+    type Trial = Trial853<N>;
+    type Accepted = Step<N>;
+
+    fn initial(&mut self, tol: &Tolerance, stats: &mut OdeStats, span: f64) -> Option<f64> {
+        let (t, y, f0) = (self.t, self.y, self.f0);
+        let sk = y.map(|v| tol.atol + tol.rtol * v.abs());
         let d0 = y.component_div(&sk).norm() / (N as f64).sqrt();
         let d1 = f0.component_div(&sk).norm() / (N as f64).sqrt();
         let h0 = if d0 < 1e-10 || d1 < 1e-10 {
@@ -331,17 +485,134 @@ impl Dop853 {
         }
         .min(span);
         let y1 = y + f0 * h0;
-        let f1 = f(t + h0, &y1);
-        self.stats.evals += 1;
+        let f1 = (self.f)(t + h0, &y1);
+        stats.evals += 1;
         let d2 = (f1 - f0).component_div(&sk).norm() / (N as f64).sqrt() / h0;
         let h1 = if d1.max(d2) <= 1e-15 {
             (h0 * 1e-3).max(1e-6)
         } else {
             (0.01 / d1.max(d2)).powf(1.0 / 8.0)
         };
-        (100.0 * h0).min(h1).min(span)
+        Some((100.0 * h0).min(h1).min(span))
     }
 
+    #[inline]
+    fn trial(&mut self, h: f64, t1: f64, stats: &mut OdeStats) -> Option<Trial853<N>> {
+        let (t, y) = (self.t, self.y);
+        let k1 = *self.f0;
+        let f = &mut *self.f;
+        let mut ev = |tt: f64, yy: SVector<f64, N>| f(tt, &yy);
+        let k2 = ev(t + C2 * h, y + k1 * (h * A21));
+        let k3 = ev(t + C3 * h, y + (k1 * A31 + k2 * A32) * h);
+        let k4 = ev(t + C4 * h, y + (k1 * A41 + k3 * A43) * h);
+        let k5 = ev(t + C5 * h, y + (k1 * A51 + k3 * A53 + k4 * A54) * h);
+        let k6 = ev(t + C6 * h, y + (k1 * A61 + k4 * A64 + k5 * A65) * h);
+        let k7 = ev(
+            t + C7 * h,
+            y + (k1 * A71 + k4 * A74 + k5 * A75 + k6 * A76) * h,
+        );
+        let k8 = ev(
+            t + C8 * h,
+            y + (k1 * A81 + k4 * A84 + k5 * A85 + k6 * A86 + k7 * A87) * h,
+        );
+        let k9 = ev(
+            t + C9 * h,
+            y + (k1 * A91 + k4 * A94 + k5 * A95 + k6 * A96 + k7 * A97 + k8 * A98) * h,
+        );
+        let k10 = ev(
+            t + C10 * h,
+            y + (k1 * A101 + k4 * A104 + k5 * A105 + k6 * A106 + k7 * A107 + k8 * A108 + k9 * A109)
+                * h,
+        );
+        let k11 = ev(
+            t + C11 * h,
+            y + (k1 * A111
+                + k4 * A114
+                + k5 * A115
+                + k6 * A116
+                + k7 * A117
+                + k8 * A118
+                + k9 * A119
+                + k10 * A1110)
+                * h,
+        );
+        let k12 = ev(
+            t1,
+            y + (k1 * A121
+                + k4 * A124
+                + k5 * A125
+                + k6 * A126
+                + k7 * A127
+                + k8 * A128
+                + k9 * A129
+                + k10 * A1210
+                + k11 * A1211)
+                * h,
+        );
+        stats.evals += 11;
+        let inc =
+            k1 * B1 + k6 * B6 + k7 * B7 + k8 * B8 + k9 * B9 + k10 * B10 + k11 * B11 + k12 * B12;
+        let y1 = y + inc * h;
+        if !y1.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        Some((
+            h,
+            t1,
+            y1,
+            inc,
+            [k1, k2, k3, k4, k5, k6, k7, k8, k9, k10, k11, k12],
+        ))
+    }
+
+    #[inline]
+    fn error(&self, trial: &Trial853<N>, tol: &Tolerance, _exact: bool) -> f64 {
+        let (h, _, y1, inc, k) = trial;
+        let y = self.y;
+        let [k1, _, _, _, _, k6, k7, k8, k9, k10, k11, k12] = k;
+        let e3 = inc - k1 * BHH1 - k9 * BHH2 - k12 * BHH3;
+        let e5 = k1 * ER1
+            + k6 * ER6
+            + k7 * ER7
+            + k8 * ER8
+            + k9 * ER9
+            + k10 * ER10
+            + k11 * ER11
+            + k12 * ER12;
+        let (mut err5, mut err3) = (0.0, 0.0);
+        for i in 0..N {
+            let sk = tol.atol + tol.rtol * y[i].abs().max(y1[i].abs());
+            err3 += (e3[i] / sk).powi(2);
+            err5 += (e5[i] / sk).powi(2);
+        }
+        let mut deno = err5 + 0.01 * err3;
+        if deno <= 0.0 {
+            deno = 1.0;
+        }
+        h.abs() * err5 * (1.0 / (N as f64 * deno)).sqrt()
+    }
+
+    #[inline]
+    fn accept(&mut self, trial: Trial853<N>, stats: &mut OdeStats) -> Result<Step<N>, OdeError> {
+        let (h, t1, y1, _, k) = trial;
+        let k13 = (self.f)(t1, &y1);
+        stats.evals += 1;
+        if !k13.iter().all(|v| v.is_finite()) {
+            return Err(OdeError::NonFinite { t: t1 });
+        }
+        let [k1, k2, k3, k4, k5, k6, k7, k8, k9, k10, k11, k12] = k;
+        Ok(Step {
+            t0: self.t,
+            h,
+            t1,
+            y0: *self.y,
+            y1,
+            k: [k1, k2, k3, k4, k5, k6, k7, k8, k9, k10, k11, k12, k13],
+        })
+    }
+}
+
+impl Dop853 {
     /// Takes one accepted step from `(t, y)` with `f0 = f(t, y)` towards `t_end > t`, never
     /// past it; a step that would end within a hair of `t_end` ends on it exactly.
     pub fn step<const N: usize, F>(
@@ -355,146 +626,7 @@ impl Dop853 {
     where
         F: FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
     {
-        let span = t_end - t;
-        debug_assert!(span > 0.0);
-        if self.h_next <= 0.0 {
-            self.h_next = self.initial_step(f, t, y, f0, span);
-        }
-        let mut h = self.h_next.min(self.h_max);
-        loop {
-            let mut t1 = t + h;
-            if h >= span * (1.0 - 1e-12) || t1 >= t_end {
-                h = span;
-                t1 = t_end;
-            }
-            if h <= 16.0 * f64::EPSILON * t.abs().max(1.0) {
-                return Err(OdeError::StepUnderflow { t, h });
-            }
-            let k1 = *f0;
-            let mut ev = |tt: f64, yy: SVector<f64, N>| f(tt, &yy);
-            let k2 = ev(t + C2 * h, y + k1 * (h * A21));
-            let k3 = ev(t + C3 * h, y + (k1 * A31 + k2 * A32) * h);
-            let k4 = ev(t + C4 * h, y + (k1 * A41 + k3 * A43) * h);
-            let k5 = ev(t + C5 * h, y + (k1 * A51 + k3 * A53 + k4 * A54) * h);
-            let k6 = ev(t + C6 * h, y + (k1 * A61 + k4 * A64 + k5 * A65) * h);
-            let k7 = ev(
-                t + C7 * h,
-                y + (k1 * A71 + k4 * A74 + k5 * A75 + k6 * A76) * h,
-            );
-            let k8 = ev(
-                t + C8 * h,
-                y + (k1 * A81 + k4 * A84 + k5 * A85 + k6 * A86 + k7 * A87) * h,
-            );
-            let k9 = ev(
-                t + C9 * h,
-                y + (k1 * A91 + k4 * A94 + k5 * A95 + k6 * A96 + k7 * A97 + k8 * A98) * h,
-            );
-            let k10 = ev(
-                t + C10 * h,
-                y + (k1 * A101
-                    + k4 * A104
-                    + k5 * A105
-                    + k6 * A106
-                    + k7 * A107
-                    + k8 * A108
-                    + k9 * A109)
-                    * h,
-            );
-            let k11 = ev(
-                t + C11 * h,
-                y + (k1 * A111
-                    + k4 * A114
-                    + k5 * A115
-                    + k6 * A116
-                    + k7 * A117
-                    + k8 * A118
-                    + k9 * A119
-                    + k10 * A1110)
-                    * h,
-            );
-            let k12 = ev(
-                t1,
-                y + (k1 * A121
-                    + k4 * A124
-                    + k5 * A125
-                    + k6 * A126
-                    + k7 * A127
-                    + k8 * A128
-                    + k9 * A129
-                    + k10 * A1210
-                    + k11 * A1211)
-                    * h,
-            );
-            self.stats.evals += 11;
-            let inc =
-                k1 * B1 + k6 * B6 + k7 * B7 + k8 * B8 + k9 * B9 + k10 * B10 + k11 * B11 + k12 * B12;
-            let y1 = y + inc * h;
-            if !y1.iter().all(|v| v.is_finite()) {
-                if h > 1e-9 {
-                    // A non-finite trial: shrink and retry before giving up.
-                    h *= 0.25;
-                    self.stats.rejected += 1;
-                    continue;
-                }
-                return Err(OdeError::NonFinite { t });
-            }
-            let e3 = inc - k1 * BHH1 - k9 * BHH2 - k12 * BHH3;
-            let e5 = k1 * ER1
-                + k6 * ER6
-                + k7 * ER7
-                + k8 * ER8
-                + k9 * ER9
-                + k10 * ER10
-                + k11 * ER11
-                + k12 * ER12;
-            let (mut err5, mut err3) = (0.0, 0.0);
-            for i in 0..N {
-                let sk = self.tol.atol + self.tol.rtol * y[i].abs().max(y1[i].abs());
-                err3 += (e3[i] / sk).powi(2);
-                err5 += (e5[i] / sk).powi(2);
-            }
-            let mut deno = err5 + 0.01 * err3;
-            if deno <= 0.0 {
-                deno = 1.0;
-            }
-            let err = h.abs() * err5 * (1.0 / (N as f64 * deno)).sqrt();
-            if err <= 1.0 {
-                let scale = if err == 0.0 {
-                    6.0
-                } else {
-                    (0.9 * err.powf(-0.125)).clamp(0.333, 6.0)
-                };
-                // The suggestion survives a step cut short at t_end: keep the larger of the two.
-                let h_sugg = if self.reject {
-                    h * scale.min(1.0)
-                } else {
-                    h * scale
-                };
-                self.h_next = if t1 == t_end {
-                    h_sugg.max(self.h_next.min(self.h_max))
-                } else {
-                    h_sugg
-                };
-                self.reject = false;
-                let k13 = f(t1, &y1);
-                self.stats.evals += 1;
-                self.stats.steps += 1;
-                if !k13.iter().all(|v| v.is_finite()) {
-                    return Err(OdeError::NonFinite { t: t1 });
-                }
-                return Ok(Step {
-                    t0: t,
-                    h,
-                    t1,
-                    y0: *y,
-                    y1,
-                    k: [k1, k2, k3, k4, k5, k6, k7, k8, k9, k10, k11, k12, k13],
-                });
-            }
-            self.stats.rejected += 1;
-            self.reject = true;
-            h *= (0.9 * err.powf(-0.125)).max(0.333);
-        }
+        self.drive(&mut Step853 { f, t, y, f0 }, t, t_end)
     }
 
     /// Builds the continuous extension of `s` (three more evaluations of `f`).
@@ -656,8 +788,20 @@ pub struct Step5<const N: usize, A> {
     pub aux1: A,
 }
 
+/// The Dormand–Prince 5(4) pair (`DOPRI5`, 7 stages, first same as last).
+#[derive(Debug, Clone, Copy)]
+pub struct Dp54;
+
+impl Pair for Dp54 {
+    const EXPONENT: f64 = -0.2;
+    // Hairer's factors: at most 10x growth, 0.2x shrinkage, safety 0.9.
+    const MIN_FACTOR: f64 = 0.2;
+    const MAX_FACTOR: f64 = 10.0;
+}
+
 /// The Dormand–Prince 5(4) stepper (`DOPRI5`, 7 stages, first same as last: 6 new evaluations
-/// per step), with the same step-size control interface as [`Dop853`] but no dense output.
+/// per step): [`StepControl`] over the 5(4) pair, with no dense output. Its first step tries
+/// the whole span (capped by `h_max`) and the error control shrinks it if needed.
 ///
 /// It costs half of a [`Dop853`] step. The hybrid plant uses it for held-torque intervals that
 /// one such step covers within the tolerance (a 1 ms zero-order-hold period), where the
@@ -670,32 +814,112 @@ pub struct Step5<const N: usize, A> {
 /// `(t1, y1)`, and `false` for the inner stages, so a caller may spend more accuracy on the
 /// point the next step starts from (the plant computes the inner stages' sines from the step's
 /// start by the angle-sum formulas, and those of the end point directly).
-#[derive(Debug, Clone)]
-pub struct Dopri5 {
-    /// Error tolerances.
-    pub tol: Tolerance,
-    /// Largest step allowed (s); `f64::INFINITY` for none.
-    pub h_max: f64,
-    /// Suggested size of the next step (s); 0 means none yet: the first step then tries the
-    /// whole span (capped by `h_max`) and the error control shrinks it if needed.
-    pub h_next: f64,
-    reject: bool,
-    /// Work counters.
-    pub stats: OdeStats,
+pub type Dopri5 = StepControl<Dp54>;
+
+/// One DOPRI5 step in progress from `(t, y)` with `f0 = f(t, y, true).0`.
+struct Step54<'a, const N: usize, F> {
+    f: &'a mut F,
+    t: f64,
+    y: &'a SVector<f64, N>,
+    f0: &'a SVector<f64, N>,
+}
+
+/// A DOPRI5 trial: the step, its stages `k1..k7` (`k7 = f(t1, y1)`) and the auxiliary value
+/// at its end.
+struct Trial54<const N: usize, A> {
+    step: Step5<N, A>,
+    k: [SVector<f64, N>; 6],
+}
+
+impl<const N: usize, A, F> Stepper<Dp54> for Step54<'_, N, F>
+where
+    F: FnMut(f64, &SVector<f64, N>, bool) -> (SVector<f64, N>, A),
+{
+    type Trial = Trial54<N, A>;
+    type Accepted = Step5<N, A>;
+
+    #[inline]
+    fn initial(&mut self, _tol: &Tolerance, _stats: &mut OdeStats, _span: f64) -> Option<f64> {
+        None
+    }
+
+    #[inline]
+    fn trial(&mut self, h: f64, t1: f64, stats: &mut OdeStats) -> Option<Trial54<N, A>> {
+        let (t, y, f) = (self.t, self.y, &mut *self.f);
+        let k1 = *self.f0;
+        let k2 = f(t + P_C2 * h, &(y + k1 * (h * P_A21)), false).0;
+        let k3 = f(t + P_C3 * h, &(y + (k1 * P_A31 + k2 * P_A32) * h), false).0;
+        let k4 = f(
+            t + P_C4 * h,
+            &(y + (k1 * P_A41 + k2 * P_A42 + k3 * P_A43) * h),
+            false,
+        )
+        .0;
+        let k5 = f(
+            t + P_C5 * h,
+            &(y + (k1 * P_A51 + k2 * P_A52 + k3 * P_A53 + k4 * P_A54) * h),
+            false,
+        )
+        .0;
+        let k6 = f(
+            t1,
+            &(y + (k1 * P_A61 + k2 * P_A62 + k3 * P_A63 + k4 * P_A64 + k5 * P_A65) * h),
+            false,
+        )
+        .0;
+        let y1 = y + (k1 * P_B1 + k3 * P_B3 + k4 * P_B4 + k5 * P_B5 + k6 * P_B6) * h;
+        stats.evals += 5;
+        if !y1.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let (k7, aux1) = f(t1, &y1, true);
+        stats.evals += 1;
+        Some(Trial54 {
+            step: Step5 {
+                t0: t,
+                h,
+                t1,
+                y1,
+                f1: k7,
+                aux1,
+            },
+            k: [k1, k2, k3, k4, k5, k6],
+        })
+    }
+
+    #[inline]
+    fn error(&self, trial: &Trial54<N, A>, tol: &Tolerance, exact: bool) -> f64 {
+        let [k1, _, k3, k4, k5, k6] = &trial.k;
+        let (h, y, y1, k7) = (trial.step.h, self.y, &trial.step.y1, &trial.step.f1);
+        let e = (k1 * P_E1 + k3 * P_E3 + k4 * P_E4 + k5 * P_E5 + k6 * P_E6 + k7 * P_E7) * h;
+        let scale =
+            SVector::<f64, N>::from_fn(|i, _| tol.atol + tol.rtol * y[i].abs().max(y1[i].abs()));
+        // When only whether the norm is at most 1 matters (most short steps), every component
+        // within its own scale guarantees it: comparisons instead of divisions and a root.
+        if !exact && (0..N).all(|i| e[i].abs() <= scale[i]) {
+            return 0.0;
+        }
+        let mut sum = 0.0;
+        for i in 0..N {
+            sum += (e[i] / scale[i]).powi(2);
+        }
+        (sum / N as f64).sqrt()
+    }
+
+    #[inline]
+    fn accept(
+        &mut self,
+        trial: Trial54<N, A>,
+        _stats: &mut OdeStats,
+    ) -> Result<Step5<N, A>, OdeError> {
+        if !trial.step.f1.iter().all(|v| v.is_finite()) {
+            return Err(OdeError::NonFinite { t: trial.step.t1 });
+        }
+        Ok(trial.step)
+    }
 }
 
 impl Dopri5 {
-    /// A stepper with tolerances `tol` and no step memory.
-    pub fn new(tol: Tolerance) -> Self {
-        Self {
-            tol,
-            h_max: f64::INFINITY,
-            h_next: 0.0,
-            reject: false,
-            stats: OdeStats::default(),
-        }
-    }
-
     /// Takes one accepted step from `(t, y)` with `f0 = f(t, y, true).0` towards `t_end > t`,
     /// never past it; a step that would end within a hair of `t_end` ends on it exactly.
     #[inline]
@@ -710,111 +934,7 @@ impl Dopri5 {
     where
         F: FnMut(f64, &SVector<f64, N>, bool) -> (SVector<f64, N>, A),
     {
-        let span = t_end - t;
-        debug_assert!(span > 0.0);
-        let mut h = if self.h_next > 0.0 { self.h_next } else { span }.min(self.h_max);
-        loop {
-            let mut t1 = t + h;
-            if h >= span * (1.0 - 1e-12) || t1 >= t_end {
-                h = span;
-                t1 = t_end;
-            }
-            if h <= 16.0 * f64::EPSILON * t.abs().max(1.0) {
-                return Err(OdeError::StepUnderflow { t, h });
-            }
-            let k1 = *f0;
-            let k2 = f(t + P_C2 * h, &(y + k1 * (h * P_A21)), false).0;
-            let k3 = f(t + P_C3 * h, &(y + (k1 * P_A31 + k2 * P_A32) * h), false).0;
-            let k4 = f(
-                t + P_C4 * h,
-                &(y + (k1 * P_A41 + k2 * P_A42 + k3 * P_A43) * h),
-                false,
-            )
-            .0;
-            let k5 = f(
-                t + P_C5 * h,
-                &(y + (k1 * P_A51 + k2 * P_A52 + k3 * P_A53 + k4 * P_A54) * h),
-                false,
-            )
-            .0;
-            let k6 = f(
-                t1,
-                &(y + (k1 * P_A61 + k2 * P_A62 + k3 * P_A63 + k4 * P_A64 + k5 * P_A65) * h),
-                false,
-            )
-            .0;
-            let y1 = y + (k1 * P_B1 + k3 * P_B3 + k4 * P_B4 + k5 * P_B5 + k6 * P_B6) * h;
-            self.stats.evals += 5;
-            if !y1.iter().all(|v| v.is_finite()) {
-                if h > 1e-9 {
-                    h *= 0.25;
-                    self.stats.rejected += 1;
-                    self.reject = true;
-                    continue;
-                }
-                return Err(OdeError::NonFinite { t });
-            }
-            let (k7, aux1) = f(t1, &y1, true);
-            self.stats.evals += 1;
-            let e = (k1 * P_E1 + k3 * P_E3 + k4 * P_E4 + k5 * P_E5 + k6 * P_E6 + k7 * P_E7) * h;
-            let scale = SVector::<f64, N>::from_fn(|i, _| {
-                self.tol.atol + self.tol.rtol * y[i].abs().max(y1[i].abs())
-            });
-            // A step cut short at t_end keeps the larger of its suggestion and the memory (as in
-            // Dop853); the suggestion grows the step at most 10x, so when the memory is that far
-            // ahead already the norm's value is not needed (most short steps), only whether it
-            // is at most 1, which every component within its own scale guarantees: that takes
-            // comparisons instead of divisions and a square root.
-            let keep = self.h_next.min(self.h_max);
-            let cut = t1 == t_end;
-            let err = if cut && keep >= 10.0 * h && (0..N).all(|i| e[i].abs() <= scale[i]) {
-                0.0
-            } else {
-                let mut sum = 0.0;
-                for i in 0..N {
-                    sum += (e[i] / scale[i]).powi(2);
-                }
-                (sum / N as f64).sqrt()
-            };
-            if err <= 1.0 {
-                self.h_next = if cut && keep >= 10.0 * h {
-                    keep
-                } else {
-                    // Hairer's factors: at most 10x growth, 0.2x shrinkage, safety 0.9.
-                    let scale = if err == 0.0 {
-                        10.0
-                    } else {
-                        (0.9 * err.powf(-0.2)).clamp(0.2, 10.0)
-                    };
-                    let h_sugg = if self.reject {
-                        h * scale.min(1.0)
-                    } else {
-                        h * scale
-                    };
-                    if cut {
-                        h_sugg.max(keep)
-                    } else {
-                        h_sugg
-                    }
-                };
-                self.reject = false;
-                self.stats.steps += 1;
-                if !k7.iter().all(|v| v.is_finite()) {
-                    return Err(OdeError::NonFinite { t: t1 });
-                }
-                return Ok(Step5 {
-                    t0: t,
-                    h,
-                    t1,
-                    y1,
-                    f1: k7,
-                    aux1,
-                });
-            }
-            self.stats.rejected += 1;
-            self.reject = true;
-            h *= (0.9 * err.powf(-0.2)).max(0.2);
-        }
+        self.drive(&mut Step54 { f, t, y, f0 }, t, t_end)
     }
 }
 
