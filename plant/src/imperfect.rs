@@ -287,7 +287,27 @@ impl Actuator {
 
     /// Advances `plant` to `t_target` (s) with the command `cmd` (N m) issued at the plant's
     /// current time: clipped, then lagged (exactly) or, without a lag, held.
+    #[inline(always)]
     pub fn advance<O: Observer>(
+        &mut self,
+        plant: &mut Plant,
+        cmd: f64,
+        t_target: f64,
+        obs: &mut O,
+    ) -> Result<(), Fault> {
+        if self.saturation.is_none() && self.lag == 0.0 {
+            // The perfect actuator (every sampled loop's hot path): the command is held;
+            // `advance_held` refuses a non-finite one with the same fault.
+            if cmd.is_finite() {
+                self.tau = cmd;
+            }
+            return plant.advance_held(cmd, t_target, obs);
+        }
+        self.advance_imperfect(plant, cmd, t_target, obs)
+    }
+
+    /// [`Actuator::advance`] with a saturation or a lag.
+    fn advance_imperfect<O: Observer>(
         &mut self,
         plant: &mut Plant,
         cmd: f64,
