@@ -28,8 +28,6 @@ pub const DEFAULT_MAX_AGE: u64 = 10;
 pub struct SimOptions {
     /// Record the trajectory (decimated) for plotting.
     pub record_samples: bool,
-    /// Show a progress bar on stderr.
-    pub progress: bool,
     /// Run the sampled loop over these impaired links ([`crate::network`]); needs a control
     /// period.
     pub network: Option<Impairment>,
@@ -193,7 +191,7 @@ impl Observer for Collector {
     }
 }
 
-/// The continuous run is cut into at most this many pieces (for the progress bar)...
+/// The continuous run is cut into at most this many pieces (for the progress reports)...
 const MAX_CHUNKS: f64 = 100.0;
 /// ...of at least this length (s): each cut ends an integrator step early, so the pieces are
 /// kept long. The cuts depend on the duration only, so the result does not depend on whether a
@@ -280,6 +278,17 @@ pub fn run_continuous<L: TorqueLaw, O: Observer>(
 /// Runs the scenario. Fails only on an invalid scenario; a fault of the plant (contact loss,
 /// fall, Zeno, integrator failure) ends the run and is reported in the result.
 pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, ScenarioError> {
+    simulate_with_progress(sc, opts, &mut |_| {})
+}
+
+/// [`simulate`], reporting progress: `progress` gets the simulated time reached (s, up to the
+/// scenario's duration) about a thousand times per sampled run, and after each of the at most
+/// 100 pieces of a continuous one. The library draws nothing: a front door draws a bar from it.
+pub fn simulate_with_progress(
+    sc: &Scenario,
+    opts: SimOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<SimulationReport, ScenarioError> {
     sc.validate()?;
     let ctrl = sc.controller()?;
     let imperfect = opts.imperfect.filter(|i| !i.is_perfect());
@@ -305,14 +314,8 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
         min_dt: sc.duration / PLOT_SAMPLES,
     };
     rec.push(0.0, plant.mode(), &plant.state(), true);
-    let bar = opts.progress.then(|| progress_bar(sc.duration));
     let t_end = sc.duration;
     let start = Instant::now();
-    let mut tick = |t: f64| {
-        if let Some(b) = &bar {
-            set_progress(b, t, t_end);
-        }
-    };
     let network = opts.network.filter(|n| !n.is_perfect());
     let plain = opts.loop_options.is_plain();
     if !plain && !sc.is_sampled() {
@@ -379,7 +382,7 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
             },
             &mut imperfect.unwrap_or_default().hardware(),
             &mut rec,
-            &mut tick,
+            progress,
         );
         net_stats = network.is_some().then_some(st);
         (r, n)
@@ -390,17 +393,14 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
             sc.control_period,
             t_end,
             &mut rec,
-            &mut tick,
+            progress,
         )
     } else {
         let pieces = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
-        let r = run_continuous(&mut plant, &ctrl, t_end, pieces, &mut rec, &mut tick);
+        let r = run_continuous(&mut plant, &ctrl, t_end, pieces, &mut rec, progress);
         (r, 0)
     };
     let wall = start.elapsed().as_secs_f64();
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
     // A peak reached in the last tilt, which has not landed (yet, or ever: the run ended in
     // it, at its duration or by a fault), is a peak of the run too.
     if let Some(p) = plant.peak_in_progress() {
@@ -439,22 +439,6 @@ pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, Sce
         },
         samples: rec.samples.unwrap_or_default(),
     })
-}
-
-fn progress_bar(duration: f64) -> indicatif::ProgressBar {
-    let b = indicatif::ProgressBar::new(1000);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("[{elapsed_precise}] {wide_bar} {msg} (eta {eta})")
-    {
-        b.set_style(style);
-    }
-    b.set_message(format!("t = 0 / {duration} s"));
-    b
-}
-
-fn set_progress(b: &indicatif::ProgressBar, t: f64, duration: f64) {
-    b.set_position((1000.0 * t / duration).round() as u64);
-    b.set_message(format!("t = {t:.2} / {duration} s"));
 }
 
 /// The human-readable summary of a run.

@@ -31,7 +31,9 @@ pub mod network;
 pub mod recording;
 pub mod scenario;
 
-pub use closed_loop::{run_continuous, run_sampled, simulate, SimOptions, SimulationReport};
+pub use closed_loop::{
+    run_continuous, run_sampled, simulate, simulate_with_progress, SimOptions, SimulationReport,
+};
 pub use network::{
     run_sampled_over, Impairment, LoopArgs, LoopOptions, NetStats, NetworkArgs, Predict,
 };

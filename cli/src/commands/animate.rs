@@ -8,7 +8,6 @@ use super::{bar, check, emit, usage};
 use crate::CommandError;
 use anyhow::{Context as _, Result};
 use serde::{Deserialize, Serialize};
-use std::io::IsTerminal as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tilting_plant::Params;
@@ -149,15 +148,15 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
             load_run(from, w).map_err(CommandError::Usage)?
         }
         None => {
-            let r = tilting_sim::simulate(
+            let r = super::simulate_with_bar(
                 &sc,
                 SimOptions {
                     record_samples: true,
-                    progress: !args.json && std::io::stderr().is_terminal(),
                     network: None,
                     loop_options: Default::default(),
                     imperfect: None,
                 },
+                args.json,
             )
             .map_err(|e| CommandError::Usage(e.into()))?;
             if let Some(f) = &r.fault {

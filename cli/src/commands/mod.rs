@@ -100,6 +100,36 @@ pub fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
     b
 }
 
+/// Runs `tilting_sim::simulate` with a progress bar on stderr over the scenario's simulated
+/// time (hidden with `--json` or when stderr is not a terminal), cleared at the end.
+pub fn simulate_with_bar(
+    sc: &tilting_sim::Scenario,
+    opts: tilting_sim::SimOptions,
+    json: bool,
+) -> Result<tilting_sim::SimulationReport, tilting_sim::ScenarioError> {
+    let duration = sc.duration;
+    let b = if json || !std::io::stderr().is_terminal() {
+        indicatif::ProgressBar::hidden()
+    } else {
+        let b = indicatif::ProgressBar::new(1000);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "simulate [{bar:40}] {msg} {elapsed_precise} (eta {eta})",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        b.set_message(format!("t = 0 / {duration} s"));
+        b
+    };
+    let r = tilting_sim::simulate_with_progress(sc, opts, &mut |t| {
+        b.set_position((1000.0 * t / duration).round() as u64);
+        b.set_message(format!("t = {t:.2} / {duration} s"));
+    });
+    b.finish_and_clear();
+    r
+}
+
 /// Writes `text` to stdout; a closed pipe (`| head`) is not an error.
 pub fn print_stdout(text: &str) -> Result<(), CommandError> {
     let mut out = std::io::stdout().lock();

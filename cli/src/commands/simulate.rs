@@ -4,7 +4,6 @@
 use super::print_stdout;
 use crate::CommandError;
 use anyhow::Context as _;
-use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use tilting_plant::imperfect::ImperfectArgs;
 use tilting_sim::{LoopArgs, NetworkArgs, ScenarioArgs, SimOptions};
@@ -73,12 +72,12 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
         .map_err(|e| CommandError::Usage(e.into()))?;
     let opts = SimOptions {
         record_samples: args.plot.is_some(),
-        progress: !args.json && std::io::stderr().is_terminal(),
         network,
         loop_options: args.loop_args.options(),
         imperfect,
     };
-    let report = tilting_sim::simulate(&sc, opts).map_err(|e| CommandError::Usage(e.into()))?;
+    let report = super::simulate_with_bar(&sc, opts, args.json)
+        .map_err(|e| CommandError::Usage(e.into()))?;
     if args.json {
         let mut text = serde_json::to_string(&report)
             .context("cannot serialise the report")

@@ -53,6 +53,10 @@ pub const DEFAULT_DURATION: f64 = 10.0;
 pub const RTOL_RANGE: (f64, f64) = (1e-13, 1e-3);
 /// Most zero-order-hold periods in one run (a guard against a period typed in the wrong unit).
 pub const MAX_PERIODS: f64 = 1e8;
+/// Longest run (s), about 28 hours of plant time: the report keeps every transition and tilt
+/// peak in memory, about 0.5 kB per simulated second on the orbit (a tilt every 0.435 s), so a
+/// run of this length holds about 50 MB and its JSON about 100 MB.
+pub const MAX_DURATION: f64 = 1e5;
 
 /// A complete simulation scenario. [`Default`] is the paper's stabilised orbit: start of a left
 /// tilt on the orbit, the law [`LawSpec::default`] (`K_P0 = 100`, `K_D = 14.14`, `k = 500`),
@@ -374,6 +378,24 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("m_f"), "{e}");
+    }
+
+    #[test]
+    fn a_duration_whose_report_cannot_fit_is_refused() {
+        let d = |v: f64| {
+            Scenario::resolve(&[&ScenarioFile {
+                duration: Some(v),
+                ..Default::default()
+            }])
+            .validate()
+        };
+        // `tilting simulate --duration 1e12` used to run silently while its report grew without
+        // bound; now it fails at once, naming the field, the flag and the range.
+        let e = d(1e12).unwrap_err().to_string();
+        assert!(e.contains("`duration` (--duration) = 1000000000000"), "{e}");
+        assert!(e.contains("at most 1e5 (s)"), "{e}");
+        d(MAX_DURATION).unwrap();
+        assert!(d(MAX_DURATION * (1.0 + f64::EPSILON)).is_err());
     }
 
     #[test]

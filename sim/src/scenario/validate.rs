@@ -116,12 +116,15 @@ impl Scenario {
             }) if self.law.energy_avg == 0.0 => return Err(self.missing_energy()),
             r => r.map_err(law_error)?,
         }
-        if !(self.duration.is_finite() && self.duration > 0.0) {
+        if !(self.duration.is_finite() && self.duration > 0.0 && self.duration <= MAX_DURATION) {
             return Err(out_of_range(
                 "duration",
                 "--duration",
                 self.duration,
-                "finite and > 0 (s)",
+                &format!(
+                    "finite, > 0 and at most {MAX_DURATION:e} (s): the report keeps every \
+                     transition and tilt peak in memory"
+                ),
             ));
         }
         let cp = self.control_period;
