@@ -275,6 +275,25 @@ pub fn run_continuous<L: TorqueLaw, O: Observer>(
     Ok(())
 }
 
+/// The plant of the scenario: the controller's model, or the imperfect robot's
+/// (`imperfect`: validated, its mass error applied).
+fn plant_for(sc: &Scenario, imperfect: Option<&Imperfections>) -> Result<Plant, ScenarioError> {
+    let mut cfg = sc.sim_config();
+    if let Some(i) = imperfect {
+        i.validate().map_err(|e| ScenarioError::OutOfRange {
+            field: e.flag.trim_start_matches("--").replace('-', "_"),
+            flag: e.flag.into(),
+            value: e.value,
+            allowed: e.allowed.into(),
+        })?;
+        cfg.params = i.plant_params(&cfg.params);
+    }
+    Plant::new(cfg, 0.0, sc.mode, sc.initial_state()).map_err(|e| ScenarioError::File {
+        path: "initial state".into(),
+        message: e.to_string(),
+    })
+}
+
 /// Runs the scenario. Fails only on an invalid scenario; a fault of the plant (contact loss,
 /// fall, Zeno, integrator failure) ends the run and is reported in the result.
 pub fn simulate(sc: &Scenario, opts: SimOptions) -> Result<SimulationReport, ScenarioError> {
@@ -292,21 +311,7 @@ pub fn simulate_with_progress(
     sc.validate()?;
     let ctrl = sc.controller()?;
     let imperfect = opts.imperfect.filter(|i| !i.is_perfect());
-    let mut cfg = sc.sim_config();
-    if let Some(i) = &imperfect {
-        i.validate().map_err(|e| ScenarioError::OutOfRange {
-            field: e.flag.trim_start_matches("--").replace('-', "_"),
-            flag: e.flag.into(),
-            value: e.value,
-            allowed: e.allowed.into(),
-        })?;
-        cfg.params = i.plant_params(&cfg.params);
-    }
-    let mut plant =
-        Plant::new(cfg, 0.0, sc.mode, sc.initial_state()).map_err(|e| ScenarioError::File {
-            path: "initial state".into(),
-            message: e.to_string(),
-        })?;
+    let mut plant = plant_for(sc, imperfect.as_ref())?;
     let mut rec = Collector {
         events: Vec::new(),
         peaks: Vec::new(),
