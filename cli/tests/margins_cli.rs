@@ -3,8 +3,8 @@
 //! predicts; 1 kHz survives, 75 Hz only with samples on events, 50 Hz not at all), the PNG is
 //! drawn, and bad lists are refused naming the flag and the range.
 
-use serde_json::Value;
 use std::process::Command;
+use tilting_planner::margins::{Imperfection, MarginsReport, Point};
 
 mod common;
 use common::{Scratch, BIN};
@@ -29,29 +29,22 @@ fn a_small_map_with_its_criteria_and_plot() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert!(v["survives_means"].as_str().unwrap().contains("20 tilts"));
-    let survived = |key: &str| -> Vec<bool> {
-        v[key]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| p["survived"].as_bool().unwrap())
-            .collect()
-    };
+    let v: MarginsReport = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v.survives_means.contains("20 tilts"), "{}", v.survives_means);
+    let survived = |map: &[Point]| -> Vec<bool> { map.iter().map(|p| p.survived).collect() };
     // Plain: 10 ms is past the 9 ms at which the orbit falls (see `simulate`).
-    assert_eq!(survived("delay_loss"), [true, false, false]);
+    assert_eq!(survived(&v.delay_loss), [true, false, false]);
     // Predicting over the delay it measures, the controller keeps the orbit at 10 ms.
-    let predict = survived("delay_loss_predict");
+    let predict = survived(&v.delay_loss_predict);
     assert!(predict[0] && predict[1], "{predict:?}");
-    assert_eq!(v["largest_delay"], 0.0);
-    assert!(v["largest_delay_predict"].as_f64().unwrap() >= 0.01);
+    assert_eq!(v.largest_delay, Some(0.0));
+    assert!(v.largest_delay_predict.is_some_and(|d| d >= 0.01), "{v:?}");
     // 75 Hz leaves the landed plate waiting up to 13 ms for its next sample and falls; an
     // extra sample at each landing keeps it.
-    assert_eq!(survived("rates"), [true, false, false]);
-    assert_eq!(survived("rates_events"), [true, true, false]);
-    assert_eq!(v["lowest_rate"], 1000.0);
-    assert_eq!(v["lowest_rate_events"], 75.0);
+    assert_eq!(survived(&v.rates), [true, false, false]);
+    assert_eq!(survived(&v.rates_events), [true, true, false]);
+    assert_eq!(v.lowest_rate, Some(1000.0));
+    assert_eq!(v.lowest_rate_events, Some(75.0));
     let bytes = std::fs::read(&png).unwrap();
     assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
 }
@@ -101,16 +94,16 @@ fn robot_maps_with_their_ranges_and_plot() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
-    let r = &v["robot"];
-    let angle = r["angle_noise"].as_array().unwrap();
+    let v: MarginsReport = serde_json::from_slice(&o.stdout).unwrap();
+    let r = &v.robot;
+    let angle = &r.angle_noise;
     assert_eq!(angle.len(), 2);
-    assert_eq!(angle[0]["survived"], true, "{}", angle[0]);
-    assert_eq!(angle[1]["survived"], false, "{}", angle[1]);
-    assert_eq!(angle[1]["imperfection"], "angle_noise");
-    assert_eq!(r["largest_angle_noise"], 0.0);
-    assert_eq!(r["largest_rate_noise"], 0.0);
-    assert_eq!(r["mass_error_range"], serde_json::json!([-0.001, 0.0]));
+    assert!(angle[0].survived, "{:?}", angle[0]);
+    assert!(!angle[1].survived, "{:?}", angle[1]);
+    assert_eq!(angle[1].imperfection, Imperfection::AngleNoise);
+    assert_eq!(r.largest_angle_noise, Some(0.0));
+    assert_eq!(r.largest_rate_noise, Some(0.0));
+    assert_eq!(r.mass_error_range, Some((-0.001, 0.0)));
     let bytes = std::fs::read(dir.path().join("m-robot.png")).unwrap();
     assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000);
 
