@@ -34,7 +34,9 @@ pub mod scenario;
 pub use closed_loop::{
     run_continuous, run_sampled, simulate, simulate_with_progress, SimOptions, SimulationReport,
 };
-pub use network::{
-    run_sampled_over, Impairment, LoopArgs, LoopOptions, NetStats, NetworkArgs, Predict,
-};
-pub use scenario::{Scenario, ScenarioArgs, ScenarioError, ScenarioFile};
+pub use network::{run_sampled_over, Impairment, LoopOptions, NetStats, Predict};
+#[cfg(feature = "clap")]
+pub use network::{LoopArgs, NetworkArgs};
+#[cfg(feature = "clap")]
+pub use scenario::ScenarioArgs;
+pub use scenario::{Scenario, ScenarioError, ScenarioFile};

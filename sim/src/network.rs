@@ -240,9 +240,11 @@ impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
     }
 }
 
+#[cfg(feature = "clap")]
 pub use tilting_link::NetworkArgs;
 
 /// The flags that change the loop ([`LoopOptions`]), shared by `simulate` and the nodes.
+#[cfg(feature = "clap")]
 #[derive(Debug, Clone, Copy, Default, clap::Args)]
 pub struct LoopArgs {
     /// Prediction over the round-trip delay (`--predict`).
@@ -254,6 +256,7 @@ pub struct LoopArgs {
     pub sample_on_event: bool,
 }
 
+#[cfg(feature = "clap")]
 impl LoopArgs {
     /// The options these flags ask for.
     pub fn options(&self) -> LoopOptions {

@@ -1,6 +1,7 @@
 //! The scenario as command-line flags.
 
 use super::*;
+use tilting_plant::ParamsArgs;
 
 /// The scenario flags shared by the commands that run a simulation. Every flag is optional; an
 /// unset flag keeps the scenario file's value, or the default.

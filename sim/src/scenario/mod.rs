@@ -29,10 +29,12 @@
 //! l = 2.0
 //! ```
 
+#[cfg(feature = "clap")]
 mod args;
 mod file;
 mod validate;
 
+#[cfg(feature = "clap")]
 pub use args::ScenarioArgs;
 pub use file::ScenarioFile;
 use validate::from_config;
@@ -43,9 +45,7 @@ use std::path::{Path, PathBuf};
 use tilting_controller::{ControlConfig, Controller, LawArgs, LawSpec};
 use tilting_plant::dynamics::accelerations;
 use tilting_plant::paper::{orbit_x0, ORBIT_ENERGY_AVG, ORBIT_K, ORBIT_KD, ORBIT_KP, ORBIT_MODE};
-use tilting_plant::{
-    ConfigError, ImpactLaw, Mode, Params, ParamsArgs, SimConfig, State, Tolerance,
-};
+use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, SimConfig, State, Tolerance};
 
 /// Default run length (s).
 pub const DEFAULT_DURATION: f64 = 10.0;
