@@ -508,7 +508,9 @@ fn a_recording_survives_sigkill_of_live_with_whole_rows() {
     }
     let n = run.count(Topic::State);
     assert!(
-        n > 3000 && n + 300 >= states.len() as u64 && states.len() as u64 + 300 >= n,
+        // Not `n > 3000`: the kill came when state.csv passed 3000 rows, and run.mcap may be
+        // one flush behind it (2,991 against 3,062 seen), which the window below allows.
+        n + 300 >= states.len() as u64 && states.len() as u64 + 300 >= n,
         "{n} states in run.mcap, {} in state.csv",
         states.len()
     );
