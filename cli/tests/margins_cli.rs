@@ -30,7 +30,11 @@ fn a_small_map_with_its_criteria_and_plot() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: MarginsReport = serde_json::from_slice(&o.stdout).unwrap();
-    assert!(v.survives_means.contains("20 tilts"), "{}", v.survives_means);
+    assert!(
+        v.survives_means.contains("20 tilts"),
+        "{}",
+        v.survives_means
+    );
     let survived = |map: &[Point]| -> Vec<bool> { map.iter().map(|p| p.survived).collect() };
     // Plain: 10 ms is past the 9 ms at which the orbit falls (see `simulate`).
     assert_eq!(survived(&v.delay_loss), [true, false, false]);
