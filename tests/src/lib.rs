@@ -56,7 +56,27 @@ pub fn bin(name: &str) -> PathBuf {
             return;
         }
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let status = Command::new(cargo)
+        let mut command = Command::new(cargo);
+        // `cargo test` sets these for the test process; a nested cargo that inherits them hands
+        // them on to build scripts, and some (ring's) re-run on any change of `CARGO_PKG_*`,
+        // which would rebuild ring and everything above it (zenoh) inside the test run.
+        for (key, _) in std::env::vars_os() {
+            let key = key.to_string_lossy();
+            let inherited_from_test = [
+                "CARGO_PKG_",
+                "CARGO_MANIFEST_",
+                "CARGO_CRATE_",
+                "CARGO_BIN_",
+            ]
+            .iter()
+            .any(|prefix| key.starts_with(prefix))
+                || ["CARGO_PRIMARY_PACKAGE", "CARGO_TARGET_TMPDIR", "OUT_DIR"]
+                    .contains(&key.as_ref());
+            if inherited_from_test {
+                command.env_remove(key.as_ref());
+            }
+        }
+        let status = command
             // The README's build (every binary of the workspace): with the workspace-hack crate
             // every build resolves the same features, so after `cargo test --workspace` this
             // compiles nothing but the binaries `cargo test` did not link.
