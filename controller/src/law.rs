@@ -22,6 +22,7 @@
 //! `docs/protocol.md`; the flags (`--law`), the scenario key (`law`), the wire conversion and
 //! the summaries follow from the spec.
 
+use crate::robust::{RobustLaw, RobustStatus};
 use crate::{ComputedTorque, ControlConfig, Trajectory};
 use serde::{Deserialize, Serialize};
 use tilting_plant::dynamics::Terms;
@@ -70,17 +71,26 @@ impl LawKind {
 
 /// The law a spec names, ready to run: a [`TorqueLaw`] for the loops (`simulate`, the
 /// controller node, `live`'s nominal run).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Controller {
     /// [`LawKind::ComputedTorque`].
     ComputedTorque(ComputedTorque),
+    /// [`LawKind::ComputedTorque`] with the robust option ([`LawSpec::orbit_peak`]): it keeps
+    /// a memory of the states it answered, so it must be called once per sample, in time
+    /// order ([`crate::robust`]).
+    Robust(RobustLaw),
 }
 
 impl Controller {
     /// The law of `cfg.law.law` with validated settings.
     pub fn new(cfg: ControlConfig) -> Result<Self, ConfigError> {
-        Ok(match cfg.law.law {
-            LawKind::ComputedTorque => Controller::ComputedTorque(ComputedTorque::new(cfg)?),
+        Ok(match (cfg.law.law, cfg.law.orbit_peak) {
+            (LawKind::ComputedTorque, None) => {
+                Controller::ComputedTorque(ComputedTorque::new(cfg)?)
+            }
+            (LawKind::ComputedTorque, Some(p)) => {
+                Controller::Robust(RobustLaw::new(ComputedTorque::new(cfg)?, p))
+            }
         })
     }
 
@@ -88,6 +98,15 @@ impl Controller {
     pub fn config(&self) -> &ControlConfig {
         match self {
             Controller::ComputedTorque(c) => c.config(),
+            Controller::Robust(c) => c.law().config(),
+        }
+    }
+
+    /// What the robust option has done so far (`None` without it).
+    pub fn robust_status(&self) -> Option<RobustStatus> {
+        match self {
+            Controller::ComputedTorque(_) => None,
+            Controller::Robust(c) => Some(c.status()),
         }
     }
 
@@ -103,6 +122,7 @@ impl TorqueLaw for Controller {
     fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
         match self {
             Controller::ComputedTorque(c) => c.torque(t, mode, x),
+            Controller::Robust(c) => c.torque(t, mode, x),
         }
     }
 
@@ -110,6 +130,7 @@ impl TorqueLaw for Controller {
     fn torque_t(&self, t: f64, mode: Mode, x: &State, params: &Params, terms: &Terms) -> f64 {
         match self {
             Controller::ComputedTorque(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
+            Controller::Robust(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
         }
     }
 }
@@ -138,6 +159,12 @@ pub struct LawSpec {
     pub torque_limit: Option<f64>,
     /// Desired arm trajectory.
     pub reference: Trajectory,
+    /// The robust option ([`crate::robust`]): the tilt peak `|alpha|` (rad) to hold by trimming
+    /// `E_av` once per tilt, with the re-entry motion from a plate at rest; `None` (left out
+    /// of the JSON) for the paper's law. Needs `k > 0`, the hold reference and a sampled loop.
+    /// Not carried by the planner's message: a controller keeps its own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orbit_peak: Option<f64>,
 }
 
 impl Default for LawSpec {
@@ -151,6 +178,7 @@ impl Default for LawSpec {
             energy_avg: paper::ORBIT_ENERGY_AVG,
             torque_limit: None,
             reference: Trajectory::Hold,
+            orbit_peak: None,
         }
     }
 }
@@ -194,6 +222,22 @@ impl LawSpec {
                 });
             }
         }
+        if let Some(p) = self.orbit_peak {
+            let out = |allowed| ConfigError::OutOfRange {
+                field: "orbit_peak",
+                value: p.to_string(),
+                allowed,
+            };
+            if !(p.is_finite() && p > 0.0 && p <= ORBIT_PEAK_MAX) {
+                return Err(out("in (0, 0.5] rad, or 0 for the paper's law"));
+            }
+            if self.k <= 0.0 || self.reference != Trajectory::Hold {
+                return Err(out(
+                    "0 (off) unless k > 0 and the reference is hold: the robust option trims \
+                     the energy target of the hold orbit",
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -216,11 +260,19 @@ impl std::fmt::Display for LawSpec {
             self.reference, self.kp, self.kd, self.k, self.energy_avg
         )?;
         match self.torque_limit {
-            Some(l) => write!(f, "{l} N m"),
-            None => f.write_str("none"),
+            Some(l) => write!(f, "{l} N m")?,
+            None => f.write_str("none")?,
+        }
+        match self.orbit_peak {
+            Some(p) => write!(f, ", robust: orbit peak {p} rad"),
+            None => Ok(()),
         }
     }
 }
+
+/// Largest `--orbit-peak` (rad): far above any orbit of this machine (the paper's tilts reach
+/// 0.041 rad), below the fall.
+pub const ORBIT_PEAK_MAX: f64 = 0.5;
 
 /// The law's settings as flags and scenario-file keys, each optional: an unset one keeps the
 /// value of the layer below ([`LawArgs::over`]). Flatten it with `#[command(flatten)]` into a
@@ -277,6 +329,15 @@ pub struct LawArgs {
     )]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub torque_limit: Option<f64>,
+    /// Robust option: hold tilt peaks |alpha| of this size (rad) by trimming E_av once per
+    /// tilt, and re-enter the orbit when the plate has come to rest; 0 = off (the paper's
+    /// law). The paper's orbit at 1 kHz peaks at 0.0413 [default: 0]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "RAD", allow_negative_numbers = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orbit_peak: Option<f64>,
 }
 
 impl LawArgs {
@@ -295,6 +356,11 @@ impl LawArgs {
                 None => base.torque_limit,
             },
             reference: self.reference.unwrap_or(base.reference),
+            orbit_peak: match self.orbit_peak {
+                Some(0.0) => None,
+                Some(p) => Some(p),
+                None => base.orbit_peak,
+            },
         }
     }
 
@@ -310,6 +376,7 @@ impl LawArgs {
             num("energy-avg", self.energy_avg),
             self.reference.map(|r| format!("--reference={r}")),
             num("torque-limit", self.torque_limit),
+            num("orbit-peak", self.orbit_peak),
         ]
         .into_iter()
         .flatten()
@@ -329,6 +396,9 @@ impl From<LawSpec> for LawArgs {
             energy_avg: Some(l.energy_avg),
             reference: Some(l.reference),
             torque_limit: Some(l.torque_limit.unwrap_or(0.0)),
+            // Only when on, so that a child of an older release reads the flags of the
+            // paper's law.
+            orbit_peak: l.orbit_peak,
         }
     }
 }
@@ -357,6 +427,9 @@ pub struct LawRecord {
     pub energy_avg: f64,
     /// Torque limit (N m), 0 for none.
     pub torque_limit: f64,
+    /// The robust option's tilt peak (rad); left out when off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orbit_peak: Option<f64>,
 }
 
 impl From<&LawSpec> for LawRecord {
@@ -372,6 +445,7 @@ impl From<&LawSpec> for LawRecord {
             k: l.k,
             energy_avg: l.energy_avg,
             torque_limit: l.torque_limit.unwrap_or(0.0),
+            orbit_peak: l.orbit_peak,
         }
     }
 }
@@ -433,6 +507,11 @@ mod tests {
                 energy_avg: 19.963439703027 * 3.0,
                 torque_limit: Some(5.5),
                 reference: sin,
+                orbit_peak: None,
+            },
+            LawSpec {
+                orbit_peak: Some(0.0413),
+                ..LawSpec::default()
             },
         ];
         // Over a base that differs everywhere: every setting comes from the flags.
@@ -447,6 +526,7 @@ mod tests {
                 amplitude: 0.1,
                 omega: 9.0,
             },
+            orbit_peak: None,
         };
         for x in specs {
             assert_eq!(parse(&x.to_args()).over(other), x, "{:?}", x.to_args());

@@ -16,6 +16,7 @@ pub mod law;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod predict;
+pub mod robust;
 pub mod trajectory;
 pub mod wire;
 
@@ -116,10 +117,20 @@ impl ComputedTorque {
         self.torque_t(t, mode, x, &Terms::new(&self.cfg.params, mode, x))
     }
 
+    /// The torque (N m) before the torque limit (the robust option clips after its scale).
+    pub(crate) fn unclipped(&self, t: f64, mode: Mode, x: &State) -> f64 {
+        self.unclipped_t(t, mode, x, &Terms::new(&self.cfg.params, mode, x))
+    }
+
+    #[inline(always)]
+    pub(crate) fn unclipped_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
+        let v = self.acceleration_t(t, mode, x, tr);
+        torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v)
+    }
+
     #[inline(always)]
     fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
-        let v = self.acceleration_t(t, mode, x, tr);
-        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v);
+        let tau = self.unclipped_t(t, mode, x, tr);
         match self.cfg.law.torque_limit {
             Some(l) => tau.clamp(-l, l),
             None => tau,

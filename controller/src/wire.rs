@@ -97,6 +97,8 @@ impl From<&Reference> for LawSpec {
             energy_avg: r.energy_avg,
             reference: Trajectory::from(r),
             torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
+            // Not on the wire: the controller keeps its own (`Node::on_reference`).
+            orbit_peak: None,
         }
     }
 }

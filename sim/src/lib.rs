@@ -29,6 +29,7 @@
 pub mod closed_loop;
 pub mod network;
 pub mod recording;
+pub mod robustness;
 pub mod scenario;
 
 pub use closed_loop::{

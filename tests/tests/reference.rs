@@ -28,6 +28,7 @@ fn law(r: &Reference) -> ComputedTorque {
                 tilting_controller::Trajectory::Hold
             },
             torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
+            orbit_peak: None,
         },
         ..ControlConfig::default()
     })

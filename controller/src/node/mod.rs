@@ -68,6 +68,8 @@ impl ControllerArgs {
 
 struct Node {
     params: tilting_plant::Params,
+    /// The robust option of the flags (not on the wire: kept across references).
+    orbit_peak: Option<f64>,
     law: Mutex<Controller>,
     states: DropCounter,
     references: DropCounter,
@@ -179,7 +181,11 @@ impl Node {
             }
             return;
         }
-        match ControlConfig::from_wire(self.params, &r).and_then(Controller::new) {
+        let cfg = ControlConfig::from_wire(self.params, &r).map(|mut c| {
+            c.law.orbit_peak = self.orbit_peak;
+            c
+        });
+        match cfg.and_then(Controller::new) {
             Ok(c) => {
                 if live {
                     self.live_reference.store(true, Ordering::Release);
@@ -198,8 +204,9 @@ impl Node {
                         source = if live { "topic" } else { "query" },
                         "planner reference applied"
                     );
+                    // The same law again keeps its memory (the robust option's trim).
+                    *law = c;
                 }
-                *law = c;
                 self.references_applied.fetch_add(1, Ordering::Relaxed);
             }
             Err(e) => {
@@ -227,7 +234,10 @@ impl Node {
     }
 
     fn summary(&self) -> ControllerSummary {
-        let law = *self.law.lock().unwrap_or_else(|e| e.into_inner()).config();
+        let (law, robust) = {
+            let l = self.law.lock().unwrap_or_else(|e| e.into_inner());
+            (l.config().law, l.robust_status())
+        };
         let prediction = self.predict.as_ref().map(|m| {
             let pr = m.lock().unwrap_or_else(|e| e.into_inner());
             let (made, fallbacks) = pr.p.counts();
@@ -250,7 +260,8 @@ impl Node {
             references_dropped: self.references.dropped(),
             references_rejected: self.references_rejected.load(Ordering::Relaxed),
             references_applied: self.references_applied.load(Ordering::Relaxed),
-            law: law.law,
+            law,
+            robust,
         }
     }
 }
@@ -279,6 +290,10 @@ pub struct ControllerSummary {
     pub references_applied: u64,
     /// The law in force at the end.
     pub law: LawSpec,
+    /// With `--orbit-peak`: what the robust option did (the energy target in force, tilts,
+    /// re-entries).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robust: Option<crate::robust::RobustStatus>,
     /// With `--predict`: the delay predicted over at the end and the counts.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prediction: Option<PredictionSummary>,
@@ -334,6 +349,7 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
     let params = law.config().params;
     let node = Arc::new(Node {
         params: law.config().params,
+        orbit_peak: law.config().law.orbit_peak,
         law: Mutex::new(law),
         states: DropCounter::new(keys.plant_state()),
         references: DropCounter::new(keys.planner_reference()),

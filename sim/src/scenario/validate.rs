@@ -139,6 +139,15 @@ impl Scenario {
                 ),
             ));
         }
+        if let (Some(p), 0.0) = (self.law.orbit_peak, cp) {
+            return Err(out_of_range(
+                "orbit_peak",
+                "--orbit-peak",
+                p,
+                "0 (off) with continuous coupling: the robust option learns from the samples \
+                 of a sampled loop; give --control-period T > 0",
+            ));
+        }
         if cp > 0.0 && self.duration / cp > MAX_PERIODS {
             return Err(out_of_range(
                 "control_period",
