@@ -229,8 +229,12 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
         let p = e.path();
         let name = e.file_name().to_string_lossy().to_string();
         if p.is_dir() {
-            // Test directories, build output and the separate benchmark workspace.
-            if !matches!(name.as_str(), "target" | "tests" | "bench" | ".git") {
+            // Test directories, build output, the separate benchmark workspace and the patched
+            // third-party crates (upstream's code, upstream's conventions).
+            if !matches!(
+                name.as_str(),
+                "target" | "tests" | "bench" | "third_party" | ".git"
+            ) {
                 rust_files(&p, out);
             }
         } else if name.ends_with(".rs") {

@@ -14,18 +14,20 @@
 #[cfg(all(feature = "uring", target_os = "linux"))]
 use std::os::fd::RawFd;
 use std::{
-    cell::UnsafeCell,
     convert::TryInto,
     fmt::{self, Debug},
+    future::poll_fn,
     net::SocketAddr,
-    sync::Arc,
+    pin::Pin,
+    sync::{Arc, Mutex, MutexGuard},
+    task::{ready, Poll},
     time::Duration,
 };
 
 use async_trait::async_trait;
 use time::OffsetDateTime;
 use tokio::{
-    io::{AsyncReadExt, AsyncWriteExt},
+    io::{AsyncRead, AsyncWrite, ReadBuf},
     net::{TcpListener, TcpStream},
     sync::Mutex as AsyncMutex,
 };
@@ -55,15 +57,18 @@ use crate::{
 pub struct TlsCommonName(String);
 
 pub struct LinkUnicastTls {
-    // The underlying socket as returned from the async-rustls library
-    // NOTE: TlsStream requires &mut for read and write operations. This means
-    //       that concurrent reads and writes are not possible. To achieve that,
-    //       we use an UnsafeCell for interior mutability. Using an UnsafeCell
-    //       is safe in our case since the transmission and reception logic
-    //       already ensures that no concurrent reads or writes can happen on
-    //       the same stream: there is only one task at the time that writes on
-    //       the stream and only one task at the time that reads from the stream.
-    inner: UnsafeCell<TlsStream<TcpStream>>,
+    // The underlying socket as returned from the tokio-rustls library.
+    // PATCHED (tilting, see third_party/README.md): upstream kept the stream in an
+    // `UnsafeCell` and let the RX task read while the TX task wrote. Both calls mutate the
+    // one rustls `Connection` (eclipse-zenoh/zenoh#2557): `process_new_packets`, run on every
+    // read, parks the connection state as `Err(HandshakeNotComplete)` while it decrypts, and a
+    // concurrent `write` that checks the state then fails with "handshake not complete", which
+    // kills the TX task and the link. The stream is now behind a mutex held for one `poll_*`
+    // call at a time (microseconds, never across an await): a pending read does not block a
+    // write, and the two never touch rustls at the same time. tokio's `TcpStream` keeps
+    // separate read and write wakers, and tokio-rustls' `poll_read` only writes to send a
+    // last alert after a fatal error, so the two directions stay independent.
+    inner: Mutex<TlsStream<TcpStream>>,
     // The source socket address of this link (address used on the local host)
     src_addr: SocketAddr,
     src_locator: Locator,
@@ -78,8 +83,6 @@ pub struct LinkUnicastTls {
     expiration_manager: Option<LinkCertExpirationManager>,
 }
 
-unsafe impl Send for LinkUnicastTls {}
-unsafe impl Sync for LinkUnicastTls {}
 
 impl LinkUnicastTls {
     fn new(
@@ -138,7 +141,7 @@ impl LinkUnicastTls {
 
         // Build the Tls object
         LinkUnicastTls {
-            inner: UnsafeCell::new(socket),
+            inner: Mutex::new(socket),
             src_addr,
             src_locator: Locator::new(TLS_LOCATOR_PREFIX, src_addr.to_string(), "").unwrap(),
             dst_addr,
@@ -151,24 +154,34 @@ impl LinkUnicastTls {
         }
     }
 
-    // NOTE: It is safe to suppress Clippy warning since no concurrent reads
-    //       or concurrent writes will ever happen. The read_mtx and write_mtx
-    //       are respectively acquired in any read and write operation.
-    #[allow(clippy::mut_from_ref)]
-    fn get_mut_socket(&self) -> &mut TlsStream<TcpStream> {
-        unsafe { &mut *self.inner.get() }
+    /// The stream, for the duration of one poll.
+    fn stream(&self) -> MutexGuard<'_, TlsStream<TcpStream>> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// One `poll_read` of the TLS stream into `buffer` (0: end of stream).
+    async fn read_some(&self, buffer: &mut [u8]) -> std::io::Result<usize> {
+        poll_fn(|cx| {
+            let mut rb = ReadBuf::new(buffer);
+            ready!(Pin::new(&mut *self.stream()).poll_read(cx, &mut rb))?;
+            Poll::Ready(Ok(rb.filled().len()))
+        })
+        .await
+    }
+
+    /// One `poll_write` of `buffer` into the TLS stream.
+    async fn write_some(&self, buffer: &[u8]) -> std::io::Result<usize> {
+        poll_fn(|cx| Pin::new(&mut *self.stream()).poll_write(cx, buffer)).await
     }
 
     async fn close(&self) -> ZResult<()> {
         tracing::trace!("Closing TLS link: {}", self);
         // Flush the TLS stream
         let _guard = zasynclock!(self.write_mtx);
-        let tls_stream = self.get_mut_socket();
-        let res = tls_stream.flush().await;
+        let res = poll_fn(|cx| Pin::new(&mut *self.stream()).poll_flush(cx)).await;
         tracing::trace!("TLS link flush {}: {:?}", self, res);
         // Close the underlying TCP stream
-        let (tcp_stream, _) = tls_stream.get_mut();
-        let res = tcp_stream.shutdown().await;
+        let res = poll_fn(|cx| Pin::new(&mut self.stream().get_mut().0).poll_shutdown(cx)).await;
         tracing::trace!("TLS link shutdown {}: {:?}", self, res);
         res.map_err(|e| zerror!(e).into())
     }
@@ -193,7 +206,7 @@ impl LinkUnicastTrait for LinkUnicastTls {
 
     async fn write(&self, buffer: &[u8], _priority: Option<Priority>) -> ZResult<usize> {
         let _guard = zasynclock!(self.write_mtx);
-        self.get_mut_socket().write(buffer).await.map_err(|e| {
+        self.write_some(buffer).await.map_err(|e| {
             tracing::trace!("Write error on TLS link {}: {}", self, e);
             zerror!(e).into()
         })
@@ -201,15 +214,27 @@ impl LinkUnicastTrait for LinkUnicastTls {
 
     async fn write_all(&self, buffer: &[u8], _priority: Option<Priority>) -> ZResult<()> {
         let _guard = zasynclock!(self.write_mtx);
-        self.get_mut_socket().write_all(buffer).await.map_err(|e| {
-            tracing::trace!("Write error on TLS link {}: {}", self, e);
-            zerror!(e).into()
-        })
+        let mut done = 0;
+        while done < buffer.len() {
+            match self.write_some(&buffer[done..]).await {
+                Ok(0) => {
+                    let e = std::io::Error::from(std::io::ErrorKind::WriteZero);
+                    tracing::trace!("Write error on TLS link {}: {}", self, e);
+                    return Err(zerror!(e).into());
+                }
+                Ok(n) => done += n,
+                Err(e) => {
+                    tracing::trace!("Write error on TLS link {}: {}", self, e);
+                    return Err(zerror!(e).into());
+                }
+            }
+        }
+        Ok(())
     }
 
     async fn read(&self, buffer: &mut [u8], _priority: Option<Priority>) -> ZResult<usize> {
         let _guard = zasynclock!(self.read_mtx);
-        self.get_mut_socket().read(buffer).await.map_err(|e| {
+        self.read_some(buffer).await.map_err(|e| {
             tracing::trace!("Read error on TLS link {}: {}", self, e);
             zerror!(e).into()
         })
@@ -217,14 +242,21 @@ impl LinkUnicastTrait for LinkUnicastTls {
 
     async fn read_exact(&self, buffer: &mut [u8], _priority: Option<Priority>) -> ZResult<()> {
         let _guard = zasynclock!(self.read_mtx);
-        let _ = self
-            .get_mut_socket()
-            .read_exact(buffer)
-            .await
-            .map_err(|e| {
-                tracing::trace!("Read error on TLS link {}: {}", self, e);
-                zerror!(e)
-            })?;
+        let mut done = 0;
+        while done < buffer.len() {
+            match self.read_some(&mut buffer[done..]).await {
+                Ok(0) => {
+                    let e = std::io::Error::from(std::io::ErrorKind::UnexpectedEof);
+                    tracing::trace!("Read error on TLS link {}: {}", self, e);
+                    return Err(zerror!(e).into());
+                }
+                Ok(n) => done += n,
+                Err(e) => {
+                    tracing::trace!("Read error on TLS link {}: {}", self, e);
+                    return Err(zerror!(e).into());
+                }
+            }
+        }
         Ok(())
     }
 
@@ -287,9 +319,14 @@ impl LinkWithCertExpiration for LinkUnicastTls {
 impl Drop for LinkUnicastTls {
     fn drop(&mut self) {
         // Close the underlying TCP stream
-        let (tcp_stream, _) = self.get_mut_socket().get_mut();
-        let _ = zenoh_runtime::ZRuntime::Acceptor
-            .block_in_place(async move { tcp_stream.shutdown().await });
+        let (tcp_stream, _) = self
+            .inner
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .get_mut();
+        let _ = zenoh_runtime::ZRuntime::Acceptor.block_in_place(async move {
+            poll_fn(|cx| Pin::new(&mut *tcp_stream).poll_shutdown(cx)).await
+        });
     }
 }
 
