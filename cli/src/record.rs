@@ -51,7 +51,7 @@ mod tests {
     fn plots_a_recording() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path();
-        let rec = Recorder::create(dir, &Keys::new("t").unwrap(), false).unwrap();
+        let rec = Recorder::create(dir, &Keys::new("t").unwrap(), false, None).unwrap();
         let tx = rec.sender();
         for k in 0..100u64 {
             tx.send(Record::State(PlantState {

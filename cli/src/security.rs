@@ -229,13 +229,15 @@ pub fn generate(
 /// Reads the [`MANIFEST`] of a certificate directory and checks that it is for `robot`.
 pub fn read_manifest(dir: &Path, robot: &str) -> anyhow::Result<Manifest> {
     let path = dir.join(MANIFEST);
-    let text = std::fs::read_to_string(&path).with_context(|| {
-        format!(
+    use tilting_proto::bounded;
+    let text = bounded::read_to_string(&path, bounded::CONFIG_LIMIT, "a certificate manifest")
+        .with_context(|| {
+            format!(
             "cannot read {} (create the directory with `tilting certs --robot {robot} --out {}`)",
             path.display(),
             dir.display()
         )
-    })?;
+        })?;
     let m: Manifest =
         serde_json::from_str(&text).with_context(|| format!("{} is invalid", path.display()))?;
     if m.robot != robot {
@@ -453,13 +455,8 @@ pub struct RouterArgs {
 /// "router"`), prints `ready` with its zenoh id on stdout, and runs until Ctrl-C or SIGTERM.
 pub fn router(args: &RouterArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn");
-    let mut cfg = zenoh::Config::from_file(&args.config).map_err(|e| {
-        CommandError::Usage(anyhow!(
-            "--config {}: {}",
-            args.config.display(),
-            tilting_net::zenoh_error(&e)
-        ))
-    })?;
+    let mut cfg = tilting_net::config_from_file(&args.config)
+        .map_err(|e| CommandError::Usage(anyhow!("--config {}: {e}", args.config.display())))?;
     let mode = cfg.get_json("mode").unwrap_or_default();
     if mode != "\"router\"" {
         return Err(CommandError::Usage(anyhow!(
@@ -485,13 +482,11 @@ pub fn router(args: &RouterArgs) -> Result<(), CommandError> {
                 tilting_net::zenoh_error(&e)
             )
         })?;
-        println!(
-            "{}",
-            json!({ "ready": true, "zid": session.zid().to_string() })
-        );
+        let ready = json!({ "ready": true, "zid": session.zid().to_string() });
+        let _ = tilting_net::say_out(&ready.to_string());
         tilting_net::shutdown_signal().await;
         let _ = session.close().await;
-        println!("{}", json!({ "stopped": true }));
+        let _ = tilting_net::say_out(&json!({ "stopped": true }).to_string());
         Ok::<_, anyhow::Error>(())
     })
     .map_err(CommandError::Failed)

@@ -84,6 +84,16 @@ pub struct ZenohArgs {
     pub zenoh_config: Option<PathBuf>,
 }
 
+/// Reads a zenoh configuration file (JSON5 or YAML, by its extension) of at most
+/// [`tilting_proto::bounded::CONFIG_LIMIT`] bytes; the error is in words.
+pub fn config_from_file(path: &std::path::Path) -> Result<Config, String> {
+    use tilting_proto::bounded;
+    // The size first: zenoh reads a file whole, however long (`/dev/zero`).
+    bounded::read(path, bounded::CONFIG_LIMIT, "a zenoh configuration")
+        .map_err(|e| e.to_string())?;
+    Config::from_file(path).map_err(|e| zenoh_error(&e))
+}
+
 impl ZenohArgs {
     /// Arguments for `robot` with explicit endpoints (for tests and tools).
     pub fn new(robot: &str, listen: &[&str], connect: &[&str]) -> Self {
@@ -104,9 +114,8 @@ impl ZenohArgs {
     pub fn config(&self, role: Role) -> anyhow::Result<Config> {
         let json = |v: &[String]| serde_json::to_string(v).expect("strings serialize");
         let mut cfg = match &self.zenoh_config {
-            Some(path) => Config::from_file(path).map_err(|e| {
-                anyhow::anyhow!("--zenoh-config {}: {}", path.display(), zenoh_error(&e))
-            })?,
+            Some(path) => config_from_file(path)
+                .map_err(|e| anyhow::anyhow!("--zenoh-config {}: {e}", path.display()))?,
             None => {
                 let (listen, connect): (Vec<String>, Vec<String>) = match role {
                     Role::Plant => (vec![DEFAULT_PLANT_ENDPOINT.into()], vec![]),
@@ -197,6 +206,27 @@ pub async fn open_session(args: &ZenohArgs, role: Role) -> anyhow::Result<Sessio
         "zenoh session open"
     );
     Ok(session)
+}
+
+/// Writes `text` and a line end to standard output and flushes it. A failure (a closed pipe:
+/// EPIPE; a file on a full disk: ENOSPC) does not stop the node, unlike `println!`, which
+/// panics: it is said once on stderr, and the error returned for a caller that cares.
+pub fn say_out(text: &str) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    let r = writeln!(out, "{text}").and_then(|()| out.flush());
+    if let Err(e) = &r {
+        say_err(&format!("cannot write to stdout: {e}"));
+    }
+    r
+}
+
+/// Writes `text` and a line end to standard error, ignoring a failure (`eprintln!` panics on
+/// a broken or full stderr; a node must not).
+pub fn say_err(text: &str) {
+    use std::io::Write as _;
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(err, "{text}").and_then(|()| err.flush());
 }
 
 /// Builds the tracing subscriber of a binary: logs to stderr, filter from `RUST_LOG` or

@@ -274,14 +274,14 @@ pub fn run(args: &PublishArgs) -> Result<(), NodeError> {
 async fn serve(args: &PublishArgs, keys: Keys, law: LawSpec) -> anyhow::Result<()> {
     let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
     let publisher = ReferencePublisher::start(&session, &keys, law.to_wire()).await?;
-    eprintln!(
+    tilting_net::say_err(&format!(
         "publishing on {}: {law}; {}",
         keys.planner_reference(),
         match args.duration {
             Some(d) => format!("for {d} s"),
             None => "until Ctrl-C".to_owned(),
         }
-    );
+    ));
     let start = tokio::time::Instant::now();
     let end = args.duration.map(|d| start + Duration::from_secs_f64(d));
     let period = (args.repeat > 0.0).then(|| Duration::from_secs_f64(args.repeat));
@@ -323,7 +323,7 @@ async fn serve(args: &PublishArgs, keys: Keys, law: LawSpec) -> anyhow::Result<(
         seconds: start.elapsed().as_secs_f64(),
     };
     drop(publisher);
-    println!("{}", serde_json::to_string(&summary)?);
+    let _ = tilting_net::say_out(&serde_json::to_string(&summary)?);
     let _ = session.close().await;
     Ok(())
 }

@@ -245,10 +245,14 @@ pub fn finite(field: &'static str, v: f64) -> Result<f64, ConfigError> {
     }
 }
 
-/// Reads a whole text file, mapping failure to [`ConfigError::Io`].
+/// Reads a whole text file of at most [`tilting_proto::bounded::CONFIG_LIMIT`] bytes, mapping
+/// failure to [`ConfigError::Io`].
 pub fn read_text(path: &Path) -> Result<String, ConfigError> {
-    std::fs::read_to_string(path).map_err(|e| ConfigError::Io {
-        path: path.display().to_string(),
-        message: e.to_string(),
+    use tilting_proto::bounded;
+    bounded::read_to_string(path, bounded::CONFIG_LIMIT, "a parameter file").map_err(|e| {
+        ConfigError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        }
     })
 }

@@ -29,14 +29,17 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod bounded;
 pub mod codec;
 pub mod keys;
 pub mod mode;
 pub mod msg;
+pub mod plausible;
 pub mod topic;
 
 pub use codec::{decode, encode, encode_into, DecodeError, Message};
 pub use keys::{KeyError, Keys};
 pub use mode::{Mode, ModeError};
 pub use msg::{ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError};
+pub use plausible::Implausible;
 pub use topic::{Topic, UnknownTopic};

@@ -44,6 +44,7 @@
 #![forbid(unsafe_code)]
 
 pub mod csv;
+pub mod guard;
 pub mod reader;
 pub mod recorder;
 pub mod schema;
@@ -51,6 +52,7 @@ pub mod sink;
 pub mod trace;
 pub mod writer;
 
+pub use guard::Rules;
 pub use reader::{read, Entry, ReadError, Recording};
 pub use recorder::{Record, RecordError, RecordSender, RecordView, Recorder};
 pub use tilting_proto::Topic;

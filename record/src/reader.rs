@@ -1,9 +1,15 @@
 //! Reading a recording back: [`read`] checks the file and counts what it holds;
 //! [`Recording::messages`] streams the wire payloads in file order.
+//!
+//! A damaged file (flipped bits, a torn write) is read up to the damage, then reading stops
+//! with an error that gives the byte offset where it stopped. No record's stated length can
+//! make the reader allocate more than the file holds ([`RECORD_LIMIT`]), and a chunk whose
+//! CRC does not match yields none of its messages.
 
 use crate::{schema, JSON_ENCODING};
-use mcap::read::{MessageStream, Options};
+use mcap::sans_io::{LinearReaderOptions, MessageReadEvent, MessageReader};
 use std::path::{Path, PathBuf};
+use tilting_proto::bounded;
 use tilting_proto::{codec, ModeEvent, Status, Topic};
 
 /// Why a file cannot be read as a recording.
@@ -91,10 +97,21 @@ pub struct Recording {
 /// section, a torn last chunk) opens: [`Recording::complete`] is then false and
 /// [`Recording::truncation`] says where reading stopped.
 pub fn read(path: &Path) -> Result<Recording, ReadError> {
-    let bytes = std::fs::read(path).map_err(|cause| ReadError::Io {
+    let io = |cause| ReadError::Io {
         path: path.to_owned(),
         cause,
-    })?;
+    };
+    // The magic first: a file that is not MCAP (`/dev/zero`) is not read further.
+    let mut magic = [0u8; 8];
+    let n = std::fs::File::open(path)
+        .and_then(|f| std::io::Read::read(&mut std::io::Read::take(f, 8), &mut magic))
+        .map_err(io)?;
+    if !magic[..n].starts_with(mcap::MAGIC) {
+        return Err(ReadError::NotMcap {
+            path: path.to_owned(),
+        });
+    }
+    let bytes = bounded::read(path, bounded::RECORDING_LIMIT, "a recording").map_err(io)?;
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(ReadError::NotMcap {
             path: path.to_owned(),
@@ -118,18 +135,8 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
         first_invalid: None,
     };
     let mut wire_channels = 0usize;
-    let mut it = stream(&bytes).map_err(|cause| ReadError::Broken {
-        path: path.to_owned(),
-        cause,
-    })?;
-    for item in &mut it.inner {
-        let m = match item {
-            Ok(m) => m,
-            Err(e) => {
-                it.error = Some(e.to_string());
-                break;
-            }
-        };
+    let mut it = stream(&bytes);
+    while let Some(m) = it.next_message() {
         let Some(topic) = topic_of(&m.channel) else {
             continue;
         };
@@ -201,64 +208,95 @@ fn topic_of(c: &mcap::Channel<'_>) -> Option<Topic> {
     schema::topic_of_schema(&c.schema.as_ref()?.name)
 }
 
+/// Longest record the reader accepts, inside a chunk or not (bytes): the file's size, or 64 MiB
+/// for a small file whose chunks decompress to more (this project's chunks hold at most about
+/// 1 MiB). A stated length beyond it is damage, not an allocation.
+pub const RECORD_LIMIT: usize = 64 << 20;
+
 /// The messages of a recording in file order (log time order for one writer).
 pub struct Messages<'a> {
-    inner: MessageStream<'a>,
+    bytes: &'a [u8],
+    /// Bytes handed to the reader so far.
+    offset: usize,
+    reader: MessageReader,
     error: Option<String>,
+}
+
+impl Messages<'_> {
+    /// The next message of the file, or `None` at its end or at the first damage (then
+    /// [`Messages::error`] says what and where).
+    fn next_message(&mut self) -> Option<mcap::Message<'static>> {
+        if self.error.is_some() {
+            return None;
+        }
+        loop {
+            match self.reader.next_event()? {
+                Ok(MessageReadEvent::Message(m)) => return Some(m),
+                Ok(MessageReadEvent::ReadRequest(n)) => {
+                    let n = n.min(self.bytes.len() - self.offset);
+                    let buf = self.reader.insert(n);
+                    buf.copy_from_slice(&self.bytes[self.offset..self.offset + n]);
+                    self.reader.notify_read(n);
+                    self.offset += n;
+                }
+                Err(e) => {
+                    self.error = Some(format!(
+                        "{e} (reading stopped at byte {} of {})",
+                        self.offset,
+                        self.bytes.len()
+                    ));
+                    return None;
+                }
+            }
+        }
+    }
+
+    /// Why the stream ended early (a torn or damaged chunk, with the byte offset where reading
+    /// stopped), if it did.
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
 }
 
 impl Iterator for Messages<'_> {
     type Item = Entry;
     fn next(&mut self) -> Option<Entry> {
-        if self.error.is_some() {
-            return None;
-        }
         loop {
-            match self.inner.next()? {
-                Ok(m) => {
-                    if let Some(topic) = topic_of(&m.channel) {
-                        // Messages that do not decode are skipped (counted by `read`).
-                        if let Ok(wire) = schema::from_json(topic, &m.data) {
-                            return Some(Entry {
-                                topic,
-                                log_time: m.log_time,
-                                wire,
-                            });
-                        }
-                    }
-                }
-                Err(e) => {
-                    self.error = Some(e.to_string());
-                    return None;
+            let m = self.next_message()?;
+            if let Some(topic) = topic_of(&m.channel) {
+                // Messages that do not decode are skipped (counted by `read`).
+                if let Ok(wire) = schema::from_json(topic, &m.data) {
+                    return Some(Entry {
+                        topic,
+                        log_time: m.log_time,
+                        wire,
+                    });
                 }
             }
         }
     }
 }
 
-impl Messages<'_> {
-    /// Why the stream ended early (a torn chunk), if it did.
-    pub fn error(&self) -> Option<&str> {
-        self.error.as_deref()
-    }
-}
-
-fn stream(bytes: &[u8]) -> Result<Messages<'_>, mcap::McapError> {
-    Ok(Messages {
-        inner: MessageStream::new_with_options(bytes, Options::IgnoreEndMagic.into())?,
+/// A stream over the file's bytes: the end magic is not required (a killed writer's file), no
+/// record may state a length beyond [`RECORD_LIMIT`] or the file's size, whichever is larger,
+/// and each chunk's CRC is checked before any of its messages is yielded.
+fn stream(bytes: &[u8]) -> Messages<'_> {
+    let options = LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_prevalidate_chunk_crcs(true)
+        .with_record_length_limit(bytes.len().max(RECORD_LIMIT));
+    Messages {
+        bytes,
+        offset: 0,
+        reader: MessageReader::new_with_options(options),
         error: None,
-    })
+    }
 }
 
 impl Recording {
     /// Streams the wire messages, decompressing one chunk at a time.
     pub fn messages(&self) -> Messages<'_> {
-        // `read` already opened this stream once.
-        stream(&self.bytes).unwrap_or(Messages {
-            inner: MessageStream::new_with_options(&[], Options::IgnoreEndMagic.into())
-                .expect("an empty stream"),
-            error: Some("cannot reopen the file".into()),
-        })
+        stream(&self.bytes)
     }
 
     /// The file.
@@ -403,6 +441,92 @@ mod tests {
         let run = read(&torn).unwrap();
         assert!(!run.complete());
         assert_eq!(run.count(Topic::State), 300);
+    }
+
+    /// The offsets of the chunk records' bodies in an MCAP file.
+    fn chunks(bytes: &[u8]) -> Vec<usize> {
+        let mut at = mcap::MAGIC.len();
+        let mut v = Vec::new();
+        while at + 9 < bytes.len() && bytes[at] != 0x02 {
+            let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+            if bytes[at] == 0x06 {
+                v.push(at + 9);
+            }
+            at += 9 + len;
+        }
+        v
+    }
+
+    /// Hostile files: a chunk stating 756,006,335,298 uncompressed bytes (the allocation that
+    /// aborted `tilting info` in issue 22) and files with 50 flipped bits each. Every read
+    /// returns (no abort, no allocation beyond the limit), yields at most the messages written,
+    /// and a file read short says where reading stopped.
+    #[test]
+    fn damaged_files_read_to_the_damage_and_say_where() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, _) = write(dir.path(), 3000, 1000);
+        let good = std::fs::read(&path).unwrap();
+        let total = 2 * 3000;
+        let bad = dir.path().join("bad.mcap");
+        let at = chunks(&good);
+        assert!(at.len() >= 2, "{at:?}");
+        // The first chunk holds the channels (nothing to read before it); the last holds the
+        // messages after the flush (the 1,000 states and torques before it read back).
+        for (i, c) in [(0, at[0]), (1, at[at.len() - 1])] {
+            let mut huge = good.clone();
+            huge[c + 16..c + 24].copy_from_slice(&756_006_335_298u64.to_le_bytes());
+            std::fs::write(&bad, &huge).unwrap();
+            let why = match read(&bad) {
+                Err(ReadError::Empty { why, .. }) if i == 0 => why,
+                Ok(run) if i == 1 => {
+                    assert_eq!(run.messages().count(), 2000);
+                    run.truncation().unwrap().to_owned()
+                }
+                other => panic!("{:?}", other.map(|r| r.truncation().map(str::to_owned))),
+            };
+            assert!(why.contains("exceeds limit: `756006335298`"), "{why}");
+            assert!(why.contains("reading stopped at byte"), "{why}");
+        }
+        // Flipped bits: 50 per file as in issue 22 (the first, largest chunk is nearly always
+        // hit: nothing readable), then one per file (the damage anywhere). A chunk whose CRC
+        // fails yields none of its messages.
+        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut short = [0; 2];
+        for (flips, short) in [50, 1].into_iter().zip(&mut short) {
+            for _ in 0..200 {
+                let mut b = good.clone();
+                for _ in 0..flips {
+                    x ^= x << 13;
+                    x ^= x >> 7;
+                    x ^= x << 17;
+                    let bit = (x % (8 * b.len() as u64)) as usize;
+                    b[bit / 8] ^= 1 << (bit % 8);
+                }
+                std::fs::write(&bad, &b).unwrap();
+                match read(&bad) {
+                    Ok(run) => {
+                        let n = run.messages().count();
+                        assert!(n <= total, "{n}");
+                        if let Some(why) = run.truncation() {
+                            *short += 1;
+                            let said = why.contains("reading stopped at byte")
+                                || why.contains("summary section");
+                            assert!(said, "{why}");
+                        }
+                    }
+                    Err(e) => {
+                        let e = e.to_string();
+                        let said = e.contains("reading stopped at byte")
+                            || e.contains("not an MCAP file")
+                            || e.contains("no tilting channels");
+                        assert!(said, "{e}");
+                    }
+                }
+            }
+        }
+        // One flip in four lands in a later data chunk: read to the damage (49 of 200 seen; the
+        // others hit the first chunk, which holds the channels, or the summary section).
+        assert!(short[1] > 20, "{short:?}");
     }
 
     #[test]

@@ -12,8 +12,15 @@
 //! as dropped. With [`Options::skip_repeats`], repeated samples (the plant re-publishes state 0
 //! while it waits for a controller, and its controller answers each copy) are written once.
 //! A [`RecordView`] of what was written is kept for a status line and a summary.
+//!
+//! With [`Options::rules`], every message first passes the plant's own plausibility rules
+//! ([`crate::guard`]): a refused one is counted ([`RecordView::refused`]) and never written, so
+//! it changes neither the files nor the view. A write error (a full disk) stops the files where
+//! it happened; it is in the view at once ([`RecordView::error`], naming ENOSPC and the file),
+//! and the view goes on counting what arrives.
 
 use crate::csv::RowWriter;
+use crate::guard::{Guard, Rules};
 use crate::sink::{Drain, Panicked, Sink, SinkSender};
 use crate::trace::{
     EVENTS_CSV, EVENTS_HEADER, RUN_MCAP, STATE_CSV, STATE_HEADER, TORQUE_CSV, TORQUE_HEADER,
@@ -22,7 +29,7 @@ use crate::writer::{McapWriter, WriteError};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tilting_proto::{
     codec, encode, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand,
 };
@@ -81,6 +88,18 @@ pub struct RecordView {
     /// completed tilt, and, once the recording ends, of a tilt in progress whose `|alpha|` has
     /// already turned back), oldest first.
     pub peaks: VecDeque<(f64, f64)>,
+    /// Messages refused by the plausibility rules (not written), per topic
+    /// ([`Topic::index`]).
+    pub refused: [u64; 5],
+    /// The first refusal, in words.
+    pub first_refusal: Option<String>,
+    /// The newest status believed (written).
+    pub last_status: Option<Status>,
+    /// When the newest state was believed (wall clock).
+    pub last_state_at: Option<Instant>,
+    /// The first write error, in words (naming ENOSPC for a full disk, and the file): the
+    /// files stopped growing there.
+    pub error: Option<String>,
 }
 
 impl RecordView {
@@ -94,6 +113,11 @@ impl RecordView {
             Topic::Reference => self.references,
         }
     }
+
+    /// Messages refused by the plausibility rules, all topics.
+    pub fn refused_total(&self) -> u64 {
+        self.refused.iter().sum()
+    }
 }
 
 /// What a [`Recorder`] writes.
@@ -105,6 +129,9 @@ pub struct Options {
     pub csv_dir: Option<PathBuf>,
     /// Write a state or a torque only if its `seq` is above the last one's.
     pub skip_repeats: bool,
+    /// The plausibility rules a message must pass to be written (none: every message that
+    /// validates is written).
+    pub rules: Option<Rules>,
 }
 
 /// Why a recording failed.
@@ -137,12 +164,18 @@ pub type RecordSender = SinkSender<Record>;
 
 impl Recorder {
     /// The recording of a live run: [`RUN_MCAP`] for `keys`' robot in `dir`, with `csv` the
-    /// three CSV files (with their headers), repeats skipped.
-    pub fn create(dir: &Path, keys: &Keys, csv: bool) -> Result<Self, RecordError> {
+    /// three CSV files (with their headers), repeats skipped, and the plausibility `rules`.
+    pub fn create(
+        dir: &Path,
+        keys: &Keys,
+        csv: bool,
+        rules: Option<Rules>,
+    ) -> Result<Self, RecordError> {
         let opts = Options {
             mcap: dir.join(RUN_MCAP),
             csv_dir: csv.then(|| dir.to_path_buf()),
             skip_repeats: true,
+            rules,
         };
         Self::with_options(&opts, keys)
     }
@@ -170,6 +203,7 @@ impl Recorder {
             mcap: McapWriter::create(&opts.mcap, keys)?,
             csv,
             skip_repeats: opts.skip_repeats,
+            guard: opts.rules.map(Guard::new),
             shared: view.clone(),
             local: RecordView::default(),
             pending: 0,
@@ -202,10 +236,40 @@ impl Recorder {
     /// Writes what is queued, flushes and closes the files; returns the final view. Messages
     /// sent afterwards are ignored.
     pub fn finish(self) -> Result<RecordView, RecordError> {
-        self.sink
-            .finish()
-            .map_err(|Panicked(p)| RecordError::Thread(format!("{p} panicked")))?
+        let (view, result) = self.close();
+        match result {
+            Some(e) => Err(e),
+            None => Ok(view),
+        }
     }
+
+    /// Like [`Recorder::finish`], but the view comes back whatever happened to the files: the
+    /// view, and the first error if any (the files end where it happened).
+    pub fn close(self) -> (RecordView, Option<RecordError>) {
+        let last = self.view();
+        match self.sink.finish() {
+            Ok((view, result)) => (view, result.err()),
+            Err(Panicked(p)) => (last, Some(RecordError::Thread(format!("{p} panicked")))),
+        }
+    }
+}
+
+/// A write error in words: its chain of causes, and for a full disk `ENOSPC` by name.
+pub fn describe(e: &RecordError) -> String {
+    let mut text = e.to_string();
+    let mut cause: Option<&dyn std::error::Error> = std::error::Error::source(e);
+    while let Some(c) = cause {
+        if let Some(io) = c.downcast_ref::<std::io::Error>() {
+            if !text.contains(&io.to_string()) {
+                text.push_str(&format!(": {io}"));
+            }
+            if io.kind() == std::io::ErrorKind::StorageFull {
+                text.push_str(" (ENOSPC: the disk is full)");
+            }
+        }
+        cause = c.source();
+    }
+    text
 }
 
 struct CsvFiles {
@@ -230,6 +294,7 @@ struct Writer {
     mcap: McapWriter,
     csv: Option<CsvFiles>,
     skip_repeats: bool,
+    guard: Option<Guard>,
     /// The view the recorder reads, published every 64 messages or when idle.
     shared: Arc<Mutex<RecordView>>,
     local: RecordView,
@@ -270,7 +335,36 @@ impl Writer {
         r.ok()
     }
 
+    /// Whether `rec` passes the plausibility rules; a refusal is counted.
+    fn believed(&mut self, rec: &Record) -> bool {
+        let Some(g) = &mut self.guard else {
+            return true;
+        };
+        let topic = match rec {
+            Record::State(_) => Topic::State,
+            Record::Torque(_) => Topic::Torque,
+            Record::Event(_) => Topic::Event,
+            Record::Status(_) => Topic::Status,
+            Record::Reference(_) => Topic::Reference,
+            Record::Wire(t, _) => *t,
+        };
+        match g.check(rec) {
+            Ok(()) => true,
+            Err(e) => {
+                self.local.refused[topic.index()] += 1;
+                if self.local.first_refusal.is_none() {
+                    self.local.first_refusal = Some(e.to_string());
+                    self.pending = 64;
+                }
+                false
+            }
+        }
+    }
+
     fn write(&mut self, rec: Record) -> Result<(), RecordError> {
+        if !matches!(rec, Record::Wire(..)) && !self.believed(&rec) {
+            return Ok(());
+        }
         match rec {
             Record::Wire(topic, wire) => {
                 if let Some(r) = self.decode(topic, &wire) {
@@ -288,6 +382,7 @@ impl Writer {
                 self.last_state = Some(s.seq);
                 self.local.states += 1;
                 self.local.last_state = Some(s);
+                self.local.last_state_at = Some(Instant::now());
                 track_peak(&mut self.tilt, &s, &mut self.local.peaks);
                 self.mcap.record(Topic::State, &encode(&s))?;
                 if self.csv.is_some() {
@@ -351,6 +446,7 @@ impl Writer {
             Record::Status(st) => {
                 self.local.statuses += 1;
                 self.mcap.record(Topic::Status, &encode(&st))?;
+                self.local.last_status = Some(st);
             }
             Record::Reference(r) => {
                 self.local.references += 1;
@@ -379,11 +475,15 @@ impl Writer {
 }
 
 impl Drain<Record> for Writer {
-    type Output = Result<RecordView, RecordError>;
+    type Output = (RecordView, Result<(), RecordError>);
 
     fn message(&mut self, rec: Record) {
         if self.result.is_ok() {
             self.result = self.write(rec);
+            self.note_error();
+        } else {
+            // The files stopped; the view goes on (the status line and the summary).
+            self.count_only(rec);
         }
         self.pending += 1;
         if self.pending >= 64 {
@@ -394,18 +494,64 @@ impl Drain<Record> for Writer {
     fn idle(&mut self) {
         if self.result.is_ok() {
             self.result = self.flush_if_due();
+            self.note_error();
         }
         if self.pending > 0 {
             self.publish();
         }
     }
 
-    fn finish(mut self) -> Result<RecordView, RecordError> {
+    fn finish(mut self) -> (RecordView, Result<(), RecordError>) {
         finish_peak(&self.tilt, &mut self.local.peaks);
         self.publish();
-        std::mem::replace(&mut self.result, Ok(()))?;
+        let result = std::mem::replace(&mut self.result, Ok(())).and_then(|()| self.close());
+        if let Err(e) = &result {
+            self.local.error.get_or_insert_with(|| describe(e));
+        }
+        (self.local, result)
+    }
+}
+
+impl Writer {
+    /// The first write error goes into the view at once.
+    fn note_error(&mut self) {
+        if let Err(e) = &self.result {
+            if self.local.error.is_none() {
+                self.local.error = Some(describe(e));
+                self.publish();
+            }
+        }
+    }
+
+    /// After a write error: the view still follows what is believed (counts, status, peaks).
+    fn count_only(&mut self, rec: Record) {
+        let rec = match rec {
+            Record::Wire(topic, wire) => match self.decode(topic, &wire) {
+                Some(r) => r,
+                None => return,
+            },
+            r => r,
+        };
+        if !self.believed(&rec) {
+            return;
+        }
+        match rec {
+            Record::State(s) if self.last_state.is_none_or(|l| s.seq > l) => {
+                self.last_state = Some(s.seq);
+                self.local.last_state = Some(s);
+                self.local.last_state_at = Some(Instant::now());
+                track_peak(&mut self.tilt, &s, &mut self.local.peaks);
+            }
+            Record::Status(st) => self.local.last_status = Some(st),
+            Record::Event(ev) if ev.from == 0 && ev.to != 0 => self.local.tilts += 1,
+            _ => {}
+        }
+    }
+
+    /// Writes the summary section and the last CSV rows.
+    fn close(&mut self) -> Result<(), RecordError> {
         self.mcap.finish()?;
-        if let Some(mut c) = self.csv {
+        if let Some(c) = &mut self.csv {
             for (w, name) in [
                 (&mut c.state, STATE_CSV),
                 (&mut c.torque, TORQUE_CSV),
@@ -417,7 +563,7 @@ impl Drain<Record> for Writer {
                 })?;
             }
         }
-        Ok(self.local)
+        Ok(())
     }
 }
 
@@ -488,7 +634,7 @@ mod tests {
         // (a peak, though the tilt never lands) or only rises (no peak yet).
         for (turned_back, want) in [(true, 1), (false, 0)] {
             let tmp = tempfile::tempdir().unwrap();
-            let rec = Recorder::create(tmp.path(), &keys(), false).unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false, None).unwrap();
             let tx = rec.sender();
             let n = if turned_back { 60 } else { 20 };
             for k in 0..n {
@@ -512,7 +658,7 @@ mod tests {
     fn writes_dedups_and_tracks_peaks() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().to_path_buf();
-        let rec = Recorder::create(&dir, &keys(), true).unwrap();
+        let rec = Recorder::create(&dir, &keys(), true, None).unwrap();
         let tx = rec.sender();
         tx.send(Record::State(state(0, 1, 0.0)));
         tx.send(Record::State(state(0, 1, 0.0))); // re-published
@@ -590,6 +736,7 @@ mod tests {
             mcap: tmp.path().join("r.mcap"),
             csv_dir: None,
             skip_repeats: false,
+            rules: None,
         };
         let rec = Recorder::with_options(&opts, &keys()).unwrap();
         let tx = rec.sender();
@@ -604,10 +751,63 @@ mod tests {
         assert_eq!(run.count(Topic::State), 3);
     }
 
+    /// The forged state of issue 22 (`seq = 2^63`, `time = 1e300`) and a forged torque amid a
+    /// plausible stream: both refused and counted, and the recording is the stream without them
+    /// (the truth: the same stream recorded without the forgeries).
+    #[test]
+    fn forged_messages_are_refused_and_change_nothing() {
+        let rules = Rules {
+            period: Some(1e-3),
+            min_period: 1e-4,
+            max_torque: 116.5,
+            fall_angle: std::f64::consts::FRAC_PI_2,
+            from_start: true,
+        };
+        let run = |forge: bool| {
+            let tmp = tempfile::tempdir().unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules)).unwrap();
+            let tx = rec.sender();
+            for k in 0..200u64 {
+                if forge && k == 50 {
+                    let mut lie = state(1 << 63, 1, 0.01);
+                    lie.time = 1e300;
+                    tx.send(Record::State(lie));
+                    tx.send(Record::Torque(TorqueCommand {
+                        seq: 1 << 62,
+                        tau: 1.0,
+                    }));
+                    tx.send(Record::Torque(TorqueCommand { seq: 49, tau: 1e6 }));
+                    // On its grid, but 2^40 periods ahead of the wall clock.
+                    tx.send(Record::State(state(1 << 40, 1, 0.01)));
+                }
+                tx.send(Record::State(state(k, 1, 0.03 * (k as f64 * 0.06).sin())));
+                tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.5 }));
+            }
+            let v = rec.finish().unwrap();
+            let file = crate::read(&tmp.path().join(RUN_MCAP)).unwrap();
+            (v, file.count(Topic::State), file.span())
+        };
+        let (clean, n0, span0) = run(false);
+        let (v, n, span) = run(true);
+        assert_eq!(v.refused, [2, 2, 0, 0, 0]);
+        assert!(
+            v.first_refusal
+                .as_deref()
+                .unwrap()
+                .contains("PlantState.seq"),
+            "{v:?}"
+        );
+        assert_eq!((v.states, v.torques, v.missing_states), (200, 200, 0));
+        assert_eq!((n, span), (n0, span0));
+        assert_eq!(span, Some((0.0, 0.199)));
+        assert_eq!(v.peaks, clean.peaks);
+        assert_eq!(clean.refused, [0; 5]);
+    }
+
     #[test]
     fn a_full_queue_drops_without_blocking() {
         let tmp = tempfile::tempdir().unwrap();
-        let rec = Recorder::create(tmp.path(), &keys(), false).unwrap();
+        let rec = Recorder::create(tmp.path(), &keys(), false, None).unwrap();
         let tx = rec.sender();
         for k in 0..(4 * QUEUE as u64) {
             tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.0 }));

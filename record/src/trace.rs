@@ -16,9 +16,9 @@ use crate::{ReadError, Topic};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::fs::File;
-use std::io::{BufRead as _, BufReader};
+use std::io::{BufRead, BufReader, Read as _};
 use std::path::{Path, PathBuf};
-use tilting_proto::{DecodeError, Mode, ModeError, ModeEvent, PlantState};
+use tilting_proto::{bounded, DecodeError, Mode, ModeError, ModeEvent, PlantState};
 
 /// The MCAP recording of a live run's directory.
 pub const RUN_MCAP: &str = "run.mcap";
@@ -349,6 +349,38 @@ fn row_error(path: &Path, line: usize, what: &str, v: f64) -> LoadError {
     ))
 }
 
+/// Longest line of a CSV recording (bytes); ours are under 200.
+const MAX_LINE: u64 = 4096;
+
+/// The lines of a CSV file, none longer than [`MAX_LINE`] (a longer one is an error: a file
+/// without line ends, such as `/dev/zero`, is not read to its end), at most
+/// [`bounded::RECORDING_LIMIT`] bytes in all.
+fn bounded_lines(r: impl BufRead) -> impl Iterator<Item = std::io::Result<String>> {
+    let mut r = r.take(bounded::RECORDING_LIMIT);
+    std::iter::from_fn(move || {
+        let mut buf = Vec::new();
+        match (&mut r).take(MAX_LINE + 1).read_until(b'\n', &mut buf) {
+            Ok(0) => None,
+            Ok(_) if buf.len() as u64 > MAX_LINE => Some(Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("a line longer than {MAX_LINE} bytes (not a CSV recording?)"),
+            ))),
+            Ok(_) => {
+                if buf.last() == Some(&b'\n') {
+                    buf.pop();
+                    if buf.last() == Some(&b'\r') {
+                        buf.pop();
+                    }
+                }
+                Some(String::from_utf8(buf).map_err(|e| {
+                    std::io::Error::new(std::io::ErrorKind::InvalidData, e.to_string())
+                }))
+            }
+            Err(e) => Some(Err(e)),
+        }
+    })
+}
+
 /// Calls `row(line, numbers)` for every row of the CSV file `path` after its header (line 1,
 /// which must be `header`); lines are numbered from 1 as an editor shows them.
 fn for_rows<const N: usize>(
@@ -358,7 +390,7 @@ fn for_rows<const N: usize>(
 ) -> Result<(), LoadError> {
     let csv = |m: String| LoadError::Csv(m);
     let file = File::open(path).map_err(|e| csv(format!("cannot open {}: {e}", path.display())))?;
-    let mut lines = BufReader::new(file).lines();
+    let mut lines = bounded_lines(BufReader::new(file));
     match lines.next() {
         Some(Ok(h)) if h.trim_end() == header => {}
         Some(Ok(h)) => {

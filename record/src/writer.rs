@@ -221,8 +221,9 @@ impl McapWriter {
         &self.path
     }
 
-    /// Writes the last chunk and the summary section, and closes the file.
-    pub fn finish(mut self) -> Result<(), WriteError> {
+    /// Writes the last chunk and the summary section, and flushes the file (writing after
+    /// this is an error).
+    pub fn finish(&mut self) -> Result<(), WriteError> {
         self.writer.finish().map_err(|cause| WriteError::Mcap {
             path: self.path.clone(),
             cause,

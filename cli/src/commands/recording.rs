@@ -49,6 +49,8 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
         mcap: args.out.clone(),
         csv_dir: None,
         skip_repeats: false,
+        // Every message as received: a recording of the network, lies included.
+        rules: None,
     };
     let rec = Recorder::with_options(&opts, &keys)
         .map_err(|e| CommandError::Failed(anyhow!("--out {e}")))?;

@@ -155,6 +155,30 @@ struct Job<'a> {
     dir: PathBuf,
 }
 
+impl Job<'_> {
+    /// The plausibility rules of the recording and the status line: the plant's own
+    /// (`tilting_proto::plausible`), with this run's period, the plant's torque bound and fall
+    /// angle; the plant starts after the recorder.
+    fn rules(&self) -> tilting_record::Rules {
+        tilting_record::Rules {
+            period: Some(1.0 / self.args.rate),
+            min_period: tilting_plant::node::PERIOD_RANGE.0,
+            max_torque: tilting_plant::node::DEFAULT_MAX_TORQUE,
+            fall_angle: tilting_plant::SimConfig::default().fall_angle,
+            from_start: true,
+        }
+    }
+}
+
+/// An I/O error in words, naming ENOSPC for a full disk.
+pub(crate) fn describe_io(e: &std::io::Error) -> String {
+    if e.kind() == std::io::ErrorKind::StorageFull {
+        format!("{e} (ENOSPC: the disk is full)")
+    } else {
+        e.to_string()
+    }
+}
+
 /// `tilting live`.
 pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn");
@@ -252,7 +276,7 @@ fn announce(job: &Job) {
 async fn live(job: &Job<'_>, bins: &NodeBinaries, signals: Signals) -> anyhow::Result<bool> {
     let force = signals.force();
     let mut topo = Topology::ports(job)?;
-    let recorder = Recorder::create(&job.dir, &job.keys, job.args.csv)?;
+    let recorder = Recorder::create(&job.dir, &job.keys, job.args.csv, Some(job.rules()))?;
     announce(job);
     let (scenario, check) =
         orbit::nominal(&job.reference, job.args.rate, job.args.duration).await?;
@@ -284,8 +308,12 @@ async fn live(job: &Job<'_>, bins: &NodeBinaries, signals: Signals) -> anyhow::R
                 check,
                 impaired: job.impairment.is_some(),
             };
-            let ctl = controller.as_mut();
-            monitor::monitor(&watch, &mut plant, ctl, &signals, job.args.duration).await
+            let children = monitor::Children {
+                plant: &mut plant,
+                controller: controller.as_mut(),
+                router: topo.router(),
+            };
+            monitor::monitor(&watch, children, &signals, job.args.duration).await
         }
     };
 
@@ -304,7 +332,13 @@ async fn live(job: &Job<'_>, bins: &NodeBinaries, signals: Signals) -> anyhow::R
     let closed = tap.close().await;
     problems.extend(topo.stop_router(&force));
     let dropped = recorder.dropped();
-    let view = recorder.finish()?;
+    // Whatever happened to the files, the view comes back: the report and the summary are
+    // written in any case.
+    let (view, _) = recorder.close();
+    let last_status = view.last_status.clone();
+    if let Some(e) = &view.error {
+        problems.push(format!("the recording failed: {e}"));
+    }
     shutdown::show_failed_logs(&plant, controller.as_ref());
 
     let outcome = report::Outcome {
@@ -316,7 +350,7 @@ async fn live(job: &Job<'_>, bins: &NodeBinaries, signals: Signals) -> anyhow::R
         view,
         dropped,
         invalid: closed.invalid,
-        last_status: closed.last_status,
+        last_status,
         planner: closed.planner,
         endpoints: topo.endpoints(),
     };

@@ -11,6 +11,7 @@ use std::process::ExitStatus;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tilting_proto::Status;
 
 /// Longest wait for the plant's first state (s).
 pub(super) const START_TIMEOUT_S: u64 = 15;
@@ -97,17 +98,38 @@ pub(super) struct Watch<'a> {
     pub(super) impaired: bool,
 }
 
+/// The children a live run watches.
+pub(super) struct Children<'a> {
+    /// The plant.
+    pub(super) plant: &'a mut Child,
+    /// The controller, once started.
+    pub(super) controller: Option<&'a mut Child>,
+    /// The router of `--secure`.
+    pub(super) router: Option<&'a mut Child>,
+}
+
+/// How long without a new state before the status line says so (s): 500 periods at 1 kHz, and
+/// half the 1 s within which a failure is to be said.
+pub(super) const STATE_SILENCE_S: f64 = 0.5;
+
 /// Watches the running loop five times a second until the plant or the controller exits, a
 /// signal arrives or `duration` + [`GRACE_S`] s pass: checks the children, repeats the
 /// reference once a second and refreshes the status line (each tick on a terminal, once a
-/// second otherwise).
+/// second otherwise, and at once when an alarm appears: within 200 ms of its cause being
+/// seen).
 pub(super) async fn monitor(
     w: &Watch<'_>,
-    plant: &mut Child,
-    mut controller: Option<&mut Child>,
+    children: Children<'_>,
     signals: &Signals,
     duration: f64,
 ) -> End {
+    let Children {
+        plant,
+        mut controller,
+        mut router,
+    } = children;
+    // The kinds of alarm last announced (a new kind is announced on its own line at once).
+    let mut alarm_kinds: Vec<&str> = Vec::new();
     let tty = std::io::stderr().is_terminal();
     let give_up = Instant::now() + Duration::from_secs_f64(duration + GRACE_S);
     let mut ticks: u64 = 0;
@@ -131,8 +153,31 @@ pub(super) async fn monitor(
         if second {
             w.tap.repeat();
         }
-        if tty || second || end.is_some() {
-            let line = w.line();
+        let router_exit = router.as_deref_mut().and_then(Child::try_wait);
+        let alarms = if end.is_some() {
+            Vec::new()
+        } else {
+            w.alarms(router_exit)
+        };
+        let kinds: Vec<&str> = alarms.iter().map(|a| a.0).collect();
+        let new_alarm = kinds.iter().any(|k| !alarm_kinds.contains(k));
+        let text = alarms
+            .iter()
+            .map(|a| a.1.as_str())
+            .collect::<Vec<_>>()
+            .join("; ");
+        if new_alarm {
+            let mut err = std::io::stderr().lock();
+            let _ = writeln!(
+                err,
+                "{}live: ALARM: {text}",
+                if tty { "\r\x1b[K" } else { "" }
+            );
+            let _ = err.flush();
+        }
+        alarm_kinds = kinds;
+        if tty || second || end.is_some() || new_alarm {
+            let line = w.line(&text);
             if line != printed {
                 let mut err = std::io::stderr().lock();
                 let _ = if tty {
@@ -155,21 +200,71 @@ pub(super) async fn monitor(
 }
 
 impl Watch<'_> {
-    /// The status line now, with the orbit verdict so far.
-    fn line(&self) -> String {
-        let st = self.tap.status();
+    /// What is wrong now that the user must hear of at once, each as its kind and its text:
+    /// the recording failing, the router exited, a node's liveliness token gone, no state for
+    /// [`STATE_SILENCE_S`].
+    fn alarms(&self, router_exit: Option<ExitStatus>) -> Vec<(&'static str, String)> {
         let view = self.recorder.view();
+        let mut v = Vec::new();
+        if let Some(e) = &view.error {
+            v.push(("recording", format!("RECORDING FAILED: {e}")));
+        }
+        if let Some(s) = router_exit {
+            v.push((
+                "router",
+                format!("ROUTER EXITED ({s}): no messages can cross"),
+            ));
+        }
+        // A plant that said it stopped (its duration) or faulted has ended its loop: its token
+        // and its states go away as they should.
+        let ended = view
+            .last_status
+            .as_ref()
+            .is_some_and(|s| s.state == Status::STOPPED || s.state == Status::FAULTED);
+        if ended {
+            return v;
+        }
+        for (i, who) in ["plant", "controller"].into_iter().enumerate() {
+            if let Some(t) = self.tap.gone_since(i) {
+                let text = format!(
+                    "{who} link LOST {:.1} s ago (its liveliness token is gone)",
+                    t.elapsed().as_secs_f64()
+                );
+                v.push((who, text));
+            }
+        }
+        if let Some(t) = view.last_state_at {
+            let quiet = t.elapsed().as_secs_f64();
+            if quiet > STATE_SILENCE_S {
+                v.push((
+                    "silence",
+                    format!("no state from the plant for {quiet:.1} s"),
+                ));
+            }
+        }
+        v
+    }
+
+    /// The status line now, with the orbit verdict so far and the `alarms`.
+    fn line(&self, alarms: &str) -> String {
+        let view = self.recorder.view();
+        let st = view.last_status.clone();
         let verdict = self.check.zip(st.as_ref()).map(|(c, st)| {
             let fault = (!st.fault.is_empty()).then_some(st.fault.as_str());
             let peaks: Vec<(f64, f64)> = view.peaks.iter().copied().collect();
             c.judge(&peaks, st.time, st.watchdog_trips, fault)
         });
-        status_line(
+        let mut line = status_line(
             st.as_ref(),
             &view,
             self.recorder.dropped(),
             self.impaired,
             verdict.as_ref(),
-        )
+        );
+        if !alarms.is_empty() {
+            line.push_str(" | ");
+            line.push_str(alarms);
+        }
+        line
     }
 }

@@ -157,6 +157,11 @@ impl Topology {
         }
     }
 
+    /// The router child of `--secure`, if any.
+    pub(super) fn router(&mut self) -> Option<&mut Child> {
+        self.secure.as_mut().map(|s| &mut s.router)
+    }
+
     /// Stops the router, if any (after the nodes); a problem if it failed or had to be killed.
     pub(super) fn stop_router(&mut self, force: &dyn Fn() -> bool) -> Option<String> {
         let s = self.secure.as_mut()?;

@@ -10,7 +10,6 @@ use super::summary::{
 use super::Job;
 use crate::record::{self, RecordView};
 use anyhow::{anyhow, Context as _};
-use std::io::Write as _;
 use std::path::Path;
 use tilting_controller::node::ControllerSummary;
 use tilting_plant::node::PlantSummary;
@@ -103,6 +102,8 @@ fn record_counts(o: &Outcome, csv: bool) -> RecordCounts {
         repeated_states: v.repeated_states,
         repeated_torques: v.repeated_torques,
         invalid: o.invalid,
+        refused: v.refused,
+        first_refusal: v.first_refusal.clone(),
         peaks: v.peaks.iter().map(|p| [p.0, p.1]).collect(),
     }
 }
@@ -149,17 +150,53 @@ pub(super) fn summarise(
         controller: o.controller.take(),
         orbit,
     };
-    let path = job.dir.join("summary.json");
     let text = serde_json::to_string_pretty(&summary).context("cannot serialise the summary")?;
-    std::fs::write(&path, format!("{text}\n"))
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    print!(
-        "{}",
-        summary.report(&o.view, o.last_status.as_ref(), fault.as_deref())
-    );
-    let _ = std::io::stdout().flush();
+    // The report first (stdout), then the summary: whatever the disk does, the user hears.
+    let report = summary.report(&o.view, o.last_status.as_ref(), fault.as_deref());
+    let _ = tilting_net::say_out(report.trim_end());
+    let saved = save_summary(&job.dir, &text);
     for p in &o.problems {
-        eprintln!("live: error: {p}");
+        tilting_net::say_err(&format!("live: error: {p}"));
     }
-    Ok(ok)
+    Ok(ok && saved)
+}
+
+/// Writes `summary.json` into `dir`; if that fails (a full disk), into the fallback
+/// [`fallback_summary`], and if that fails too, onto stdout. Says where it went unless it went
+/// where expected; whether it reached `dir`.
+fn save_summary(dir: &Path, text: &str) -> bool {
+    let path = dir.join("summary.json");
+    let Err(e) = std::fs::write(&path, format!("{text}\n")) else {
+        return true;
+    };
+    let _ = std::fs::remove_file(&path);
+    let first = crate::live::describe_io(&e);
+    let fallback = fallback_summary(dir);
+    match std::fs::write(&fallback, format!("{text}\n")) {
+        Ok(()) => tilting_net::say_err(&format!(
+            "live: error: cannot write {}: {first}; the summary is in {}",
+            path.display(),
+            fallback.display()
+        )),
+        Err(e2) => {
+            tilting_net::say_err(&format!(
+                "live: error: cannot write {} ({first}) nor {} ({}); the summary follows on stdout",
+                path.display(),
+                fallback.display(),
+                crate::live::describe_io(&e2)
+            ));
+            let _ = tilting_net::say_out(text);
+        }
+    }
+    false
+}
+
+/// Where the summary goes when the run's directory cannot take it: the system's temporary
+/// directory, named after the run's directory.
+pub(super) fn fallback_summary(dir: &Path) -> std::path::PathBuf {
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "run".into());
+    std::env::temp_dir().join(format!("tilting-live-{name}-summary.json"))
 }

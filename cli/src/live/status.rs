@@ -2,11 +2,7 @@
 
 use super::summary::OrbitVerdict;
 use crate::record::RecordView;
-use std::sync::{Arc, Mutex};
 use tilting_proto::{Mode, Status};
-
-/// The shared latest status of the plant.
-pub(super) type LatestStatus = Arc<Mutex<Option<Status>>>;
 
 /// The run state as shown: the alarming ones in capitals.
 fn state_name(st: &Status) -> &'static str {
@@ -67,6 +63,9 @@ pub(super) fn status_line(
     }
     if st.watchdog_trips > 0 {
         line.push_str(&format!(" | watchdog trips {}", st.watchdog_trips));
+    }
+    if v.refused_total() > 0 {
+        line.push_str(&format!(" | refused {}", v.refused_total()));
     }
     if dropped > 0 || v.missing_states > 0 {
         line.push_str(&format!(

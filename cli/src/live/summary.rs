@@ -112,6 +112,13 @@ pub struct RecordCounts {
     pub repeated_torques: u64,
     /// Payloads that did not decode or validate, on any topic.
     pub invalid: u64,
+    /// Well-formed messages refused by the plant's plausibility rules (not recorded, not
+    /// judged), per topic: states, torques, events, status, references.
+    #[serde(default)]
+    pub refused: [u64; 5],
+    /// The first refusal, in words.
+    #[serde(default)]
+    pub first_refusal: Option<String>,
     /// `(t, alpha)` of the last tilt peaks (s, rad).
     pub peaks: Vec<[f64; 2]>,
 }
@@ -265,6 +272,16 @@ impl LiveSummary {
         }
         let _ = writeln!(out, "faults: {}", fault.unwrap_or("none"));
         let r = &self.record;
+        let refused: u64 = r.refused.iter().sum();
+        if refused > 0 || r.invalid > 0 {
+            let [s, t, e, st, rf] = r.refused;
+            let _ = writeln!(
+                out,
+                "refused messages: {refused} implausible (states {s}, torques {t}, events {e}, status {st}, references {rf}; first: {}), {} malformed; none recorded or judged",
+                r.first_refusal.as_deref().unwrap_or("-"),
+                r.invalid,
+            );
+        }
         let _ = writeln!(
             out,
             "recorded in {}: run.mcap ({} states, {} torques, {} events, {} status, {} references), {}{}summary.json (dropped {}, missing states {})",

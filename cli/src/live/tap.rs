@@ -1,28 +1,32 @@
 //! The in-process planner's session of a live run: it subscribes to the five topics for the
-//! recording (and keeps the plant's latest status for the status line), then publishes the
-//! reference.
+//! recording (the recorder applies the plant's plausibility rules before it believes a message,
+//! and the status line reads the plant's latest status from it), watches the plant's and the
+//! controller's liveliness tokens, then publishes the reference.
 
-use super::status::LatestStatus;
 use super::summary::PlannerCounts;
 use crate::record::{Record, Recorder};
 use std::sync::Arc;
-use tilting_net::{subscribe_decoded, DropCounter, Role, ZenohArgs};
+use std::time::Instant;
+use tilting_net::{subscribe_decoded, watch_presence, DropCounter, Presence, Role, ZenohArgs};
 use tilting_planner::node::ReferencePublisher;
 use tilting_proto::{Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
-/// The planner's session: the recorder's subscribers, the reference publisher and the plant's
-/// latest status.
+/// The planner's session: the recorder's subscribers, the reference publisher and the
+/// presence of the plant and the controller.
 pub(super) struct Tap {
     session: Session,
     subscribers: Vec<Subscriber<()>>,
     publisher: ReferencePublisher,
     /// Undecodable messages per topic.
     counters: [Arc<DropCounter>; 5],
-    /// The plant's latest status.
-    latest: LatestStatus,
+    /// The plant's and the controller's liveliness tokens, and since when each is gone.
+    presence: [(Arc<Presence>, GoneSince); 2],
 }
+
+/// When a liveliness token went away (set by its watcher, cleared when it returns).
+type GoneSince = Arc<std::sync::Mutex<Option<Instant>>>;
 
 /// What the planner's session saw, once closed.
 pub(super) struct Closed {
@@ -30,8 +34,6 @@ pub(super) struct Closed {
     pub(super) planner: PlannerCounts,
     /// Undecodable messages on the five topics.
     pub(super) invalid: u64,
-    /// The plant's last status.
-    pub(super) last_status: Option<Status>,
 }
 
 impl Tap {
@@ -44,7 +46,6 @@ impl Tap {
         reference: Reference,
     ) -> anyhow::Result<Self> {
         let session = tilting_net::open_session(zargs, Role::Peer).await?;
-        let latest: LatestStatus = Arc::default();
         let counters = [
             keys.plant_state(),
             keys.controller_torque(),
@@ -75,11 +76,10 @@ impl Tap {
             })
             .await?,
         );
-        let (l, tx) = (latest.clone(), recorder.sender());
+        let tx = recorder.sender();
         subscribers.push(
             subscribe_decoded(&session, status, move |m: Status| {
-                tx.send(Record::Status(m.clone()));
-                *l.lock().unwrap_or_else(|e| e.into_inner()) = Some(m)
+                tx.send(Record::Status(m))
             })
             .await?,
         );
@@ -90,13 +90,27 @@ impl Tap {
             })
             .await?,
         );
+        let mut presence = Vec::new();
+        for key in [keys.alive_plant(), keys.alive_controller()] {
+            let gone: GoneSince = Arc::default();
+            let g = gone.clone();
+            let (p, sub) = watch_presence(&session, key, move |alive| {
+                *g.lock().unwrap_or_else(|e| e.into_inner()) = (!alive).then(Instant::now);
+            })
+            .await?;
+            subscribers.push(sub);
+            presence.push((p, gone));
+        }
+        let presence = presence
+            .try_into()
+            .map_err(|_| anyhow::anyhow!("two tokens"))?;
         let publisher = ReferencePublisher::start(&session, keys, reference).await?;
         Ok(Self {
             session,
             subscribers,
             publisher,
             counters,
-            latest,
+            presence,
         })
     }
 
@@ -107,12 +121,14 @@ impl Tap {
         }
     }
 
-    /// The plant's latest status.
-    pub(super) fn status(&self) -> Option<Status> {
-        self.latest
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+    /// Since when the plant's (`0`) or the controller's (`1`) liveliness token is gone, if it
+    /// was seen and is gone now.
+    pub(super) fn gone_since(&self, which: usize) -> Option<Instant> {
+        let (p, since) = &self.presence[which];
+        if p.alive() {
+            return None;
+        }
+        *since.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// Undeclares everything and closes the session.
@@ -126,11 +142,6 @@ impl Tap {
         Closed {
             planner,
             invalid: self.counters.iter().map(|c| c.dropped()).sum(),
-            last_status: self
-                .latest
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .clone(),
         }
     }
 }

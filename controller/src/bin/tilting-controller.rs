@@ -10,7 +10,7 @@ fn main() -> ExitCode {
     match tilting_controller::node::run(args) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("tilting-controller: error: {e:#}");
+            tilting_net::say_err(&format!("tilting-controller: error: {e:#}"));
             ExitCode::FAILURE
         }
     }

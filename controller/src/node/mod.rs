@@ -435,9 +435,8 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
     tracing::info!("stopping");
     querier.abort();
     drop(_token);
-    println!(
-        "{}",
-        serde_json::to_string(&node.summary()).context("cannot serialise the summary")?
+    let _ = tilting_net::say_out(
+        &serde_json::to_string(&node.summary()).context("cannot serialise the summary")?,
     );
     let _ = session.close().await;
     Ok(ExitCode::SUCCESS)

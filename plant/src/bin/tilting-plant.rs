@@ -9,7 +9,7 @@ fn main() -> ExitCode {
     match tilting_plant::node::run(args) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("tilting-plant: error: {e:#}");
+            tilting_net::say_err(&format!("tilting-plant: error: {e:#}"));
             ExitCode::FAILURE
         }
     }

@@ -28,21 +28,23 @@ impl Shared {
         let Some(cmd) = self.torques.decode::<TorqueCommand>(bytes) else {
             return;
         };
-        // A torque that decodes can still be a lie: beyond the bound it is refused, counted
-        // with the malformed ones and logged at a bounded rate.
-        if cmd.tau.abs() > self.max_torque {
-            self.torques.record_drop(&format!(
-                "TorqueCommand.tau = {} N m (seq {}) is beyond --max-torque {} N m",
-                cmd.tau, cmd.seq, self.max_torque
-            ));
-            return;
+        // A torque that decodes can still be a lie: the plausibility rules of
+        // `tilting_proto::plausible`, which the recorder of `tilting live` applies too. Beyond
+        // the bound it is refused, counted with the malformed ones and logged at a bounded rate;
+        // an answer to a state never published is counted as stale.
+        let newest = self.current_seq.load(Ordering::Acquire);
+        match tilting_proto::plausible::torque(&cmd, newest, self.max_torque) {
+            Ok(()) => {}
+            Err(e @ tilting_proto::Implausible::TorqueBeyond { .. }) => {
+                self.torques.record_drop(&e);
+                return;
+            }
+            Err(_) => {
+                self.stale.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
         }
         let now = clock::now_ns();
-        if cmd.seq > self.current_seq.load(Ordering::Acquire) {
-            // It answers a state that was never published: a lie or a confused peer.
-            self.stale.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
         let mut inbox = self.inbox.lock().unwrap_or_else(|e| e.into_inner());
         if let Some((c, _)) = *inbox {
             if cmd.seq == c.seq {

@@ -239,9 +239,8 @@ async fn run_async(
     if let Some(l) = &link {
         l.stop();
     }
-    println!(
-        "{}",
-        serde_json::to_string(&summary).context("cannot serialise the summary")?
+    let _ = tilting_net::say_out(
+        &serde_json::to_string(&summary).context("cannot serialise the summary")?,
     );
     // Let the last status and event leave before the session closes.
     tokio::time::sleep(Duration::from_millis(100)).await;

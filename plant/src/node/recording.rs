@@ -111,7 +111,7 @@ impl Recording {
     pub(super) fn finish(self) -> anyhow::Result<()> {
         match self {
             Recording::Csv(mut w) => w.flush()?,
-            Recording::Mcap { rec, .. } => rec.finish()?,
+            Recording::Mcap { mut rec, .. } => rec.finish()?,
         }
         Ok(())
     }

@@ -42,7 +42,9 @@ impl ScenarioFile {
             path: path.to_path_buf(),
             message,
         };
-        let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
+        use tilting_proto::bounded;
+        let text = bounded::read_to_string(path, bounded::CONFIG_LIMIT, "a scenario file")
+            .map_err(|e| err(format!("cannot read: {e}")))?;
         Self::from_toml_str(&text).map_err(|m| err(format!("invalid scenario file: {m}")))
     }
 }

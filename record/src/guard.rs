@@ -1,0 +1,109 @@
+//! [`Guard`]: the front door trusts nothing either. Before a [`crate::Recorder`] writes a
+//! message, it applies the plant's own plausibility rules ([`tilting_proto::plausible`]) to it:
+//! a state inside the wall-clock window and on its period's time grid, below the fall angle; a
+//! torque within the torque bound, answering a state already seen; an event or a status about a
+//! state already seen, on the grid. A refused message is counted and never written, so it
+//! changes neither the recording nor anything judged from it (the status line, the peaks).
+
+use crate::recorder::Record;
+use std::time::Instant;
+use tilting_proto::plausible::{self, Implausible};
+use tilting_proto::PlantState;
+
+/// Delivery slack of the wall-clock window (s): how far the plant's messages may run ahead of
+/// the wall clock as the recorder sees them (a burst after a stall of the recorder's thread).
+pub const SLACK: f64 = 1.0;
+
+/// The plausibility rules a recorder applies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rules {
+    /// The control period (s), if known: then times must lie on its grid.
+    pub period: Option<f64>,
+    /// The shortest control period the plant allows (s), for the wall-clock window when the
+    /// period is unknown.
+    pub min_period: f64,
+    /// The plant's torque bound (N m, its `--max-torque`).
+    pub max_torque: f64,
+    /// The plant's fall angle (rad).
+    pub fall_angle: f64,
+    /// The plant starts after the recorder: the first state too must be within the wall clock
+    /// since the recorder started (otherwise the first state is believed as it comes, as for a
+    /// recorder that joins a running robot).
+    pub from_start: bool,
+}
+
+/// The gate of one recording: the rules and the last state it believed.
+#[derive(Debug)]
+pub(crate) struct Guard {
+    rules: Rules,
+    started: Instant,
+    /// `(seq, time, when)` of the newest believed state.
+    last: Option<(u64, f64, Instant)>,
+}
+
+impl Guard {
+    pub(crate) fn new(rules: Rules) -> Self {
+        Self {
+            rules,
+            started: Instant::now(),
+            last: None,
+        }
+    }
+
+    fn period(&self) -> f64 {
+        self.rules.period.unwrap_or(self.rules.min_period)
+    }
+
+    /// The newest `seq` a message may speak of now: the newest believed state's, plus what the
+    /// wall clock allows since it (with [`SLACK`]).
+    fn newest(&self, now: Instant) -> u64 {
+        let (seq, since) = match self.last {
+            Some((seq, _, at)) => (seq, at),
+            None if self.rules.from_start => (0, self.started),
+            None => return u64::MAX,
+        };
+        let periods = (now.duration_since(since).as_secs_f64() + SLACK) / self.period();
+        seq.saturating_add(periods as u64)
+    }
+
+    /// Whether `rec` is believed; a believed state becomes the newest.
+    pub(crate) fn check(&mut self, rec: &Record) -> Result<(), Implausible> {
+        let now = Instant::now();
+        let grid = |message, seq, time| match self.rules.period {
+            Some(p) => plausible::on_grid(message, seq, time, p),
+            None => Ok(()),
+        };
+        match rec {
+            Record::State(s) => {
+                self.state(s, now)?;
+                grid("PlantState", s.seq, s.time)?;
+                plausible::state_bounds(s, self.rules.fall_angle)?;
+                if self.last.is_none_or(|l| s.seq > l.0) {
+                    self.last = Some((s.seq, s.time, now));
+                }
+                Ok(())
+            }
+            Record::Torque(c) => plausible::torque(c, self.newest(now), self.rules.max_torque),
+            Record::Event(e) => {
+                plausible::ahead("ModeEvent", e.seq, self.newest(now))?;
+                grid("ModeEvent", e.seq, e.time)
+            }
+            Record::Status(st) => {
+                plausible::ahead("Status", st.seq, self.newest(now))?;
+                grid("Status", st.seq, st.time)
+            }
+            Record::Reference(_) | Record::Wire(..) => Ok(()),
+        }
+    }
+
+    /// The wall-clock window of a state.
+    fn state(&self, s: &PlantState, now: Instant) -> Result<(), Implausible> {
+        let (last, since) = match self.last {
+            Some((seq, time, at)) => ((seq, time), at),
+            None if self.rules.from_start => ((0, 0.0), self.started),
+            None => return Ok(()),
+        };
+        let elapsed = now.duration_since(since).as_secs_f64();
+        plausible::within_clock(s, last, elapsed, self.period(), SLACK)
+    }
+}

@@ -1,0 +1,206 @@
+//! The front door under attack and accident (issue 22):
+//!
+//! - one forged, well-formed state (`seq = 2^63`, `time = 1e300`) and one forged torque
+//!   (`tau = 1e6` N m) from an outside zenoh peer into a running `tilting live`: refused, counted in the status line, the
+//!   report and `summary.json`, and neither the recording (its state count and span) nor the
+//!   verdict changes;
+//! - hostile files: `--params /dev/zero` and a scenario file of `/dev/zero` get a clear error
+//!   at the size limit; `tilting info`, `replay` and `animate --from` on a recording with
+//!   flipped bits end with an error or a partial read, never an abort.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+use tilting::live::summary::{LiveSummary, OrbitState};
+use tilting_proto::{codec, PlantState, Topic, TorqueCommand};
+use tilting_tests::*;
+
+/// `summary.json` of a live run in `out`.
+fn live_summary(out: &Path) -> LiveSummary {
+    let text = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
+}
+
+#[test]
+fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
+    let tilting = bin("tilting");
+    let _turn = realtime_turn();
+    let dir = Scratch::new("forged");
+    let out = dir.path().join("out");
+    let robot = robot("forged");
+    let port = free_port();
+    let duration = 6.0;
+    let args: Vec<String> = [
+        "live".into(),
+        "--duration".into(),
+        duration.to_string(),
+        "--robot".into(),
+        robot.clone(),
+        "--port".into(),
+        port.to_string(),
+        "--out".into(),
+        out.display().to_string(),
+    ]
+    .into();
+    let mut live = Proc::spawn("live", &tilting, &args, dir.path());
+    // An outside peer joins the plant's port once the loop runs.
+    let t0 = Instant::now();
+    while !live.stderr().contains("tilts") {
+        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let _rogue = rt.block_on(async {
+        let rogue = Client::open(&robot, None, Some(port)).await;
+        tokio::time::sleep(Duration::from_millis(1000)).await;
+        let lie = PlantState {
+            seq: 1 << 63,
+            time: 1e300,
+            alpha: 0.01,
+            beta: 1.5,
+            alpha_dot: 0.0,
+            beta_dot: 0.0,
+            mode: 1,
+        };
+        let torque = TorqueCommand {
+            seq: 1 << 63,
+            tau: 1e6,
+        };
+        let (state_key, torque_key) = (rogue.keys.plant_state(), rogue.keys.controller_torque());
+        let s = &rogue.session;
+        s.put(state_key, codec::encode(&lie)).await.unwrap();
+        s.put(torque_key, codec::encode(&torque)).await.unwrap();
+        rogue
+    });
+    let status = live.expect_exit(Duration::from_secs(40));
+    let (stdout, stderr) = (live.stdout(), live.stderr());
+    assert!(status.success(), "{status}\n{}", live.logs());
+    let s = live_summary(&out);
+    // Refused by the front door, counted, never recorded: the state, the forged torque and
+    // the controller's answer to the forged state (it answers every state; seq 2^63).
+    assert_eq!(s.record.refused, [1, 2, 0, 0, 0], "{:?}", s.record);
+    let first = s.record.first_refusal.as_deref().unwrap_or_default();
+    assert!(first.contains("PlantState"), "{first}");
+    assert!(stderr.contains("refused 3"), "{stderr}");
+    assert!(
+        stdout.contains("refused messages: 3 implausible"),
+        "{stdout}"
+    );
+    // The recording: every state of the run (one per period, no gap), its plant-time span.
+    let run = tilting_record::read(&out.join("run.mcap")).unwrap();
+    let states = run.count(Topic::State);
+    let want = (duration * 1000.0) as u64 + 1;
+    assert!(
+        states + 5 >= want && states <= want,
+        "{states} states, want {want}"
+    );
+    assert_eq!(s.record.missing_states, 0);
+    let (t0, t1) = run.span().unwrap();
+    assert!(t0 == 0.0 && (t1 - duration).abs() < 0.01, "{t0} .. {t1}");
+    // The verdict: the orbit holds, and the plant dropped the forged torque too.
+    let orbit = s.orbit.expect("a verdict");
+    assert_eq!(orbit.state, OrbitState::Holds, "{orbit:?}");
+    assert!(!stderr.contains("orbit LOST"), "{stderr}");
+    let plant = s.plant.expect("the plant's summary");
+    assert!(plant.torques_dropped >= 1, "{plant:?}");
+}
+
+/// A file that never ends, given as parameters or a scenario, is refused at the size limit
+/// with the flag's file named; a recording that is not one is refused at its first bytes.
+#[test]
+fn endless_files_are_refused_at_the_size_limit() {
+    let tilting = bin("tilting");
+    for args in [
+        vec!["simulate", "--params", "/dev/zero"],
+        vec!["simulate", "--scenario", "/dev/zero"],
+        vec!["info", "/dev/zero"],
+    ] {
+        let t0 = Instant::now();
+        let o = Command::new(&tilting).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(matches!(o.status.code(), Some(1 | 2)), "{args:?}: {err}");
+        let said = err.contains("1048576-byte limit") || err.contains("not an MCAP file");
+        assert!(said && err.contains("/dev/zero"), "{args:?}: {err}");
+        assert!(t0.elapsed() < Duration::from_secs(10), "{args:?}");
+    }
+}
+
+/// A recording with flipped bits: `info`, `replay` and `animate --from` end with a clear
+/// error or read what they can; none aborts (exit code 134) or is killed.
+#[test]
+fn damaged_recordings_do_not_abort_the_readers() {
+    let tilting = bin("tilting");
+    let dir = Scratch::new("flipped");
+    let good = dir.path().join("good.mcap");
+    let o = Command::new(&tilting)
+        .args(["simulate", "--duration", "3", "--record"])
+        .arg(&good)
+        .output()
+        .unwrap();
+    if !o.status.success() {
+        // `simulate --record` is not in every build: record a short live run instead.
+        let out = dir.path().join("live");
+        let o = Command::new(&tilting)
+            .args([
+                "live",
+                "--duration",
+                "2",
+                "--robot",
+                &robot("flip"),
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::copy(out.join("run.mcap"), &good).unwrap();
+    }
+    let bytes = std::fs::read(&good).unwrap();
+    let bad = dir.path().join("bad.mcap");
+    let mut x: u64 = 0x2545_f491_4f6c_dd1d;
+    for round in 0..6 {
+        let mut b = bytes.clone();
+        // Rounds 0-2: 50 bits anywhere; 3-5: 3 bits in the second half (a partial read).
+        let (flips, from) = if round < 3 { (50, 0) } else { (3, b.len() / 2) };
+        for _ in 0..flips {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let bit = 8 * from + (x % (8 * (b.len() - from) as u64)) as usize;
+            b[bit / 8] ^= 1 << (bit % 8);
+        }
+        std::fs::write(&bad, &b).unwrap();
+        let gif = dir.path().join("bad.gif");
+        for args in [
+            vec!["info".to_owned(), bad.display().to_string()],
+            vec![
+                "animate".to_owned(),
+                "--from".to_owned(),
+                bad.display().to_string(),
+                "--out".to_owned(),
+                gif.display().to_string(),
+            ],
+            vec![
+                "replay".to_owned(),
+                bad.display().to_string(),
+                "--fast".to_owned(),
+                "--wait".to_owned(),
+                "0.2".to_owned(),
+                "--robot".to_owned(),
+                robot("flip"),
+                "--connect".to_owned(),
+                format!("tcp/127.0.0.1:{}", free_port()),
+            ],
+        ] {
+            let o = Command::new(&tilting).args(&args).output().unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(
+                matches!(o.status.code(), Some(0..=2)),
+                "round {round} {}: {:?}\n{err}",
+                args[0],
+                o.status
+            );
+            assert!(!err.contains("memory allocation"), "{err}");
+        }
+    }
+}
