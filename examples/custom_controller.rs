@@ -60,7 +60,10 @@ async fn main() -> anyhow::Result<()> {
         move |s: PlantState| {
             // Decoded and validated: the mode byte is in range, every float finite.
             let Ok(mode) = s.mode() else { return };
-            let tau = law.torque(s.time, mode, &State::from(s.x()));
+            // A state without rates (`--measure angles`) needs an estimator
+            // (`tilting_controller::Estimation`); this example answers full states only.
+            let Some(x) = s.x() else { return };
+            let tau = law.torque(s.time, mode, &State::from(x));
             if tau.is_finite() && t.put(&TorqueCommand { seq: s.seq, tau }).is_ok() {
                 n.fetch_add(1, Ordering::Relaxed);
             }

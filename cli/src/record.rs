@@ -59,8 +59,8 @@ mod tests {
                 time: k as f64 * 1e-3,
                 alpha: 0.01 * (k as f64 * 0.06).sin(),
                 beta: 1.5,
-                alpha_dot: 0.0,
-                beta_dot: 0.0,
+                alpha_dot: Some(0.0),
+                beta_dot: Some(0.0),
                 mode: 1,
             }));
         }

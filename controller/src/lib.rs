@@ -12,6 +12,7 @@
 
 #![warn(missing_docs)]
 
+pub mod estimate;
 pub mod law;
 #[cfg(feature = "node")]
 pub mod node;
@@ -20,6 +21,7 @@ pub mod robust;
 pub mod trajectory;
 pub mod wire;
 
+pub use estimate::{Estimation, EstimatorArgs, EstimatorChoice};
 pub use law::{Controller, LawArgs, LawKind, LawSpec};
 pub use predict::Predictor;
 pub use trajectory::Trajectory;

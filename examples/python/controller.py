@@ -32,20 +32,35 @@ import time
 # ---------------------------------------------------------------------------------------------
 # Wire format (docs/protocol.md): little-endian, no padding, no header.
 
-PLANT_STATE = struct.Struct("<Q5dB")  # seq, time, alpha, beta, alpha_dot, beta_dot, mode
+# Protocol 2: seq, time, alpha, beta, alpha_dot, beta_dot, mode, measured (bit 0 alpha, 1 beta,
+# 2 alpha_dot, 3 beta_dot); an absent rate has its bit clear and +0.0 in its slot.
+PLANT_STATE = struct.Struct("<Q5d2B")
 TORQUE = struct.Struct("<Qd")  # seq, tau
-assert PLANT_STATE.size == 49 and TORQUE.size == 16
+assert PLANT_STATE.size == 50 and TORQUE.size == 16
+MEASURED_ALL = 15
 
 FLAT, LEFT, RIGHT = 0, 1, 2
 
 
 def unpack_plant_state(payload):
-    """Decodes and validates a PlantState; raises ValueError naming the problem."""
+    """Decodes and validates a PlantState with every field measured; raises ValueError naming
+    the problem. This controller has no estimator: a state without rates (`--measure angles`)
+    is refused, never read with zero rates."""
+    if len(payload) == 49:
+        raise ValueError(
+            "PlantState: a 49-byte payload is protocol 1 (no `measured` byte); this peer speaks "
+            "protocol 2 (50 bytes): update the sender"
+        )
     if len(payload) != PLANT_STATE.size:
         raise ValueError(
             f"PlantState: wrong payload size: expected {PLANT_STATE.size} bytes, got {len(payload)}"
         )
-    seq, t, alpha, beta, alpha_dot, beta_dot, mode = PLANT_STATE.unpack(payload)
+    seq, t, alpha, beta, alpha_dot, beta_dot, mode, measured = PLANT_STATE.unpack(payload)
+    if measured != MEASURED_ALL:
+        raise ValueError(
+            f"PlantState.measured = {measured}: this controller needs every field measured (15); "
+            "run the plant with --measure full or use tilting-controller, which estimates the rates"
+        )
     for name, v in (
         ("time", t),
         ("alpha", alpha),
@@ -182,14 +197,20 @@ class ComputedTorquePD:
 
 
 def self_test():
-    state = PLANT_STATE.pack(42, 1.5, 0.25, math.pi / 2, -0.5, 2.0, 1)
+    state = PLANT_STATE.pack(42, 1.5, 0.25, math.pi / 2, -0.5, 2.0, 1, MEASURED_ALL)
     assert state.hex() == (
         "2a00000000000000000000000000f83f000000000000d03f182d4454fb21f93f"
-        "000000000000e0bf000000000000004001"
+        "000000000000e0bf0000000000000040010f"
     ), state.hex()
     assert unpack_plant_state(state) == (42, 1.5, (0.25, math.pi / 2, -0.5, 2.0), 1)
     assert pack_torque(42, -0.125).hex() == "2a00000000000000000000000000c0bf"
-    for bad in (state[:-1], state[:-1] + b"\x03", state[:16] + struct.pack("<d", math.nan) + state[24:]):
+    angles_only = state[:32] + bytes(16) + state[48:49] + b"\x03"
+    for bad in (
+        state[:-1],
+        state[:-2] + b"\x03\x0f",
+        state[:16] + struct.pack("<d", math.nan) + state[24:],
+        angles_only,
+    ):
         try:
             unpack_plant_state(bad)
         except ValueError:

@@ -42,11 +42,13 @@ import time
 # ---------------------------------------------------------------------------------------------
 # Wire format (docs/protocol.md): little-endian, no padding, no header.
 
-PLANT_STATE = struct.Struct("<Q5dB")  # seq, time, alpha, beta, alpha_dot, beta_dot, mode
+# Protocol 2: seq, time, alpha, beta, alpha_dot, beta_dot, mode, measured (15: all four fields;
+# this plant always measures the rates).
+PLANT_STATE = struct.Struct("<Q5d2B")
 TORQUE = struct.Struct("<Qd")  # seq, tau
 MODE_EVENT = struct.Struct("<Qd2B8d")  # seq, time, from, to, x_before[4], x_after[4]
 STATUS_HEAD = struct.Struct("<QdBB7Q5d3Q3dQ")  # ... then `fault` length n, n bytes of UTF-8
-assert (PLANT_STATE.size, TORQUE.size, MODE_EVENT.size, STATUS_HEAD.size) == (49, 16, 82, 170)
+assert (PLANT_STATE.size, TORQUE.size, MODE_EVENT.size, STATUS_HEAD.size) == (50, 16, 82, 170)
 
 FLAT, LEFT, RIGHT = 0, 1, 2
 MODE_NAMES = {FLAT: "flat", LEFT: "left", RIGHT: "right"}
@@ -56,7 +58,7 @@ MAX_FAULT_BYTES = 1024
 
 
 def pack_state(seq, t, mode, x):
-    return PLANT_STATE.pack(seq, t, x[0], x[1], x[2], x[3], mode)
+    return PLANT_STATE.pack(seq, t, x[0], x[1], x[2], x[3], mode, 15)
 
 
 def pack_event(seq, ev):
@@ -492,7 +494,7 @@ def self_test():
     state = pack_state(42, 1.5, LEFT, (0.25, math.pi / 2, -0.5, 2.0))
     assert state.hex() == (
         "2a00000000000000000000000000f83f000000000000d03f182d4454fb21f93f"
-        "000000000000e0bf000000000000004001"
+        "000000000000e0bf0000000000000040010f"
     ), state.hex()
     assert unpack_torque(bytes.fromhex("2a00000000000000000000000000c0bf")) == (42, -0.125)
     for bad in (b"\x00" * 15, TORQUE.pack(1, math.inf)):

@@ -17,6 +17,11 @@
 //!   otherwise), from a ChaCha8 stream seeded with `(seed, SENSOR_STREAM)`: the network links
 //!   use streams 0 and 1 of the same seed, so noise does not change the network's draws. The
 //!   contact mode is measured exactly (contact switches).
+//! - **What is measured** ([`Measure`], `--measure full|angles`): `full` (the default) sends the
+//!   four measured quantities; `angles` sends the two angles only, as a robot with encoders and
+//!   no velocity sensor would ([`Measurement::rates`] is `None`, and the published `PlantState`
+//!   marks the rates absent). The four normals are drawn either way, so the angles of `angles`
+//!   are those of `full` with the same seed, bit for bit.
 //! - **Actuator** ([`Actuator::advance`]): the commanded torque `c_k` (N m, about the arm
 //!   joint) is first clipped to `[-S, S]` (`--torque-saturation`), `s_k = clamp(c_k)`, then the
 //!   applied torque lags it with the first-order law `T dtau/dt = s_k - tau`, integrated exactly
@@ -54,6 +59,59 @@ pub const MAX_LAG: f64 = 10.0;
 /// Accepted relative arm-mass errors: `(-1, 10]` (the plant's arm mass stays positive).
 pub const MASS_ERROR_RANGE: (f64, f64) = (-1.0, 10.0);
 
+/// What the sensors measure (`--measure`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Measure {
+    /// Both angles and both rates (the model's full state).
+    #[default]
+    Full,
+    /// The two angles only (encoders, no velocity sensor): the rates are absent.
+    Angles,
+}
+
+impl Measure {
+    /// The default, `full`.
+    pub fn is_full(&self) -> bool {
+        *self == Measure::Full
+    }
+
+    /// The flag's value: `full` or `angles`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Measure::Full => "full",
+            Measure::Angles => "angles",
+        }
+    }
+}
+
+/// One sample of the sensors: the angles `[alpha, beta]` (rad) always, the rates `[alpha_dot,
+/// beta_dot]` (rad/s) only when measured ([`Measure::Full`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measurement {
+    /// Measured `[alpha, beta]` (rad).
+    pub angles: [f64; 2],
+    /// Measured `[alpha_dot, beta_dot]` (rad/s), `None` when the rates are not measured.
+    pub rates: Option<[f64; 2]>,
+}
+
+impl Measurement {
+    /// Every quantity of the state `y`, measured.
+    pub fn full(y: &State) -> Self {
+        Self {
+            angles: [y[0], y[1]],
+            rates: Some([y[2], y[3]]),
+        }
+    }
+
+    /// The full measured state, if the rates were measured (never with invented rates).
+    pub fn state(&self) -> Option<State> {
+        let [ad, bd] = self.rates?;
+        Some(State::new(self.angles[0], self.angles[1], ad, bd))
+    }
+}
+
 /// The hardware's imperfections. The default is the perfect robot (the model itself).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -73,6 +131,9 @@ pub struct Imperfections {
     pub mass_error: f64,
     /// Seed of the sensor noise (stream [`SENSOR_STREAM`]).
     pub seed: u64,
+    /// What the sensors measure (`full`, the default, is left out of the JSON).
+    #[serde(skip_serializing_if = "Measure::is_full")]
+    pub measure: Measure,
 }
 
 /// A setting outside its allowed range.
@@ -150,7 +211,8 @@ impl Imperfections {
     /// Does the sensor or the actuator differ from the perfect one (anything but the mass
     /// error)? Such a loop must be sampled.
     pub fn has_hardware(&self) -> bool {
-        self.noise.iter().any(|&s| s != 0.0)
+        self.measure != Measure::Full
+            || self.noise.iter().any(|&s| s != 0.0)
             || self.encoder_counts.is_some()
             || self.torque_saturation.is_some()
             || self.torque_lag != 0.0
@@ -183,6 +245,7 @@ impl Imperfections {
 pub struct Sensor {
     sigma: [f64; 4],
     quantum: Option<f64>,
+    measure: Measure,
     rng: ChaCha8Rng,
 }
 
@@ -194,11 +257,26 @@ impl Sensor {
         Self {
             sigma: imp.noise,
             quantum: imp.encoder_counts.map(|n| std::f64::consts::TAU / n as f64),
+            measure: imp.measure,
             rng,
         }
     }
 
-    /// The measured state of the true state `x` (draws one sample of the noise).
+    /// What the sensors send for the true state `x`: [`Sensor::measure`], the rates left out
+    /// with [`Measure::Angles`] (draws one sample of the noise either way).
+    pub fn sample(&mut self, x: &State) -> Measurement {
+        let y = self.measure(x);
+        match self.measure {
+            Measure::Full => Measurement::full(&y),
+            Measure::Angles => Measurement {
+                angles: [y[0], y[1]],
+                rates: None,
+            },
+        }
+    }
+
+    /// The measured state of the true state `x`, all four quantities (draws one sample of the
+    /// noise); what is sent is [`Sensor::sample`].
     pub fn measure(&mut self, x: &State) -> State {
         let mut y = *x;
         if self.sigma.iter().any(|&s| s > 0.0) {
@@ -347,10 +425,10 @@ pub struct Hardware {
 }
 
 impl Hardware {
-    /// The state the controller sees at the plant's current time (draws the noise once: call
-    /// it once per sample).
-    pub fn measure(&mut self, plant: &Plant) -> State {
-        self.sensor.measure(&plant.state())
+    /// What the controller sees at the plant's current time (draws the noise once: call it
+    /// once per sample).
+    pub fn measure(&mut self, plant: &Plant) -> Measurement {
+        self.sensor.sample(&plant.state())
     }
 
     /// Advances `plant` to `t_target` (s) under the command `cmd` (N m) ([`Actuator::advance`]).
@@ -405,6 +483,10 @@ pub struct ImperfectArgs {
     /// the controller keeps the model's
     #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub mass_error: Option<f64>,
+    /// What the sensors send: full (angles and rates) or angles (encoders only: the rates are
+    /// absent and the controller estimates them) [default: full]
+    #[arg(long, value_enum, value_name = "full|angles")]
+    pub measure: Option<Measure>,
 }
 
 #[cfg(feature = "clap")]
@@ -435,6 +517,7 @@ impl ImperfectArgs {
             torque_lag: self.torque_lag.unwrap_or(0.0),
             mass_error: self.mass_error.unwrap_or(0.0),
             seed,
+            measure: self.measure.unwrap_or_default(),
         };
         imp.validate()?;
         Ok((!imp.is_perfect()).then_some(imp))
@@ -453,6 +536,7 @@ impl ImperfectArgs {
             torque_saturation,
             torque_lag,
             mass_error,
+            measure,
         } = self;
         let mut v = Vec::new();
         let mut flag = |name: &str, value: Option<String>| {
@@ -471,6 +555,7 @@ impl ImperfectArgs {
         );
         flag("torque-lag", torque_lag.map(|x| x.to_string()));
         flag("mass-error", mass_error.map(|x| x.to_string()));
+        flag("measure", measure.map(|m| m.name().to_owned()));
         v
     }
 }
@@ -709,6 +794,7 @@ mod tests {
         let x = State::new(0.01, 1.5, -0.2, 0.7);
         let mut hw = Imperfections::default().hardware();
         assert_eq!(hw.sensor.measure(&x), x);
+        assert_eq!(hw.sensor.sample(&x), Measurement::full(&x));
         assert!(Imperfections::default().is_perfect());
         let p = Params::default();
         assert_eq!(Imperfections::default().plant_params(&p), p);
@@ -848,6 +934,7 @@ mod tests {
             torque_saturation: Some(11.5),
             torque_lag: Some(0.1 + 0.2),
             mass_error: Some(-0.1),
+            measure: Some(Measure::Angles),
         };
         assert_eq!(parse(all.to_args()), all);
         let some = ImperfectArgs {
@@ -857,5 +944,36 @@ mod tests {
         assert_eq!(parse(some.to_args()), some);
         assert_eq!(parse(Vec::new()), ImperfectArgs::default());
         assert!(ImperfectArgs::default().to_args().is_empty());
+    }
+
+    /// `--measure angles` sends the angles of `--measure full` (same seed, same draws), bit
+    /// for bit, and no rates: never a zero in their place.
+    #[test]
+    fn angles_only_are_the_angles_of_full_and_no_rates() {
+        let base = Imperfections {
+            noise: [1e-3, 2e-3, 0.1, 0.2],
+            encoder_counts: Some(4096),
+            seed: 3,
+            ..Imperfections::default()
+        };
+        let angles = Imperfections {
+            measure: Measure::Angles,
+            ..base
+        };
+        assert!(angles.has_hardware() && !angles.is_perfect());
+        assert!(Imperfections {
+            measure: Measure::Angles,
+            ..Imperfections::default()
+        }
+        .has_hardware());
+        let (mut a, mut b) = (Sensor::new(&base), Sensor::new(&angles));
+        let x = State::new(0.01, 1.5, -0.3, 0.4);
+        for _ in 0..100 {
+            let (ya, yb) = (a.sample(&x), b.sample(&x));
+            assert_eq!(yb.rates, None);
+            assert_eq!(yb.state(), None);
+            assert_eq!(ya.angles.map(f64::to_bits), yb.angles.map(f64::to_bits));
+            assert!(ya.rates.is_some());
+        }
     }
 }

@@ -42,17 +42,24 @@ pub trait Message: Serialize + DeserializeOwned + sealed::Sealed {
     const WIRE_SIZE: Option<usize>;
     /// Largest wire size of a valid message, bytes (a receive buffer of this size suffices).
     const MAX_WIRE_SIZE: usize;
+    /// The wire size of an older protocol's layout of this message, if it had one, with what
+    /// changed: a payload of that size is refused as [`DecodeError::OldVersion`].
+    const OLD_LAYOUT: Option<(usize, &'static str)> = None;
     /// Range checks of the message (finite floats, enumerations in range, ...).
     fn validate(&self) -> Result<(), ValidationError>;
 }
 
 macro_rules! message {
     ($t:ty, $name:literal, $wire:expr, $max:expr) => {
+        message!($t, $name, $wire, $max, None);
+    };
+    ($t:ty, $name:literal, $wire:expr, $max:expr, $old:expr) => {
         impl sealed::Sealed for $t {}
         impl Message for $t {
             const NAME: &'static str = $name;
             const WIRE_SIZE: Option<usize> = $wire;
             const MAX_WIRE_SIZE: usize = $max;
+            const OLD_LAYOUT: Option<(usize, &'static str)> = $old;
             fn validate(&self) -> Result<(), ValidationError> {
                 <$t>::validate(self)
             }
@@ -64,7 +71,12 @@ message!(
     PlantState,
     "PlantState",
     Some(PlantState::SIZE),
-    PlantState::SIZE
+    PlantState::SIZE,
+    Some((
+        PlantState::SIZE_V1,
+        "the protocol-1 layout, without the `measured` byte at offset 49 that says which \
+         fields are measured"
+    ))
 );
 message!(
     TorqueCommand,
@@ -98,6 +110,24 @@ pub enum DecodeError {
         expected: usize,
         /// The payload length.
         got: usize,
+    },
+    /// A payload of an older protocol's layout of the message: the sender speaks an older
+    /// protocol (see `docs/protocol.md`, *Versions*).
+    #[error(
+        "{message}: a {got}-byte payload is {what}; this peer speaks protocol {protocol} \
+         ({expected} bytes): update the sender (docs/protocol.md, Versions)"
+    )]
+    OldVersion {
+        /// Message type name.
+        message: &'static str,
+        /// The payload length.
+        got: usize,
+        /// The message's wire size in this protocol.
+        expected: usize,
+        /// What the old layout lacks.
+        what: &'static str,
+        /// This crate's protocol version ([`crate::PROTOCOL_VERSION`]).
+        protocol: u32,
     },
     /// A variable-size message is longer than its largest valid size.
     #[error("{message}: payload too large: at most {max} bytes, got {got}")]
@@ -160,15 +190,24 @@ pub fn encode_into<T: Message>(msg: &T, buf: &mut [u8]) -> usize {
 /// `T::MAX_WIRE_SIZE`, malformed bytes, trailing bytes and out-of-range fields.
 pub fn decode<T: Message>(bytes: &[u8]) -> Result<T, DecodeError> {
     let got = bytes.len();
-    match T::WIRE_SIZE {
-        Some(expected) if got != expected => {
+    match (T::WIRE_SIZE, T::OLD_LAYOUT) {
+        (Some(expected), Some((old, what))) if got == old && got != expected => {
+            return Err(DecodeError::OldVersion {
+                message: T::NAME,
+                got,
+                expected,
+                what,
+                protocol: crate::PROTOCOL_VERSION,
+            })
+        }
+        (Some(expected), _) if got != expected => {
             return Err(DecodeError::WrongSize {
                 message: T::NAME,
                 expected,
                 got,
             })
         }
-        None if got > T::MAX_WIRE_SIZE => {
+        (None, _) if got > T::MAX_WIRE_SIZE => {
             return Err(DecodeError::TooLarge {
                 message: T::NAME,
                 max: T::MAX_WIRE_SIZE,
@@ -205,6 +244,8 @@ fn reason(e: &bincode::error::DecodeError) -> String {
             "a declared string length exceeds the {DECODE_LIMIT}-byte decode limit"
         ),
         E::Utf8 { inner } => format!("string is not valid UTF-8: {inner}"),
+        // A message's own check inside its decoding (`PlantState`'s `measured` byte).
+        E::OtherString(s) => s.clone(),
         other => other.to_string(),
     }
 }

@@ -37,6 +37,12 @@ pub mod msg;
 pub mod plausible;
 pub mod topic;
 
+/// The protocol version this crate speaks. Protocol 2 added the `measured` byte to
+/// [`PlantState`] (50 bytes; the rates may be absent); protocol 1's 49-byte states are refused
+/// with [`DecodeError::OldVersion`]. No message carries the version: the layouts' sizes tell
+/// the versions apart (`docs/protocol.md`, *Versions*).
+pub const PROTOCOL_VERSION: u32 = 2;
+
 pub use codec::{decode, encode, encode_into, DecodeError, Message};
 pub use keys::{KeyError, Keys};
 pub use mode::{Mode, ModeError};

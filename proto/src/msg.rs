@@ -110,8 +110,16 @@ fn range(
 
 const MODE_RANGE: &str = "0..=2 (0 flat, 1 left, 2 right)";
 
-/// Plant state sample, published by the plant once per control period; 49 bytes on the wire.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// Plant state sample, published by the plant once per control period; 50 bytes on the wire
+/// (protocol 2: the 49 bytes of protocol 1 and the `measured` byte).
+///
+/// The angles are always measured. A rate is `None` when the plant does not measure it
+/// (`--measure angles`: encoders, no velocity sensor): it is **absent**, never zero. On the wire
+/// an absent rate is the bit pattern of `+0.0` in its slot with its bit of the `measured` byte
+/// clear ([`PlantState::MEASURED_ALPHA_DOT`], [`PlantState::MEASURED_BETA_DOT`]); a receiver
+/// reads it only through the bit, so it cannot be taken for a measured zero. In JSON (MCAP
+/// channels, `tilting echo`) an absent rate is `null`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct PlantState {
@@ -123,26 +131,189 @@ pub struct PlantState {
     pub alpha: f64,
     /// Arm angle relative to the plate, rad, `pi/2` upright.
     pub beta: f64,
-    /// Plate tilt rate, rad/s.
-    pub alpha_dot: f64,
-    /// Arm angular rate relative to the plate, rad/s.
-    pub beta_dot: f64,
+    /// Plate tilt rate, rad/s; `None` when not measured.
+    pub alpha_dot: Option<f64>,
+    /// Arm angular rate relative to the plate, rad/s; `None` when not measured.
+    pub beta_dot: Option<f64>,
     /// Contact mode, a [`Mode`] byte (0 flat, 1 left, 2 right).
     pub mode: u8,
 }
 
-impl PlantState {
-    /// Exact wire size in bytes.
-    pub const SIZE: usize = 49;
+/// The wire layout of [`PlantState`] (bincode: fields in this order, no padding).
+#[derive(Serialize, Deserialize)]
+struct PlantStateWire {
+    seq: u64,
+    time: f64,
+    alpha: f64,
+    beta: f64,
+    alpha_dot: f64,
+    beta_dot: f64,
+    mode: u8,
+    measured: u8,
+}
 
-    /// Checks every float is finite and `mode` is in `0..=2`.
+/// The JSON form of [`PlantState`]: the rates `null` when absent.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlantStateJson {
+    seq: u64,
+    time: f64,
+    alpha: f64,
+    beta: f64,
+    alpha_dot: Option<f64>,
+    beta_dot: Option<f64>,
+    mode: u8,
+}
+
+impl Serialize for PlantState {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            PlantStateJson {
+                seq: self.seq,
+                time: self.time,
+                alpha: self.alpha,
+                beta: self.beta,
+                alpha_dot: self.alpha_dot,
+                beta_dot: self.beta_dot,
+                mode: self.mode,
+            }
+            .serialize(s)
+        } else {
+            PlantStateWire {
+                seq: self.seq,
+                time: self.time,
+                alpha: self.alpha,
+                beta: self.beta,
+                alpha_dot: self.alpha_dot.unwrap_or(0.0),
+                beta_dot: self.beta_dot.unwrap_or(0.0),
+                mode: self.mode,
+                measured: self.measured(),
+            }
+            .serialize(s)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for PlantState {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        if d.is_human_readable() {
+            let j = PlantStateJson::deserialize(d)?;
+            Ok(PlantState {
+                seq: j.seq,
+                time: j.time,
+                alpha: j.alpha,
+                beta: j.beta,
+                alpha_dot: j.alpha_dot,
+                beta_dot: j.beta_dot,
+                mode: j.mode,
+            })
+        } else {
+            let w = PlantStateWire::deserialize(d)?;
+            PlantState::from_wire(&w).map_err(serde::de::Error::custom)
+        }
+    }
+}
+
+const MEASURED_RANGE: &str = "bits 0 (alpha) and 1 (beta) set, 2 (alpha_dot) and 3 (beta_dot) \
+                              as measured, bits 4..=7 clear: 3, 7, 11 or 15";
+
+impl PlantState {
+    /// Exact wire size in bytes (protocol 2).
+    pub const SIZE: usize = 50;
+    /// The size of the protocol-1 layout (no `measured` byte), refused with a clear error.
+    pub const SIZE_V1: usize = 49;
+    /// `measured` bit: `alpha` is measured (always set in protocol 2).
+    pub const MEASURED_ALPHA: u8 = 1;
+    /// `measured` bit: `beta` is measured (always set in protocol 2).
+    pub const MEASURED_BETA: u8 = 2;
+    /// `measured` bit: `alpha_dot` is measured.
+    pub const MEASURED_ALPHA_DOT: u8 = 4;
+    /// `measured` bit: `beta_dot` is measured.
+    pub const MEASURED_BETA_DOT: u8 = 8;
+    /// `measured` byte of a full state (every field measured).
+    pub const MEASURED_ALL: u8 = 15;
+    /// `measured` byte of a state with the angles only (`--measure angles`).
+    pub const MEASURED_ANGLES: u8 = 3;
+
+    /// A state with every field measured, from `x = [alpha, beta, alpha_dot, beta_dot]`.
+    pub fn full(seq: u64, time: f64, x: [f64; 4], mode: u8) -> Self {
+        Self {
+            seq,
+            time,
+            alpha: x[0],
+            beta: x[1],
+            alpha_dot: Some(x[2]),
+            beta_dot: Some(x[3]),
+            mode,
+        }
+    }
+
+    /// The `measured` byte of the wire: which fields carry a measurement.
+    pub fn measured(&self) -> u8 {
+        Self::MEASURED_ALPHA
+            | Self::MEASURED_BETA
+            | if self.alpha_dot.is_some() {
+                Self::MEASURED_ALPHA_DOT
+            } else {
+                0
+            }
+            | if self.beta_dot.is_some() {
+                Self::MEASURED_BETA_DOT
+            } else {
+                0
+            }
+    }
+
+    /// The state of the wire layout: a rate whose `measured` bit is clear is `None` (its slot
+    /// must hold `+0.0`); other bits as [`PlantState::measured`] allows.
+    fn from_wire(w: &PlantStateWire) -> Result<Self, ValidationError> {
+        const M: &str = "PlantState";
+        let angles = Self::MEASURED_ALPHA | Self::MEASURED_BETA;
+        if w.measured & 0xF0 != 0 || w.measured & angles != angles {
+            return Err(ValidationError::OutOfRange {
+                message: M,
+                field: "measured",
+                value: f64::from(w.measured),
+                allowed: MEASURED_RANGE,
+            });
+        }
+        let rate = |bit: u8, field: &'static str, v: f64| {
+            if w.measured & bit != 0 {
+                Ok(Some(v))
+            } else if v.to_bits() == 0 {
+                Ok(None)
+            } else {
+                Err(ValidationError::OutOfRange {
+                    message: M,
+                    field,
+                    value: v,
+                    allowed: "+0.0 while the `measured` byte marks it absent",
+                })
+            }
+        };
+        Ok(Self {
+            seq: w.seq,
+            time: w.time,
+            alpha: w.alpha,
+            beta: w.beta,
+            alpha_dot: rate(Self::MEASURED_ALPHA_DOT, "alpha_dot", w.alpha_dot)?,
+            beta_dot: rate(Self::MEASURED_BETA_DOT, "beta_dot", w.beta_dot)?,
+            mode: w.mode,
+        })
+    }
+
+    /// Checks every float is finite (the rates when present) and `mode` is in `0..=2`.
     pub fn validate(&self) -> Result<(), ValidationError> {
         const M: &str = "PlantState";
         finite(M, "time", self.time)?;
         finite(M, "alpha", self.alpha)?;
         finite(M, "beta", self.beta)?;
-        finite(M, "alpha_dot", self.alpha_dot)?;
-        finite(M, "beta_dot", self.beta_dot)?;
+        if let Some(v) = self.alpha_dot {
+            finite(M, "alpha_dot", v)?;
+        }
+        if let Some(v) = self.beta_dot {
+            finite(M, "beta_dot", v)?;
+        }
         at_most(M, "mode", self.mode, 2, MODE_RANGE)
     }
 
@@ -151,9 +322,21 @@ impl PlantState {
         Mode::try_from(self.mode)
     }
 
-    /// The continuous state `[alpha, beta, alpha_dot, beta_dot]` (rad, rad/s).
-    pub fn x(&self) -> [f64; 4] {
-        [self.alpha, self.beta, self.alpha_dot, self.beta_dot]
+    /// The measured angles `[alpha, beta]` (rad).
+    pub fn angles(&self) -> [f64; 2] {
+        [self.alpha, self.beta]
+    }
+
+    /// The rates `[alpha_dot, beta_dot]` (rad/s), if both are measured.
+    pub fn rates(&self) -> Option<[f64; 2]> {
+        Some([self.alpha_dot?, self.beta_dot?])
+    }
+
+    /// The continuous state `[alpha, beta, alpha_dot, beta_dot]` (rad, rad/s), if every field
+    /// is measured; `None` when a rate is absent (estimate it: never read it as zero).
+    pub fn x(&self) -> Option<[f64; 4]> {
+        let [ad, bd] = self.rates()?;
+        Some([self.alpha, self.beta, ad, bd])
     }
 }
 

@@ -11,7 +11,10 @@ use tilting_proto::{
 const PROTOCOL_MD: &str = include_str!("../../docs/protocol.md");
 
 /// Worked example of `docs/protocol.md`.
-const PLANT_STATE_EXAMPLE_HEX: &str = "2a00000000000000000000000000f83f000000000000d03f182d4454fb21f93f000000000000e0bf000000000000004001";
+const PLANT_STATE_EXAMPLE_HEX: &str = "2a00000000000000000000000000f83f000000000000d03f182d4454fb21f93f000000000000e0bf0000000000000040010f";
+/// Worked example of `docs/protocol.md`: the same state with the angles only.
+const PLANT_STATE_ANGLES_EXAMPLE_HEX: &str = "2a00000000000000000000000000f83f000000000000d03f182d4454fb21f93f000000000000000000000000000000000103";
+
 /// Worked example of `docs/protocol.md`.
 const TORQUE_EXAMPLE_HEX: &str = "2a00000000000000000000000000c0bf";
 
@@ -25,8 +28,8 @@ fn example_state() -> PlantState {
         time: 1.5,
         alpha: 0.25,
         beta: FRAC_PI_2,
-        alpha_dot: -0.5,
-        beta_dot: 2.0,
+        alpha_dot: Some(-0.5),
+        beta_dot: Some(2.0),
         mode: 1,
     }
 }
@@ -104,13 +107,14 @@ fn expect_err<T: Message + std::fmt::Debug>(bytes: &[u8], needles: &[&str]) -> D
 
 #[test]
 fn wire_sizes() {
-    assert_eq!(PlantState::SIZE, 49);
+    assert_eq!(PlantState::SIZE, 50);
+    assert_eq!(PlantState::SIZE_V1, 49);
     assert_eq!(TorqueCommand::SIZE, 16);
     assert_eq!(ModeEvent::SIZE, 82);
     assert_eq!(Reference::SIZE, 57);
     assert_eq!(Status::MIN_SIZE, 170);
     assert_eq!(Status::MAX_SIZE, 170 + 1024);
-    assert_eq!(<PlantState as Message>::WIRE_SIZE, Some(49));
+    assert_eq!(<PlantState as Message>::WIRE_SIZE, Some(50));
     assert_eq!(<TorqueCommand as Message>::WIRE_SIZE, Some(16));
     assert_eq!(<ModeEvent as Message>::WIRE_SIZE, Some(82));
     assert_eq!(<Reference as Message>::WIRE_SIZE, Some(57));
@@ -135,17 +139,18 @@ fn plant_state_layout_is_hand_built() {
         time: 1.0 / 3.0,
         alpha: -0.1,
         beta: FRAC_PI_2 + 1e-3,
-        alpha_dot: 7.25,
-        beta_dot: -1e300,
+        alpha_dot: Some(7.25),
+        beta_dot: Some(-1e300),
         mode: 2,
     };
     let mut want = Vec::new();
     want.extend_from_slice(&s.seq.to_le_bytes());
-    for f in [s.time, s.alpha, s.beta, s.alpha_dot, s.beta_dot] {
+    for f in [s.time, s.alpha, s.beta, 7.25, -1e300] {
         want.extend_from_slice(&f.to_le_bytes());
     }
     want.push(s.mode);
-    assert_eq!(want.len(), 49);
+    want.push(0x0f);
+    assert_eq!(want.len(), 50);
     let got = codec::encode(&s);
     assert_eq!(got, want);
     // Offsets as documented.
@@ -153,14 +158,102 @@ fn plant_state_layout_is_hand_built() {
     assert_eq!(got[7], 0x01);
     assert_eq!(&got[16..24], &(-0.1f64).to_le_bytes());
     assert_eq!(got[48], 2);
+    assert_eq!(got[49], 0x0f);
 
     let mut buf = [0xAAu8; 64];
-    assert_eq!(codec::encode_into(&s, &mut buf), 49);
-    assert_eq!(&buf[..49], &want[..]);
+    assert_eq!(codec::encode_into(&s, &mut buf), 50);
+    assert_eq!(&buf[..50], &want[..]);
     assert!(
-        buf[49..].iter().all(|&b| b == 0xAA),
+        buf[50..].iter().all(|&b| b == 0xAA),
         "wrote past the message"
     );
+}
+
+/// Absent rates: `+0.0` in their slots, their bits of the `measured` byte clear; they decode as
+/// absent (`None`), never as zero, and a full state's `x()` is refused for them.
+#[test]
+fn absent_rates_are_flagged_and_never_read_as_zeros() {
+    let s = PlantState {
+        alpha_dot: None,
+        beta_dot: None,
+        ..example_state()
+    };
+    let got = codec::encode(&s);
+    assert_eq!(hex(&got), PLANT_STATE_ANGLES_EXAMPLE_HEX);
+    assert_eq!(&got[32..48], &[0u8; 16]);
+    assert_eq!(got[49], PlantState::MEASURED_ANGLES);
+    let back = codec::decode::<PlantState>(&got).unwrap();
+    assert_eq!((back.alpha_dot, back.beta_dot), (None, None));
+    assert_eq!(back.x(), None);
+    assert_eq!(back.rates(), None);
+    assert_eq!(back.angles(), [0.25, FRAC_PI_2]);
+    // A measured zero is another message: bit set, same slot bytes.
+    let zero = PlantState {
+        alpha_dot: Some(0.0),
+        beta_dot: Some(0.0),
+        ..s
+    };
+    let z = codec::encode(&zero);
+    assert_eq!(&z[..49], &got[..49]);
+    assert_eq!(z[49], PlantState::MEASURED_ALL);
+    assert_eq!(
+        codec::decode::<PlantState>(&z).unwrap().x(),
+        Some([0.25, FRAC_PI_2, 0.0, 0.0])
+    );
+    // One rate only.
+    let one = PlantState {
+        beta_dot: Some(-3.0),
+        ..s
+    };
+    let b = codec::encode(&one);
+    assert_eq!(b[49], 0b1011);
+    let back = codec::decode::<PlantState>(&b).unwrap();
+    assert_eq!((back.alpha_dot, back.beta_dot), (None, Some(-3.0)));
+    assert_eq!(back.x(), None);
+    // A value in an absent slot, reserved bits, or an angle marked absent: refused, named.
+    let mut bad = got.clone();
+    bad[32..40].copy_from_slice(&1.5f64.to_le_bytes());
+    expect_err::<PlantState>(&bad, &["PlantState.alpha_dot = 1.5", "marks it absent"]);
+    let mut bad = got.clone();
+    bad[40..48].copy_from_slice(&(-0.0f64).to_le_bytes());
+    expect_err::<PlantState>(&bad, &["PlantState.beta_dot = -0", "marks it absent"]);
+    for m in [0u8, 1, 2, 4, 12, 0x13, 0x1f, 0xff] {
+        let mut bad = got.clone();
+        bad[49] = m;
+        expect_err::<PlantState>(
+            &bad,
+            &[&format!("PlantState.measured = {m}"), "3, 7, 11 or 15"],
+        );
+    }
+}
+
+/// A protocol-1 state (49 bytes, no `measured` byte) is refused with an error that says so.
+#[test]
+fn an_old_version_state_is_refused_with_a_clear_error() {
+    let v2 = codec::encode(&example_state());
+    let v1 = &v2[..49];
+    let err = expect_err::<PlantState>(
+        v1,
+        &[
+            "PlantState",
+            "49-byte",
+            "protocol-1",
+            "`measured`",
+            "protocol 2",
+            "50 bytes",
+            "update the sender",
+        ],
+    );
+    assert!(matches!(
+        err,
+        DecodeError::OldVersion {
+            got: 49,
+            expected: 50,
+            protocol: 2,
+            ..
+        }
+    ));
+    assert_eq!(tilting_proto::PROTOCOL_VERSION, 2);
 }
 
 #[test]
@@ -285,7 +378,8 @@ fn worked_examples_match_docs() {
         let chunk = &h[16 * i..16 * (i + 1)];
         assert!(PROTOCOL_MD.contains(&format!("`{chunk}`")), "{chunk}");
     }
-    assert!(PROTOCOL_MD.contains("'<Q5dB'") && PROTOCOL_MD.contains("'<Qd'"));
+    assert!(PROTOCOL_MD.contains(PLANT_STATE_ANGLES_EXAMPLE_HEX));
+    assert!(PROTOCOL_MD.contains("'<Q5d2B'") && PROTOCOL_MD.contains("'<Qd'"));
 }
 
 // ---------------------------------------------------------------- round trips
@@ -309,8 +403,8 @@ fn round_trip_every_message() {
         time: f64::MAX,
         alpha: -0.0,
         beta: f64::MIN_POSITIVE,
-        alpha_dot: 5e-324,
-        beta_dot: f64::MIN,
+        alpha_dot: Some(5e-324),
+        beta_dot: Some(f64::MIN),
         mode: 0,
     };
     let back = codec::decode::<PlantState>(&codec::encode(&s)).unwrap();
@@ -336,32 +430,32 @@ fn round_trip_every_message() {
 #[test]
 fn wrong_sizes_are_rejected_with_expected_and_got() {
     let full = codec::encode(&example_state());
-    for n in 0..49 {
+    for n in (0..50).filter(|&n| n != PlantState::SIZE_V1) {
         let err = expect_err::<PlantState>(
             &full[..n],
-            &["PlantState", "expected 49", &format!("got {n}")],
+            &["PlantState", "expected 50", &format!("got {n}")],
         );
         assert_eq!(
             err,
             DecodeError::WrongSize {
                 message: "PlantState",
-                expected: 49,
+                expected: 50,
                 got: n
             }
         );
     }
     let mut ext = full.clone();
     ext.push(0);
-    expect_err::<PlantState>(&ext, &["PlantState", "expected 49", "got 50"]);
-    ext.extend_from_slice(&[0; 14]);
-    expect_err::<PlantState>(&ext, &["expected 49", "got 64"]);
+    expect_err::<PlantState>(&ext, &["PlantState", "expected 50", "got 51"]);
+    ext.extend_from_slice(&[0; 13]);
+    expect_err::<PlantState>(&ext, &["expected 50", "got 64"]);
 
     let t = codec::encode(&example_torque());
     expect_err::<TorqueCommand>(&t[..15], &["TorqueCommand", "expected 16", "got 15"]);
     expect_err::<TorqueCommand>(&[t.as_slice(), &[1]].concat(), &["expected 16", "got 17"]);
     // A TorqueCommand is not a PlantState and vice versa.
-    expect_err::<PlantState>(&t, &["expected 49", "got 16"]);
-    expect_err::<TorqueCommand>(&full, &["expected 16", "got 49"]);
+    expect_err::<PlantState>(&t, &["expected 50", "got 16"]);
+    expect_err::<TorqueCommand>(&full, &["expected 16", "got 50"]);
 
     let e = codec::encode(&example_event());
     expect_err::<ModeEvent>(&e[..81], &["ModeEvent", "expected 82", "got 81"]);
@@ -415,8 +509,8 @@ fn non_finite_plant_state_fields_are_named() {
         ("time", |s, v| s.time = v),
         ("alpha", |s, v| s.alpha = v),
         ("beta", |s, v| s.beta = v),
-        ("alpha_dot", |s, v| s.alpha_dot = v),
-        ("beta_dot", |s, v| s.beta_dot = v),
+        ("alpha_dot", |s, v| s.alpha_dot = Some(v)),
+        ("beta_dot", |s, v| s.beta_dot = Some(v)),
     ];
     for (name, set) in fields {
         for bad in [f64::NAN, -f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
@@ -697,9 +791,9 @@ impl Rng {
 }
 
 #[test]
-fn garbage_49_bytes_with_nan_pattern_is_rejected() {
+fn garbage_50_bytes_with_nan_pattern_is_rejected() {
     // Quiet NaN in `alpha`, everything else random-looking but valid.
-    let mut b = [0u8; 49];
+    let mut b = [0u8; 50];
     Rng(0x1234_5678).bytes(&mut b);
     b[8..16].copy_from_slice(&0.5f64.to_le_bytes());
     b[16..24].copy_from_slice(&[0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xf8, 0x7f]);
@@ -707,12 +801,15 @@ fn garbage_49_bytes_with_nan_pattern_is_rejected() {
         b[off..off + 8].copy_from_slice(&1.0f64.to_le_bytes());
     }
     b[48] = 0;
+    b[49] = PlantState::MEASURED_ALL;
     expect_err::<PlantState>(&b, &["PlantState.alpha = NaN"]);
     // Same bytes with alpha fixed decode fine: the NaN was the only problem.
     b[16..24].copy_from_slice(&0.0f64.to_le_bytes());
     assert!(codec::decode::<PlantState>(&b).is_ok());
     // All 0xff: seq is fine, time is NaN.
-    expect_err::<PlantState>(&[0xff; 49], &["PlantState.time = NaN"]);
+    let mut b = [0xff; 50];
+    b[49] = PlantState::MEASURED_ALL;
+    expect_err::<PlantState>(&b, &["PlantState.time = NaN"]);
 }
 
 #[test]
@@ -720,12 +817,13 @@ fn random_plant_states_decode_iff_valid() {
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let (mut ok, mut bad) = (0, 0);
     for _ in 0..20_000 {
-        let mut b = [0u8; 49];
+        let mut b = [0u8; 50];
         rng.bytes(&mut b[..8]);
         for i in 0..5 {
             b[8 + 8 * i..16 + 8 * i].copy_from_slice(&rng.f64_bytes());
         }
         b[48] = (rng.next() % 4) as u8;
+        b[49] = PlantState::MEASURED_ALL;
         let f = |i: usize| f64::from_le_bytes(b[8 + 8 * i..16 + 8 * i].try_into().unwrap());
         let valid = (0..5).all(|i| f(i).is_finite()) && b[48] <= 2;
         match codec::decode::<PlantState>(&b) {
@@ -733,7 +831,8 @@ fn random_plant_states_decode_iff_valid() {
                 assert!(valid, "{b:?}");
                 ok += 1;
                 assert_eq!(s.seq, u64::from_le_bytes(b[..8].try_into().unwrap()));
-                let got = [s.time, s.alpha, s.beta, s.alpha_dot, s.beta_dot];
+                let [_, _, ad, bd] = s.x().unwrap();
+                let got = [s.time, s.alpha, s.beta, ad, bd];
                 for (i, g) in got.iter().enumerate() {
                     assert_eq!(g.to_bits(), f(i).to_bits());
                 }

@@ -30,7 +30,7 @@
 //! let path = dir.path().join("run.mcap");
 //! let keys = Keys::new("demo").unwrap();
 //! let mut rec = McapWriter::create(&path, &keys).unwrap();
-//! let s = PlantState { seq: 0, time: 0.0, alpha: 0.0, beta: 1.5, alpha_dot: 0.0, beta_dot: 0.0, mode: 0 };
+//! let s = PlantState { seq: 0, time: 0.0, alpha: 0.0, beta: 1.5, alpha_dot: Some(0.0), beta_dot: Some(0.0), mode: 0 };
 //! rec.record(Topic::State, &encode(&s)).unwrap();
 //! rec.record(Topic::Torque, &encode(&TorqueCommand { seq: 0, tau: 0.25 })).unwrap();
 //! rec.finish().unwrap();

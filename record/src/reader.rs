@@ -362,8 +362,8 @@ mod tests {
             time: seq as f64 * 1e-3,
             alpha: 0.0,
             beta: 1.5 + seq as f64 * 1e-6,
-            alpha_dot: 0.0,
-            beta_dot: 0.0,
+            alpha_dot: Some(0.0),
+            beta_dot: Some(0.0),
             mode: 0,
         }
     }

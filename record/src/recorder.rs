@@ -391,7 +391,13 @@ impl Writer {
                         c.state
                             .row(format_args!(
                                 "{},{},{},{},{},{},{}",
-                                s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                                s.seq,
+                                s.time,
+                                s.mode,
+                                s.alpha,
+                                s.beta,
+                                Cell(s.alpha_dot),
+                                Cell(s.beta_dot)
                             ))
                             .map_err(e)?;
                     }
@@ -608,6 +614,18 @@ fn finish_peak(tilt: &Option<Tilt>, peaks: &mut VecDeque<(f64, f64)>) {
     }
 }
 
+/// A rate in a CSV row: its value, or an empty cell when it was not measured (never 0).
+struct Cell(Option<f64>);
+
+impl std::fmt::Display for Cell {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(v) => write!(f, "{v}"),
+            None => Ok(()),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -618,8 +636,8 @@ mod tests {
             time: seq as f64 * 1e-3,
             alpha,
             beta: 1.5,
-            alpha_dot: 0.0,
-            beta_dot: 0.0,
+            alpha_dot: Some(0.0),
+            beta_dot: Some(0.0),
             mode,
         }
     }

@@ -104,8 +104,8 @@ mod tests {
                     time: 0.003,
                     alpha: 0.01,
                     beta: 1.5,
-                    alpha_dot: -0.2,
-                    beta_dot: 0.3,
+                    alpha_dot: Some(-0.2),
+                    beta_dot: Some(0.3),
                     mode: 1,
                 }),
             ),
@@ -172,8 +172,15 @@ mod tests {
             assert_eq!(a, b, "{topic}");
             for (k, val) in obj {
                 let p = &props[k];
-                let ty = p["type"].as_str().unwrap();
-                let ok = match ty {
+                // A nullable field (a rate that may be absent) is `["number", "null"]`.
+                let ty = match &p["type"] {
+                    Value::Array(t) if t.len() == 2 && t[1] == "null" => {
+                        t[0].as_str().unwrap().to_owned() + "?"
+                    }
+                    t => t.as_str().unwrap().to_owned(),
+                };
+                let ok = match ty.as_str() {
+                    "number?" => val.is_number() || val.is_null(),
                     "integer" => val.is_u64(),
                     "number" => val.is_number(),
                     "string" => val.is_string(),
@@ -207,6 +214,37 @@ mod tests {
         }
     }
 
+    /// A state without rates is `null` in JSON (never 0), and reads back without rates; the
+    /// JSON goes back to the same wire bytes.
+    #[test]
+    fn absent_rates_are_null_in_json() {
+        let s = PlantState {
+            seq: 4,
+            time: 0.004,
+            alpha: 0.01,
+            beta: 1.5,
+            alpha_dot: None,
+            beta_dot: None,
+            mode: 1,
+        };
+        let wire = encode(&s);
+        let v: Value = serde_json::from_slice(&to_json(Topic::State, &wire).unwrap()).unwrap();
+        assert_eq!(v["alpha_dot"], Value::Null);
+        assert_eq!(v["beta_dot"], Value::Null);
+        assert_eq!(v["alpha"].as_f64(), Some(0.01));
+        let back: PlantState = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(back, s);
+        assert_eq!(
+            from_json(Topic::State, &serde_json::to_vec(&v).unwrap()).unwrap(),
+            wire
+        );
+        let schema = json_schema(Topic::State);
+        assert_eq!(
+            schema["properties"]["beta_dot"]["type"],
+            serde_json::json!(["number", "null"])
+        );
+    }
+
     #[test]
     fn json_round_trips_the_floats_exactly() {
         let s = PlantState {
@@ -214,8 +252,8 @@ mod tests {
             time: 0.1 + 0.2,
             alpha: 1e-300,
             beta: std::f64::consts::FRAC_PI_2,
-            alpha_dot: -0.0,
-            beta_dot: 1.0 / 3.0,
+            alpha_dot: Some(-0.0),
+            beta_dot: Some(1.0 / 3.0),
             mode: 0,
         };
         let back: PlantState =
@@ -237,8 +275,8 @@ mod tests {
             time: 5e-324,
             alpha: -0.0,
             beta: 1.0 / 3.0,
-            alpha_dot: f64::MAX,
-            beta_dot: -f64::MIN_POSITIVE,
+            alpha_dot: Some(f64::MAX),
+            beta_dot: Some(-f64::MIN_POSITIVE),
             mode: 2,
         };
         let wire = encode(&s);

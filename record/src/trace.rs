@@ -45,7 +45,8 @@ pub struct Sample {
     pub t: f64,
     /// Contact mode.
     pub mode: Mode,
-    /// State `[alpha, beta, alpha_dot, beta_dot]` (rad, rad/s).
+    /// State `[alpha, beta, alpha_dot, beta_dot]` (rad, rad/s). A rate the plant did not
+    /// measure (`--measure angles`) is NaN here, never zero: plots leave it out.
     pub x: [f64; 4],
 }
 
@@ -232,7 +233,12 @@ fn load_mcap(path: &Path, w: Window, max_points: Option<u64>) -> Result<Loaded, 
                 let sample = Sample {
                     t: s.time,
                     mode: s.mode().map_err(mode)?,
-                    x: s.x(),
+                    x: [
+                        s.alpha,
+                        s.beta,
+                        s.alpha_dot.unwrap_or(f64::NAN),
+                        s.beta_dot.unwrap_or(f64::NAN),
+                    ],
                 };
                 if skip == 0 || last_mode != Some(sample.mode) {
                     trace.samples.push(sample);
@@ -277,30 +283,36 @@ fn load_csv(dir: &Path, w: Window) -> Result<Trace, LoadError> {
     let mut samples = VecDeque::new();
     let mut last_t = f64::NEG_INFINITY;
     let path = dir.join(STATE_CSV);
-    for_rows::<7>(&path, STATE_HEADER, |line, [_, t, q, a, b, ad, bd]| {
-        let mode = mode_of(q).ok_or_else(|| row_error(&path, line, "the mode", q))?;
-        if t < last_t {
-            return Err(LoadError::Csv(format!(
-                "{} line {line}: the time t = {t} s goes back (the row before has {last_t} s)",
-                path.display()
-            )));
-        }
-        last_t = t;
-        if w.start.is_some_and(|s| t < s) || w.end.is_some_and(|e| t > e) {
-            return Ok(());
-        }
-        samples.push_back(Sample {
-            t,
-            mode,
-            x: [a, b, ad, bd],
-        });
-        if let Some(tail) = w.tail {
-            while samples.front().is_some_and(|f: &Sample| f.t < t - tail) {
-                samples.pop_front();
+    // The rates' cells are empty when not measured: NaN in the trace.
+    for_rows::<7>(
+        &path,
+        STATE_HEADER,
+        &[5, 6],
+        |line, [_, t, q, a, b, ad, bd]| {
+            let mode = mode_of(q).ok_or_else(|| row_error(&path, line, "the mode", q))?;
+            if t < last_t {
+                return Err(LoadError::Csv(format!(
+                    "{} line {line}: the time t = {t} s goes back (the row before has {last_t} s)",
+                    path.display()
+                )));
             }
-        }
-        Ok(())
-    })?;
+            last_t = t;
+            if w.start.is_some_and(|s| t < s) || w.end.is_some_and(|e| t > e) {
+                return Ok(());
+            }
+            samples.push_back(Sample {
+                t,
+                mode,
+                x: [a, b, ad, bd],
+            });
+            if let Some(tail) = w.tail {
+                while samples.front().is_some_and(|f: &Sample| f.t < t - tail) {
+                    samples.pop_front();
+                }
+            }
+            Ok(())
+        },
+    )?;
     if samples.is_empty() {
         return Err(LoadError::Csv(format!(
             "{} has no states{}: nothing to draw",
@@ -314,7 +326,7 @@ fn load_csv(dir: &Path, w: Window) -> Result<Trace, LoadError> {
     }
     let mut events = Vec::new();
     let path = dir.join(EVENTS_CSV);
-    for_rows::<11>(&path, EVENTS_HEADER, |line, v| {
+    for_rows::<11>(&path, EVENTS_HEADER, &[], |line, v| {
         let from = mode_of(v[1]).ok_or_else(|| row_error(&path, line, "the mode `from`", v[1]))?;
         let to = mode_of(v[2]).ok_or_else(|| row_error(&path, line, "the mode `to`", v[2]))?;
         events.push(EventRecord {
@@ -386,6 +398,7 @@ fn bounded_lines(r: impl BufRead) -> impl Iterator<Item = std::io::Result<String
 fn for_rows<const N: usize>(
     path: &Path,
     header: &str,
+    may_be_empty: &[usize],
     mut row: impl FnMut(usize, [f64; N]) -> Result<(), LoadError>,
 ) -> Result<(), LoadError> {
     let csv = |m: String| LoadError::Csv(m);
@@ -423,6 +436,10 @@ fn for_rows<const N: usize>(
                     path.display()
                 ))
             })?;
+            if cell.trim().is_empty() && may_be_empty.contains(&k) {
+                *v = f64::NAN;
+                continue;
+            }
             *v = cell
                 .trim()
                 .parse()
@@ -531,8 +548,8 @@ mod tests {
             time: seq as f64 * 1e-3,
             alpha: 0.0,
             beta: 1.5 + seq as f64 * 1e-6,
-            alpha_dot: 0.0,
-            beta_dot: 0.0,
+            alpha_dot: Some(0.0),
+            beta_dot: Some(0.0),
             mode,
         }
     }
@@ -552,7 +569,13 @@ mod tests {
             rec.record(Topic::State, &encode(&s)).unwrap();
             rows += &format!(
                 "{},{},{},{},{},{},{}\n",
-                s.seq, s.time, s.mode, s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                s.seq,
+                s.time,
+                s.mode,
+                s.alpha,
+                s.beta,
+                s.alpha_dot.unwrap(),
+                s.beta_dot.unwrap()
             );
         }
         let e = ModeEvent {
@@ -608,5 +631,49 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("no plant state in the window"), "{e}");
+    }
+
+    /// States without rates (`--measure angles`) load with NaN rates from MCAP and from the
+    /// CSV's empty cells: never as zeros.
+    #[test]
+    fn absent_rates_load_as_nan_not_zero() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        let mcap = d.join(RUN_MCAP);
+        let mut rec = McapWriter::create(&mcap, &Keys::new("t").unwrap()).unwrap();
+        let mut rows = format!("{STATE_HEADER}\n");
+        for k in 0..10u64 {
+            let s = PlantState {
+                alpha_dot: None,
+                beta_dot: None,
+                ..state(k, 1)
+            };
+            rec.record(Topic::State, &encode(&s)).unwrap();
+            rows += &format!("{},{},{},{},{},,\n", s.seq, s.time, s.mode, s.alpha, s.beta);
+        }
+        rec.finish().unwrap();
+        let csv_dir = d.join("csv");
+        std::fs::create_dir(&csv_dir).unwrap();
+        write(&csv_dir, &rows, &format!("{EVENTS_HEADER}\n"));
+        let all = Window {
+            start: None,
+            end: None,
+            tail: None,
+        };
+        for dir in [mcap.as_path(), csv_dir.as_path()] {
+            let t = load(dir, all, None).unwrap().trace;
+            assert_eq!(t.samples.len(), 10);
+            for s in &t.samples {
+                assert!(s.x[2].is_nan() && s.x[3].is_nan(), "{:?}", s.x);
+                assert!(s.x[1] >= 1.5);
+            }
+        }
+        // An empty angle cell is still refused.
+        std::fs::write(
+            csv_dir.join(STATE_CSV),
+            format!("{STATE_HEADER}\n0,0,1,,1.5,,\n"),
+        )
+        .unwrap();
+        assert!(load(&csv_dir, all, None).is_err());
     }
 }

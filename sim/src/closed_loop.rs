@@ -328,7 +328,9 @@ pub fn simulate_with_progress(
             field: "control_period".into(),
             flag: "--control-period".into(),
             value: sc.control_period.to_string(),
-            allowed: "> 0 for --predict or --sample-on-event: both act on a sampled loop".into(),
+            allowed: "> 0 for --predict, --sample-on-event or --estimator: they act on a sampled \
+                      loop"
+                .into(),
         });
     }
     let network = match network {
@@ -355,9 +357,9 @@ pub fn simulate_with_progress(
             field: "control_period".into(),
             flag: "--control-period".into(),
             value: sc.control_period.to_string(),
-            allowed: "> 0 for a robot with sensor noise, an encoder or an actuator's saturation \
-                      or lag (--noise-*, --encoder-counts, --torque-saturation, --torque-lag): \
-                      the controller samples the sensors"
+            allowed: "> 0 for a robot with sensor noise, an encoder, angles only or an actuator's \
+                      saturation or lag (--noise-*, --encoder-counts, --measure angles, \
+                      --torque-saturation, --torque-lag): the controller samples the sensors"
                 .into(),
         });
     }

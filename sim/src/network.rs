@@ -37,9 +37,10 @@
 //! With neither option the loop is the plain one above, bit for bit.
 
 use serde::{Deserialize, Serialize};
-use tilting_controller::Predictor;
+use tilting_controller::estimate::EstimatorChoice;
+use tilting_controller::{Estimation, Predictor};
 use tilting_link::ImpairedHold;
-use tilting_plant::imperfect::{Actuator, Hardware};
+use tilting_plant::imperfect::{Actuator, Hardware, Measurement};
 use tilting_plant::sampled::{self, Grid, Transport};
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TorqueLaw};
 
@@ -60,6 +61,9 @@ pub struct LoopOptions {
     pub predict: Option<Predict>,
     /// The plant sends an extra state at each mode transition (`--sample-on-event`).
     pub sample_on_event: bool,
+    /// The controller's state estimator (`--estimator`; `auto` is left out of the JSON).
+    #[serde(default, skip_serializing_if = "EstimatorChoice::is_auto")]
+    pub estimator: EstimatorChoice,
     /// The controller's model of the plant, which the predictor runs (`None`: the plant's own
     /// configuration, no model mismatch).
     #[serde(skip)]
@@ -67,30 +71,36 @@ pub struct LoopOptions {
 }
 
 impl LoopOptions {
-    /// Neither option: the plain loop.
+    /// No option: the plain loop.
     pub fn is_plain(&self) -> bool {
-        self.predict.is_none() && !self.sample_on_event
+        self.predict.is_none() && !self.sample_on_event && self.estimator.is_auto()
     }
 }
 
 /// Event answers in flight: `(period of the event, arrival time (s), torque (N m))`.
 type InFlight = Vec<(u64, f64, f64)>;
 
-/// The controller's answer to the state `x` in `mode` sampled at `t` (s): the law at the state
-/// `predictor` forecasts for the answer's arrival, or at `x` itself without prediction.
-/// `periodic`: a sample on the period grid (else an extra state at an event).
+/// The controller's answer to the measurement `y` in `mode` sampled at `t` (s), as the
+/// controller node computes it: the state is the measured one or `est`'s estimate; the answer
+/// is the law at the state `predictor` forecasts for the answer's arrival, or at that state
+/// itself without prediction. `periodic`: a sample on the period grid (else an extra state at
+/// an event).
 fn answer<L: TorqueLaw>(
     predictor: &mut Option<Predictor>,
+    est: &mut Estimation,
     law: &L,
     t: f64,
     mode: Mode,
-    x: &State,
+    y: &Measurement,
     periodic: bool,
 ) -> f64 {
-    match predictor {
-        Some(p) => p.answer(law, t, mode, x, periodic),
-        None => law.torque(t, mode, x),
-    }
+    let x: State = est.state(t, mode, y);
+    let (tau, t_act) = match predictor {
+        Some(p) => (p.answer(law, t, mode, &x, periodic), p.acts_at(t, periodic)),
+        None => (law.torque(t, mode, &x), t),
+    };
+    est.sent(t_act, tau);
+    tau
 }
 
 /// [`crate::closed_loop::run_sampled`] over the links of `imp`: the zero-order hold with the
@@ -118,7 +128,9 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
         };
         Predictor::new(opts.model.unwrap_or(*plant.config()), period, d)
     });
+    let estimation = Estimation::new(opts.estimator, opts.model.unwrap_or(*plant.config()));
     let mut links = OverLinks {
+        estimation,
         plant,
         hw,
         obs,
@@ -150,6 +162,8 @@ struct OverLinks<'a, L, O> {
     /// Arrivals within this time (s) of an instant count as arrived by then.
     tol: f64,
     predictor: Option<Predictor>,
+    /// The controller's state estimation.
+    estimation: Estimation,
     /// The predictor reads the delay from the ages of the applied torques.
     estimate: bool,
     /// The first estimate was made.
@@ -195,11 +209,11 @@ impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
                 self.estimated = true;
             }
         }
-        let (mode, x) = (self.plant.mode(), self.hw.measure(self.plant));
-        let (predictor, law) = (&mut self.predictor, self.law);
+        let (mode, y) = (self.plant.mode(), self.hw.measure(self.plant));
+        let (predictor, est, law) = (&mut self.predictor, &mut self.estimation, self.law);
         let tau = self
             .hold
-            .step(k, t_k, || answer(predictor, law, t_k, mode, &x, true));
+            .step(k, t_k, || answer(predictor, est, law, t_k, mode, &y, true));
         if self.pending.is_empty() {
             return Some(tau);
         }
@@ -217,10 +231,10 @@ impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
             self.plant.mode(),
             self.hw.measure(self.plant),
         );
-        let (predictor, law) = (&mut self.predictor, self.law);
+        let (predictor, est, law) = (&mut self.predictor, &mut self.estimation, self.law);
         let sent = self
             .hold
-            .send_extra(t_e, || answer(predictor, law, t_e, m, &xe, false));
+            .send_extra(t_e, || answer(predictor, est, law, t_e, m, &xe, false));
         if let Some((r, tau_e)) = sent {
             self.pending.push((k, r, tau_e));
         }
@@ -254,6 +268,9 @@ pub struct LoopArgs {
     /// soon as it arrives
     #[arg(long)]
     pub sample_on_event: bool,
+    /// The controller's state estimator (`--estimator`).
+    #[command(flatten)]
+    pub estimator: tilting_controller::EstimatorArgs,
 }
 
 #[cfg(feature = "clap")]
@@ -263,6 +280,7 @@ impl LoopArgs {
         LoopOptions {
             predict: self.predict.predict,
             sample_on_event: self.sample_on_event,
+            estimator: self.estimator.choice(),
             model: None,
         }
     }

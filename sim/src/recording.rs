@@ -132,8 +132,9 @@ pub fn write_mcap(path: &Path, robot: &str, run: &Logged) -> Result<(), String> 
             time: s.t,
             alpha,
             beta,
-            alpha_dot,
-            beta_dot,
+            // A trace marks a rate that was not measured as NaN.
+            alpha_dot: Some(alpha_dot).filter(|v| !v.is_nan()),
+            beta_dot: Some(beta_dot).filter(|v| !v.is_nan()),
             mode: s.mode.as_u8(),
         };
         rec.record(Topic::State, &encode(&st))

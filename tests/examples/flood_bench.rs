@@ -59,8 +59,8 @@ async fn flood(c: Client, stop: Arc<AtomicBool>, sent: Arc<AtomicU64>) {
             time: 0.1,
             alpha: 0.0,
             beta: 1.5,
-            alpha_dot: 0.0,
-            beta_dot: 0.3,
+            alpha_dot: Some(0.0),
+            beta_dot: Some(0.3),
             mode: 0,
         });
         let future = codec::encode(&TorqueCommand {

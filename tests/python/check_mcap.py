@@ -21,6 +21,9 @@ from mcap.stream_reader import StreamReader
 
 
 def type_ok(value, ty):
+    if isinstance(ty, list):
+        # A nullable field (a rate the plant may not measure): ["number", "null"].
+        return any(value is None if t == "null" else type_ok(value, t) for t in ty)
     if ty == "integer":
         return isinstance(value, int) and not isinstance(value, bool)
     if ty == "number":

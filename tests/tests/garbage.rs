@@ -83,8 +83,8 @@ async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
         time: 0.1,
         alpha: 0.0,
         beta: 1.5,
-        alpha_dot: 0.0,
-        beta_dot: 0.0,
+        alpha_dot: Some(0.0),
+        beta_dot: Some(0.0),
         mode: 0,
     });
     let reference = codec::encode(&Reference {

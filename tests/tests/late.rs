@@ -71,7 +71,11 @@ async fn run(max_age: u64, delay: Duration) -> (PlantSummary, Option<tilting_pro
             let Ok(st) = codec::decode::<PlantState>(&s.payload().to_bytes()) else {
                 return;
             };
-            let tau = law.torque(st.time, st.mode().unwrap(), &State::from(st.x()));
+            let tau = law.torque(
+                st.time,
+                st.mode().unwrap(),
+                &State::from(st.x().expect("a full state")),
+            );
             let _ = tx.send((arrived + delay, TorqueCommand { seq: st.seq, tau }));
         })
         .await

@@ -154,8 +154,8 @@ fn live_runs_the_orbit_for_5_s_and_records_it() {
                     f64::from(s.mode),
                     s.alpha,
                     s.beta,
-                    s.alpha_dot,
-                    s.beta_dot,
+                    s.alpha_dot.expect("live measures the rates"),
+                    s.beta_dot.expect("live measures the rates"),
                 ];
                 assert_eq!(&row[..], &r[..], "state {si}");
                 si += 1;

@@ -112,8 +112,8 @@ async fn controller_started_after_the_planner_receives_the_reference() {
             time: 0.3,
             alpha: x[0],
             beta: x[1],
-            alpha_dot: x[2],
-            beta_dot: x[3],
+            alpha_dot: Some(x[2]),
+            beta_dot: Some(x[3]),
             mode: 0,
         };
         codec::encode(&s)

@@ -1,5 +1,5 @@
 //! `tilting echo` and `tilting hz` against a running plant and controller: echo decodes the
-//! states (consecutive `seq`, 49-byte messages) and reports a malformed payload instead of
+//! states (consecutive `seq`, 50-byte messages) and reports a malformed payload instead of
 //! dying on it; hz measures the 1 kHz loop (rates within 30 % of 1000 Hz on a loaded 2-core
 //! machine, sizes exactly the wire sizes).
 
@@ -88,7 +88,7 @@ async fn echo_and_hz_look_at_a_running_loop() {
     // hz: two reports of the state and torque topics.
     let text = look(&["hz", "--topics", "state,torque", "--json", "--seconds", "2"]);
     let last: HzReport = serde_json::from_str(text.lines().last().unwrap()).unwrap();
-    for (topic, size) in [("state", 49.0), ("torque", 16.0)] {
+    for (topic, size) in [("state", 50.0), ("torque", 16.0)] {
         let t = last.topics.iter().find(|t| t.topic == topic).unwrap();
         let rate = t.rate_hz;
         assert!(

@@ -33,9 +33,17 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
     Ok(match topic {
         Topic::State => {
             let s: PlantState = codec::decode(bytes).map_err(|e| e.to_string())?;
+            // A rate the plant does not measure (`--measure angles`) prints as `-`, never 0.
+            let rate = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:+.5}"));
             let h = format!(
-                "seq {:>8}  t {:10.4} s  {:<5}  alpha {:+.6} rad  beta {:.6} rad  alpha_dot {:+.5} rad/s  beta_dot {:+.5} rad/s",
-                s.seq, s.time, mode(s.mode), s.alpha, s.beta, s.alpha_dot, s.beta_dot
+                "seq {:>8}  t {:10.4} s  {:<5}  alpha {:+.6} rad  beta {:.6} rad  alpha_dot {} rad/s  beta_dot {} rad/s",
+                s.seq,
+                s.time,
+                mode(s.mode),
+                s.alpha,
+                s.beta,
+                rate(s.alpha_dot),
+                rate(s.beta_dot)
             );
             out(&s, json, h)
         }

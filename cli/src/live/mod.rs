@@ -117,6 +117,13 @@ pub struct LiveArgs {
     /// The controller's --predict.
     #[command(flatten)]
     pub predict: tilting_controller::predict::PredictArgs,
+    /// The controller's --estimator.
+    #[command(flatten)]
+    pub estimator: tilting_controller::EstimatorArgs,
+    /// The plant's sensors and actuator (`--measure angles`, noise, encoder, ...), as in
+    /// `simulate`; the noise draws from --seed.
+    #[command(flatten)]
+    pub imperfect: tilting_plant::imperfect::ImperfectArgs,
 }
 
 /// Largest `--max-age` (periods), as the plant allows.
@@ -236,6 +243,9 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
             .map_err(|e| usage(e.context(format!("--certs {}", c.display()))))?;
     }
     let reference = args.law.resolve()?;
+    args.imperfect
+        .imperfections(args.network.seed)
+        .map_err(|e| usage(e.into()))?;
     let dir = args
         .out
         .clone()

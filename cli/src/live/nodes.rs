@@ -192,9 +192,12 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
         v.extend(["--torque-limit".into(), limit.to_string()]);
     }
     v.extend(["--max-age".into(), args.max_age.to_string()]);
-    if job.impairment.is_some() {
+    let imperfect = args.imperfect.to_args();
+    if job.impairment.is_some() || !imperfect.is_empty() {
+        // The link, and the seed of the sensor noise.
         v.extend(args.network.to_args());
     }
+    v.extend(imperfect);
     v
 }
 
@@ -205,6 +208,7 @@ fn controller_args(job: &Job, topo: &Topology) -> Vec<String> {
     v.extend(topo.session_flags("controller", topo.ctl_port, &peers));
     v.extend(job.reference.to_args());
     v.extend(job.args.predict.to_args());
+    v.extend(job.args.estimator.to_args());
     v
 }
 
@@ -272,6 +276,12 @@ mod tests {
             "500",
             "--duration",
             "2.5",
+            "--measure",
+            "angles",
+            "--encoder-counts",
+            "4096",
+            "--estimator",
+            "fd",
         ])
         .unwrap()
         .live;
@@ -290,6 +300,8 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(ctl.predict, live.predict);
+        assert_eq!(ctl.estimator, live.estimator);
+        assert_eq!(plant.imperfect, live.imperfect);
         assert_eq!(ctl.control_config().unwrap().law, job.reference);
     }
 }

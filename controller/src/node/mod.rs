@@ -23,11 +23,13 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
-use tilting_plant::{ParamsArgs, State};
+use tilting_plant::imperfect::Measurement;
+use tilting_plant::ParamsArgs;
 use tilting_proto::{Keys, PlantState, Status, TorqueCommand};
 
+use crate::estimate::{EstimatorArgs, Method};
 use crate::predict::{Predict, PredictArgs, Predictor};
-use crate::{ControlConfig, Controller, LawArgs, LawSpec};
+use crate::{ControlConfig, Controller, Estimation, LawArgs, LawSpec};
 
 /// Flags of `tilting-controller`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -54,6 +56,9 @@ pub struct ControllerArgs {
     /// Prediction over the round-trip delay.
     #[command(flatten)]
     pub predict: PredictArgs,
+    /// The state estimator (for states without rates).
+    #[command(flatten)]
+    pub estimator: EstimatorArgs,
 }
 
 impl ControllerArgs {
@@ -86,6 +91,8 @@ struct Node {
     torque: TypedPublisher<TorqueCommand>,
     /// `--predict`: the predictor, once the loop's period is known from the states' times.
     predict: Option<Mutex<Prediction>>,
+    /// `--estimator`: the rates of states that lack them (`--measure angles`).
+    estimation: Mutex<Estimation>,
 }
 
 /// The predictor of the node and what it has learnt.
@@ -109,11 +116,20 @@ impl Node {
         let Ok(mode) = s.mode() else {
             return; // unreachable: decode validated the mode
         };
-        let x = State::from(s.x());
+        let y = Measurement {
+            angles: s.angles(),
+            rates: s.rates(),
+        };
         let tau = {
             let law = self.law.lock().unwrap_or_else(|e| e.into_inner());
+            let mut est = self.estimation.lock().unwrap_or_else(|e| e.into_inner());
+            let x = est.state(s.time, mode, &y);
             match &self.predict {
-                None => law.torque(s.time, mode, &x),
+                None => {
+                    let tau = law.torque(s.time, mode, &x);
+                    est.sent(s.time, tau);
+                    tau
+                }
                 Some(m) => {
                     let mut pr = m.lock().unwrap_or_else(|e| e.into_inner());
                     if s.seq > 0 && !pr.period_exact {
@@ -129,7 +145,9 @@ impl Node {
                     }
                     let on_grid =
                         pr.period_known && (s.time / pr.p.period() - s.seq as f64).abs() < 1e-6;
-                    pr.p.answer(&*law, s.time, mode, &x, on_grid)
+                    let tau = pr.p.answer(&*law, s.time, mode, &x, on_grid);
+                    est.sent(pr.p.acts_at(s.time, on_grid), tau);
+                    tau
                 }
             }
         };
@@ -249,8 +267,20 @@ impl Node {
                 fallbacks,
             }
         });
+        let estimation = {
+            let est = self.estimation.lock().unwrap_or_else(|e| e.into_inner());
+            est.estimator().map(|e| {
+                let (estimates, fallbacks) = e.counts();
+                EstimationSummary {
+                    method: e.method(),
+                    estimates,
+                    fallbacks,
+                }
+            })
+        };
         ControllerSummary {
             prediction,
+            estimation,
             states_received: self.states.received(),
             states_dropped: self.states.dropped(),
             torques_published: self.torques_published.load(Ordering::Relaxed),
@@ -297,6 +327,20 @@ pub struct ControllerSummary {
     /// With `--predict`: the delay predicted over at the end and the counts.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prediction: Option<PredictionSummary>,
+    /// The estimator, if one ran (states without rates, or `--estimator observer|fd`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimation: Option<EstimationSummary>,
+}
+
+/// What the estimator of `--estimator` did.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct EstimationSummary {
+    /// `observer` or `fd`.
+    pub method: Method,
+    /// States estimated.
+    pub estimates: u64,
+    /// Propagations the model refused (a kinematic step was taken instead).
+    pub fallbacks: u64,
 }
 
 /// What the predictor of `--predict` did.
@@ -347,7 +391,12 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         .await?;
     let torque = TypedPublisher::declare(&session, keys.controller_torque(), Qos::Control).await?;
     let params = law.config().params;
+    let model = tilting_plant::SimConfig {
+        params,
+        ..tilting_plant::SimConfig::default()
+    };
     let node = Arc::new(Node {
+        estimation: Mutex::new(Estimation::new(args.estimator.choice(), model)),
         params: law.config().params,
         orbit_peak: law.config().law.orbit_peak,
         law: Mutex::new(law),

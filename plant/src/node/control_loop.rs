@@ -61,8 +61,12 @@ pub(super) struct Loop {
     pub(super) hold: Option<tilting_link::ImpairedHold>,
     /// The robot's sensors and actuator (`crate::imperfect`; perfect by default).
     pub(super) hw: crate::imperfect::Hardware,
-    /// The state measured for `seq` (measured once: a re-publication sends the same numbers).
-    pub(super) measured: Option<(u64, State)>,
+    /// What was measured for `seq` (measured once: a re-publication sends the same numbers).
+    /// (`seq`, plant time s, measurement).
+    pub(super) measured: Option<(u64, f64, crate::imperfect::Measurement)>,
+    /// The angles measured before (plant time s, `[alpha, beta]` rad): the safe mode's rates
+    /// by a backward difference when the rates are not measured (`--measure angles`).
+    pub(super) previous_angles: Option<(f64, [f64; 2])>,
     /// Real time over emulated links (`--delay` ...): states leave through it.
     pub(super) link: Option<Arc<super::emulation::Emulator>>,
     /// `seq` of the last published state (= periods done).
@@ -109,27 +113,48 @@ pub(super) const SAFE_MODE_POLL: Duration = Duration::from_millis(1);
 pub(super) const TIMING_LOG_INTERVAL: Duration = Duration::from_secs(10);
 
 impl Loop {
-    /// The state the sensors measured at the current `seq` (measured at its first use).
-    pub(super) fn measured_state(&mut self) -> State {
+    /// What the sensors measured at the current `seq` (measured at its first use).
+    pub(super) fn measured(&mut self) -> crate::imperfect::Measurement {
         match self.measured {
-            Some((seq, y)) if seq == self.seq => y,
-            _ => {
+            Some((seq, _, y)) if seq == self.seq => y,
+            other => {
+                if let Some((_, t, y)) = other {
+                    self.previous_angles = Some((t, y.angles));
+                }
                 let y = self.hw.measure(&self.plant);
-                self.measured = Some((self.seq, y));
+                self.measured = Some((self.seq, self.plant.time(), y));
                 y
             }
         }
     }
 
+    /// The measured state of the safe mode's PD: with the rates not measured, they are the
+    /// backward difference of the measured angles over the last sample interval (zero at the
+    /// first sample, the plant's own fallback; the controller estimates them properly).
+    fn measured_for_safe_mode(&mut self) -> State {
+        let y = self.measured();
+        if let Some(x) = y.state() {
+            return x;
+        }
+        let [a, b] = y.angles;
+        let t = self.plant.time();
+        match self.previous_angles {
+            Some((t0, [a0, b0])) if t > t0 => {
+                State::new(a, b, (a - a0) / (t - t0), (b - b0) / (t - t0))
+            }
+            _ => State::new(a, b, 0.0, 0.0),
+        }
+    }
+
     pub(super) fn publish_state(&mut self) {
-        let x = self.measured_state();
+        let y = self.measured();
         let msg = PlantState {
             seq: self.seq,
             time: self.plant.time(),
-            alpha: x[0],
-            beta: x[1],
-            alpha_dot: x[2],
-            beta_dot: x[3],
+            alpha: y.angles[0],
+            beta: y.angles[1],
+            alpha_dot: y.rates.map(|r| r[0]),
+            beta_dot: y.rates.map(|r| r[1]),
             mode: self.plant.mode().as_u8(),
         };
         self.shared.current_seq.store(self.seq, Ordering::Release);
@@ -244,7 +269,7 @@ impl Loop {
         match self.args.safe_mode {
             SafeMode::Zero => 0.0,
             SafeMode::Hold => {
-                let x = self.measured_state();
+                let x = self.measured_for_safe_mode();
                 let (kp, kd) = self.safe_pd;
                 let v = kd * (0.0 - x[3]) + kp * (FRAC_PI_2 - x[1]);
                 crate::dynamics::torque_for_beta_ddot(
@@ -498,7 +523,9 @@ impl Loop {
             ClockMode::Lockstep => Duration::from_millis(self.args.lockstep_timeout_ms),
             ClockMode::Realtime => Duration::from_secs_f64(0.5 * self.h),
         };
-        self.measured = None;
+        if let Some((_, t, y)) = self.measured.take() {
+            self.previous_angles = Some((t, y.angles));
+        }
         {
             // An answer to this period's state may still sit in the inbox (in real time the
             // one in force, read without taking it; in lockstep a second answer to a

@@ -197,6 +197,7 @@ async fn run_async(
         hold,
         hw,
         measured: None,
+        previous_angles: None,
         link: link.clone(),
         age: Ring::new(),
         deadline_misses: 0,
