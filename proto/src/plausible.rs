@@ -189,8 +189,8 @@ mod tests {
             time,
             alpha: 0.01,
             beta: 1.5,
-            alpha_dot: 0.0,
-            beta_dot: 0.0,
+            alpha_dot: Some(0.0),
+            beta_dot: Some(0.0),
             mode: 1,
         }
     }

@@ -58,8 +58,8 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
             time: 1e300,
             alpha: 0.01,
             beta: 1.5,
-            alpha_dot: 0.0,
-            beta_dot: 0.0,
+            alpha_dot: Some(0.0),
+            beta_dot: Some(0.0),
             mode: 1,
         };
         let torque = TorqueCommand {
