@@ -10,7 +10,7 @@ use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// A running proxy; stops accepting when dropped (open connections end with their peers).
@@ -20,6 +20,8 @@ pub struct DelayProxy {
     /// Bytes forwarded, both directions.
     pub bytes: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
+    /// The client side of every connection accepted so far, for [`DelayProxy::cut`].
+    open: Arc<Mutex<Vec<TcpStream>>>,
 }
 
 impl Drop for DelayProxy {
@@ -46,7 +48,8 @@ impl DelayProxy {
         let port = listener.local_addr().unwrap().port();
         let bytes = Arc::new(AtomicU64::new(0));
         let stop = Arc::new(AtomicBool::new(false));
-        let (b, s) = (bytes.clone(), stop.clone());
+        let open = Arc::new(Mutex::new(Vec::new()));
+        let (b, s, o) = (bytes.clone(), stop.clone(), open.clone());
         std::thread::spawn(move || {
             let mut seed = 0x9E37_79B9_7F4A_7C15u64;
             for client in listener.incoming() {
@@ -59,6 +62,9 @@ impl DelayProxy {
                 };
                 let _ = client.set_nodelay(true);
                 let _ = server.set_nodelay(true);
+                if let Ok(c) = client.try_clone() {
+                    o.lock().unwrap().push(c);
+                }
                 for (from, to) in [
                     (client.try_clone(), server.try_clone()),
                     (server.try_clone(), client.try_clone()),
@@ -70,7 +76,25 @@ impl DelayProxy {
                 }
             }
         });
-        Self { port, bytes, stop }
+        Self {
+            port,
+            bytes,
+            stop,
+            open,
+        }
+    }
+
+    /// Closes every connection accepted so far, both ways (the proxy keeps accepting new
+    /// ones): the transport above sees its link die, as when a network path breaks. Returns
+    /// how many were cut.
+    pub fn cut(&self) -> usize {
+        let mut open = self.open.lock().unwrap();
+        for c in open.iter() {
+            let _ = c.shutdown(std::net::Shutdown::Both);
+        }
+        let n = open.len();
+        open.clear();
+        n
     }
 }
 

@@ -181,3 +181,89 @@ async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
         }
     }
 }
+
+/// "Link renegotiated" is not "peer gone": the controller's zenoh link is cut under it (a TCP
+/// proxy closes the connection both ways) while it keeps running. Its transport closes, its
+/// liveliness token disappears at the plant, and it reconnects at once. The plant counts the
+/// token's loss (`token_losses`) but does not enter the safe mode: the token is back, or torques
+/// arrive again, within `max(--max-age, 2)` periods (10 ms at 1 kHz), and the age rule covers
+/// the periods without an answer meanwhile. (Before issue 22 the first period without an
+/// answer after the token's loss tripped the watchdog.) Then the controller is killed: the
+/// token goes for good, no torque comes, and the safe mode follows within the watchdog bound.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cut_link_that_reconnects_is_not_a_controller_gone() {
+    let dir = Scratch::new("renegotiated");
+    let port = free_port();
+    let robot = robot("renegotiated");
+    let proxy = tilting_tests::proxy::DelayProxy::start(
+        format!("127.0.0.1:{port}").parse().unwrap(),
+        Duration::ZERO,
+        Duration::ZERO,
+    );
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &plant_args(&robot, port, &[]),
+        dir.path(),
+    );
+    let client = Client::open(&robot, None, Some(port)).await;
+    let status = StatusWatch::new(&client).await;
+    // Connects through the proxy only, and listens nowhere the plant could reach it directly
+    // (no listener, no gossip): every link it has crosses the proxy.
+    let cfg = dir.path().join("controller.json5");
+    let text = format!(
+        r#"{{ mode: "peer", listen: {{ endpoints: [] }},
+             connect: {{ endpoints: ["tcp/127.0.0.1:{}"],
+                         retry: {{ period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2 }} }},
+             scouting: {{ multicast: {{ enabled: false }}, gossip: {{ enabled: false }} }} }}"#,
+        proxy.port
+    );
+    std::fs::write(&cfg, text).unwrap();
+    let ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &[
+            "--robot".to_string(),
+            robot.clone(),
+            "--zenoh-config".into(),
+            cfg.display().to_string(),
+        ],
+        dir.path(),
+    );
+    status
+        .wait_for(Duration::from_secs(15), |s| {
+            s.state == Status::RUNNING && s.steps > 1000
+        })
+        .await
+        .unwrap_or_else(|| panic!("never running\n{}\n{}", plant.logs(), ctl.logs()));
+
+    // Cut the controller's link three times, 300 ms apart.
+    let mut cut = 0;
+    for _ in 0..3 {
+        cut += proxy.cut();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
+    assert!(cut >= 3, "the proxy carried no connection to cut");
+    let s = status.latest().unwrap();
+    assert_eq!(s.state, Status::RUNNING, "{s:?}\n{}", plant.logs());
+
+    // Now the controller dies for good.
+    let t0 = Instant::now();
+    ctl.signal(libc::SIGKILL);
+    let (t1, s) = status
+        .wait_for(
+            Duration::from_millis(WATCHDOG) + MARGIN + Duration::from_secs(2),
+            |s| s.state == Status::SAFE_MODE,
+        )
+        .await
+        .unwrap_or_else(|| panic!("no safe mode after SIGKILL\n{}", plant.logs()));
+    eprintln!("SIGKILL -> safe mode status after {:?}", t1 - t0);
+    assert_eq!(s.watchdog_trips, 1, "{s:?}");
+    let exit = plant.interrupt(Duration::from_secs(10));
+    assert!(exit.success(), "{}", plant.logs());
+    let p = plant.plant_summary();
+    eprintln!("plant: {p:?}\n{}", plant.stderr());
+    // Three cuts, three losses of the token (the kill is the fourth); one trip, the kill's.
+    assert!(p.token_losses >= 4, "{p:?}");
+    assert_eq!(p.watchdog_trips, 1, "{p:?}");
+}

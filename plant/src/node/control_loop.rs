@@ -91,6 +91,8 @@ pub(super) struct Loop {
     pub(super) age: Ring,
     pub(super) deadline_misses: u64,
     pub(super) watchdog_trips: u64,
+    /// When the newest torque taken into force arrived (ns), for the token verdict.
+    pub(super) last_answer: Option<u64>,
     pub(super) safe_periods: u64,
     pub(super) overruns: u64,
     pub(super) step_overrun_max: f64,
@@ -282,6 +284,23 @@ impl Loop {
         }
     }
 
+    /// The bound (ns of wall time) that tells a controller gone from a link renegotiated:
+    /// `max(--max-age, 2)` periods ([`super::inbox::token_verdict`]). Within it the torque in
+    /// force is still a valid one by the age rule, so waiting for the token costs nothing.
+    pub(super) fn token_grace_ns(&self) -> u64 {
+        (self.args.max_age.max(2) as f64 * self.h * 1e9) as u64
+    }
+
+    /// Is the controller gone now (token absent and no torque, both for the bound)?
+    pub(super) fn controller_gone(&self) -> bool {
+        super::inbox::token_verdict(
+            self.shared.controller_lost_at(),
+            self.last_answer,
+            clock::now_ns(),
+            self.token_grace_ns(),
+        )
+    }
+
     pub(super) fn enter_safe(&mut self, why: &str) {
         if self.status_state != Status::SAFE_MODE {
             self.watchdog_trips += 1;
@@ -298,7 +317,6 @@ impl Loop {
         chosen: Option<(TorqueCommand, u64)>,
         lockstep: bool,
     ) -> f64 {
-        let gone = self.shared.controller_gone.swap(false, Ordering::AcqRel);
         match chosen {
             Some((cmd, arrived)) => {
                 let age = self.seq - cmd.seq;
@@ -314,6 +332,7 @@ impl Loop {
                     self.torques_lost += cmd.seq.saturating_sub(a + 1);
                 }
                 self.applied_seq = Some(cmd.seq);
+                self.last_answer = Some(arrived);
                 self.torques_applied += 1;
                 self.rec(|r| r.torque(&cmd));
                 self.age.push(age as f64);
@@ -333,8 +352,13 @@ impl Loop {
             None => {
                 self.deadline_misses += 1;
                 self.missed += 1;
-                if gone {
-                    self.enter_safe("the controller's liveliness token disappeared");
+                if self.controller_gone() {
+                    let why = format!(
+                        "the controller is gone: its liveliness token has been absent, and no \
+                         torque has arrived, for at least {:.1} ms",
+                        self.token_grace_ns() as f64 * 1e-6
+                    );
+                    self.enter_safe(&why);
                 } else if lockstep {
                     self.enter_safe("lockstep timeout: no torque answered the state");
                 } else if self.missed >= self.args.watchdog {
@@ -385,10 +409,8 @@ impl Loop {
                         }
                         None => {}
                     }
-                    if self.shared.stop.load(Ordering::Acquire)
-                        || self.shared.controller_gone.load(Ordering::Acquire)
-                    {
-                        // Stopping, or the controller's token is gone: no answer will come.
+                    if self.shared.stop.load(Ordering::Acquire) || self.controller_gone() {
+                        // Stopping, or the controller is gone: no answer will come.
                         return None;
                     }
                     let now = Instant::now();
@@ -398,7 +420,13 @@ impl Loop {
                     if now >= next_repub || now >= self.next_status {
                         break;
                     }
-                    let until = next_repub.min(start + timeout).min(self.next_status);
+                    let mut until = next_repub.min(start + timeout).min(self.next_status);
+                    if let Some(lost) = self.shared.controller_lost_at() {
+                        // Wake up when the token's absence reaches the bound.
+                        let due = lost + self.token_grace_ns();
+                        let wait = Duration::from_nanos(due.saturating_sub(clock::now_ns()));
+                        until = until.min(now + wait.max(Duration::from_micros(100)));
+                    }
                     inbox = self
                         .shared
                         .cv
@@ -682,6 +710,7 @@ impl Loop {
             }),
             deadline_misses: self.deadline_misses,
             watchdog_trips: self.watchdog_trips,
+            token_losses: self.shared.token_losses.load(Ordering::Relaxed),
             safe_periods: self.safe_periods,
             overruns: self.overruns,
             max_overrun_us: self.step_overrun_max,

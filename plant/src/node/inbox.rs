@@ -16,8 +16,12 @@ pub(super) struct Shared {
     pub(super) torques: DropCounter,
     pub(super) stale: AtomicU64,
     pub(super) controller_alive: AtomicBool,
-    /// Set when the controller's token disappears; consumed by the pacing thread.
-    pub(super) controller_gone: AtomicBool,
+    /// When the controller's token disappeared (`clock::now_ns`), 0 while one is alive (or
+    /// before any was seen). Whether that is a controller gone or a link renegotiated is the
+    /// pacing thread's verdict ([`token_verdict`]).
+    pub(super) controller_lost_at: AtomicU64,
+    /// Times the controller's token disappeared, renegotiated links included.
+    pub(super) token_losses: AtomicU64,
     pub(super) stop: AtomicBool,
     /// Torques beyond this magnitude (N m) are refused (`--max-torque`).
     pub(super) max_torque: f64,
@@ -63,8 +67,86 @@ impl Shared {
         self.cv.notify_all();
     }
 
+    /// The controller's token changed (`alive`): keeps the time of a loss and wakes the pacing
+    /// thread.
+    pub(super) fn on_controller_token(&self, alive: bool) {
+        self.controller_alive.store(alive, Ordering::Release);
+        if alive {
+            self.controller_lost_at.store(0, Ordering::Release);
+        } else {
+            self.token_losses.fetch_add(1, Ordering::Relaxed);
+            self.controller_lost_at
+                .store(clock::now_ns().max(1), Ordering::Release);
+        }
+        self.wake();
+    }
+
+    /// When the controller's token disappeared (ns), if it is gone now.
+    pub(super) fn controller_lost_at(&self) -> Option<u64> {
+        Some(self.controller_lost_at.load(Ordering::Acquire)).filter(|&t| t != 0)
+    }
+
     pub(super) fn wake(&self) {
         let _guard = self.inbox.lock().unwrap_or_else(|e| e.into_inner());
         self.cv.notify_all();
+    }
+}
+
+/// "Peer gone" or "link renegotiated": is the controller gone, `now` (ns), given when its
+/// liveliness token disappeared (`lost_at`, `None` while it is alive), when the newest torque
+/// taken into force arrived (`last_answer`, `None` if none yet) and the bound `grace` (ns)?
+///
+/// A token disappears when the controller's process ends, and also when its zenoh transport
+/// closes and reopens (a link renegotiated: the token is deleted and declared again within a
+/// few ms). Only the first is a controller gone. So the controller counts as gone once its
+/// token has been absent for `grace` **and** no torque has arrived for `grace`; a token back
+/// within `grace`, or torques still arriving, are a renegotiated link, and the loop goes on
+/// (the `--max-age` rule and the `--watchdog` count still apply to the torques themselves).
+pub(super) fn token_verdict(
+    lost_at: Option<u64>,
+    last_answer: Option<u64>,
+    now: u64,
+    grace: u64,
+) -> bool {
+    let Some(lost) = lost_at else {
+        return false;
+    };
+    let quiet = last_answer.is_none_or(|t| now.saturating_sub(t) >= grace);
+    now.saturating_sub(lost) >= grace && quiet
+}
+
+#[cfg(test)]
+mod tests {
+    use super::token_verdict;
+
+    const MS: u64 = 1_000_000;
+
+    #[test]
+    fn a_token_back_within_the_bound_is_a_renegotiated_link() {
+        let grace = 10 * MS;
+        // Present: never gone, whatever the torques do.
+        assert!(!token_verdict(None, None, 100 * MS, grace));
+        assert!(!token_verdict(None, Some(0), 100 * MS, grace));
+        // Lost 4 ms ago (a reconnect in progress), torques stopped 4 ms ago: not yet.
+        assert!(!token_verdict(
+            Some(96 * MS),
+            Some(96 * MS),
+            100 * MS,
+            grace
+        ));
+        // Lost 50 ms ago but torques still arrive (1 ms ago): the controller is there.
+        assert!(!token_verdict(
+            Some(50 * MS),
+            Some(99 * MS),
+            100 * MS,
+            grace
+        ));
+        // Lost exactly `grace` ago and no torque since: gone.
+        assert!(token_verdict(Some(90 * MS), Some(90 * MS), 100 * MS, grace));
+        // Lost long ago, never answered: gone.
+        assert!(token_verdict(Some(10 * MS), None, 100 * MS, grace));
+        // One nanosecond short of the bound on either clock: not gone.
+        assert!(!token_verdict(Some(90 * MS + 1), Some(0), 100 * MS, grace));
+        assert!(!token_verdict(Some(1), Some(90 * MS + 1), 100 * MS, grace));
     }
 }

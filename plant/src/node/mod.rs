@@ -36,8 +36,10 @@
 //! # Safe mode
 //!
 //! Without a valid torque at most `--max-age` periods old for `--watchdog` periods (real-time),
-//! or for `--lockstep-timeout-ms` (lockstep), or at once when the controller's liveliness token
-//! disappears, the plant enters the safe mode (`Status.state = 2`): `--safe-mode zero` applies no
+//! or for `--lockstep-timeout-ms` (lockstep), or when the controller is gone (its liveliness
+//! token absent, and no torque arrived, for `max(--max-age, 2)` periods: 10 ms at 1 kHz; a token
+//! that disappears and comes back within that bound is a renegotiated link, counted as
+//! `token_losses` in the summary, and the loop goes on), the plant enters the safe mode (`Status.state = 2`): `--safe-mode zero` applies no
 //! torque, `--safe-mode hold` (default) a holding computed-torque PD towards `beta = pi/2` with
 //! `--safe-kp`/`--safe-kd`. A valid torque within `--max-age` ends it. In lockstep the plant then
 //! waits at most 1 ms per period for an answer, so a run without its controller goes on at
@@ -125,7 +127,8 @@ async fn run_async(
         torques: DropCounter::new(keys.controller_torque()),
         stale: AtomicU64::new(0),
         controller_alive: AtomicBool::new(false),
-        controller_gone: AtomicBool::new(false),
+        controller_lost_at: AtomicU64::new(0),
+        token_losses: AtomicU64::new(0),
         stop: AtomicBool::new(false),
         max_torque: args.max_torque(),
         reordered: AtomicU64::new(0),
@@ -158,11 +161,7 @@ async fn run_async(
     let sh = shared.clone();
     let (_presence, _presence_sub) =
         tilting_net::watch_presence(&session, keys.alive_controller(), move |alive| {
-            sh.controller_alive.store(alive, Ordering::Release);
-            if !alive {
-                sh.controller_gone.store(true, Ordering::Release);
-            }
-            sh.wake();
+            sh.on_controller_token(alive)
         })
         .await?;
     let _token = tilting_net::declare_token(&session, keys.alive_plant()).await?;
@@ -202,6 +201,7 @@ async fn run_async(
         age: Ring::new(),
         deadline_misses: 0,
         watchdog_trips: 0,
+        last_answer: None,
         safe_periods: 0,
         overruns: 0,
         step_overrun_max: 0.0,

@@ -129,6 +129,11 @@ pub struct PlantSummary {
     pub deadline_misses: u64,
     /// Times the watchdog put the plant in safe mode.
     pub watchdog_trips: u64,
+    /// Times the controller's liveliness token disappeared: a controller gone, or its zenoh
+    /// transport closed and reopened (a renegotiated link, which does not trip the watchdog
+    /// when the token is back, or torques still arrive, within `max(--max-age, 2)` periods).
+    #[serde(default)]
+    pub token_losses: u64,
     /// Periods run in safe mode.
     pub safe_periods: u64,
     /// Periods whose integration overran the deadline.
