@@ -177,7 +177,10 @@ pub fn generate(
     nodes.extend(extra.iter().cloned());
     for node in &nodes {
         let mut sans: Vec<String> = Vec::new();
-        if node == "router" {
+        // The router's and the plant's certificates name their host: the nodes dial the router,
+        // the controller dials the plant (the direct loop), and both check the name. The plant
+        // runs on the router's host ("Three hosts" in the README).
+        if node == "router" || node == "plant" {
             sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
             for h in router_hosts {
                 if !sans.contains(h) {
@@ -213,6 +216,13 @@ pub fn generate(
             &serde_json::to_string_pretty(&cfg)?,
             false,
         )?;
+        if DIRECT.contains(&node.as_str()) {
+            write(
+                &out.join(format!("{node}-direct.json5")),
+                &serde_json::to_string_pretty(&direct_config(keys, &out, node, &nodes))?,
+                false,
+            )?;
+        }
     }
     let manifest = Manifest {
         robot: robot.to_owned(),
@@ -300,6 +310,148 @@ pub fn client_config(dir: &Path, node: &str, router_endpoint: &str) -> Value {
                 "verify_name_on_connect": true,
             },
         }},
+    })
+}
+
+/// The nodes of the direct loop: the plant listens, the controller dials it.
+pub const DIRECT: [&str; 2] = ["plant", "controller"];
+
+/// The zenoh configuration of `node` (one of [`DIRECT`]) in the direct loop (`{node}-direct.json5`,
+/// what `tilting live --secure` runs): a **peer** with the TLS link of [`client_config`] (its own
+/// certificate, mutual authentication, names checked), no scouting, and its own access control
+/// ([`node_acl`]). The endpoints are left to the flags: the plant `--listen`s on its endpoint
+/// and `--connect`s to the router; the controller `--connect`s to the plant and to the router.
+pub fn direct_config(keys: &Keys, dir: &Path, node: &str, nodes: &[String]) -> Value {
+    json!({
+        "mode": "peer",
+        "connect": {
+            "endpoints": [],
+            "retry": { "period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2 },
+        },
+        "listen": { "endpoints": [] },
+        "scouting": {
+            "multicast": { "enabled": false },
+            "gossip": { "enabled": false },
+            "delay": tilting_net::OPEN_WAIT_MS,
+        },
+        "timestamping": { "enabled": false },
+        "transport": { "link": {
+            "protocols": ["tls"],
+            "tls": {
+                "root_ca_certificate": file(dir, "ca.pem"),
+                "listen_certificate": file(dir, &format!("{node}.pem")),
+                "listen_private_key": file(dir, &format!("{node}.key")),
+                "connect_certificate": file(dir, &format!("{node}.pem")),
+                "connect_private_key": file(dir, &format!("{node}.key")),
+                "enable_mtls": true,
+                "verify_name_on_connect": true,
+            },
+        }},
+        "access_control": node_acl(keys, node, nodes),
+    })
+}
+
+/// The ingress rules `node` (one of [`DIRECT`]) enforces on its own links in the direct loop
+/// (zenoh applies ACL only in the session that holds it: eclipse-zenoh/zenoh#2137). Every
+/// identity of the robot (the router's included) may subscribe, query and watch tokens, and
+/// receive what it subscribed to; beyond that, default deny:
+///
+/// - the plant accepts torques and the controller's token **only from the controller's
+///   identity**, so only on the direct link (the router's copies are refused);
+/// - the controller accepts states, events, statuses and the plant's token only from the
+///   plant's identity, and the reference (puts, replies, queryable, the planner's token) only
+///   from the router's, which let only the planner's identity publish it.
+pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
+    let robot = keys.robot();
+    let all = format!("tilting/{robot}/**");
+    let rule = |id: &str, flows: &[&str], messages: &[&str], key_exprs: Vec<&str>| {
+        json!({ "id": id, "permission": "allow", "flows": flows, "messages": messages,
+                "key_exprs": key_exprs })
+    };
+    let subject = |id: &str, cns: Vec<String>| json!({ "id": id, "cert_common_names": cns });
+    let policy = |id: &str, rules: &[&str], subjects: &[&str]| json!({ "id": id, "rules": rules, "subjects": subjects });
+    let mut listeners: Vec<String> = nodes
+        .iter()
+        .filter(|n| NODES.contains(&n.as_str()) || n.starts_with("logger"))
+        .map(|n| common_name(robot, n))
+        .collect();
+    listeners.sort();
+    let mut rules = vec![
+        rule(
+            "listen",
+            &["ingress"],
+            &[
+                "declare_subscriber",
+                "query",
+                "liveliness_query",
+                "declare_liveliness_subscriber",
+            ],
+            vec![&all],
+        ),
+        rule(
+            "receive",
+            &["egress"],
+            &[
+                "put",
+                "delete",
+                "declare_subscriber",
+                "query",
+                "reply",
+                "declare_queryable",
+                "liveliness_token",
+                "liveliness_query",
+                "declare_liveliness_subscriber",
+            ],
+            vec![&all],
+        ),
+    ];
+    let mut subjects = vec![subject("robot", listeners)];
+    let mut policies = vec![policy(
+        "everyone listens",
+        &["listen", "receive"],
+        &["robot"],
+    )];
+    if node == "plant" {
+        rules.push(rule(
+            "torques",
+            &["ingress"],
+            &["put", "liveliness_token"],
+            vec![keys.controller_torque(), keys.alive_controller()],
+        ));
+        subjects.push(subject(
+            "controller",
+            vec![common_name(robot, "controller")],
+        ));
+        policies.push(policy("controller", &["torques"], &["controller"]));
+    } else {
+        rules.push(rule(
+            "states",
+            &["ingress"],
+            &["put", "liveliness_token"],
+            vec![
+                keys.plant_state(),
+                keys.plant_event(),
+                keys.plant_status(),
+                keys.alive_plant(),
+            ],
+        ));
+        rules.push(rule(
+            "reference",
+            &["ingress"],
+            &["put", "reply", "declare_queryable", "liveliness_token"],
+            vec![keys.planner_reference(), keys.alive_planner()],
+        ));
+        subjects.push(subject("plant", vec![common_name(robot, "plant")]));
+        subjects.push(subject("router", vec![common_name(robot, "router")]));
+        policies.push(policy("plant", &["states"], &["plant"]));
+        policies.push(policy("router", &["reference"], &["router"]));
+    }
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
     })
 }
 
@@ -525,6 +677,16 @@ mod tests {
             acl.contains("unit-controller") && !acl.contains("unit-rogue"),
             "{acl}"
         );
+        for n in DIRECT {
+            let cfg = zenoh::Config::from_file(dir.path().join(format!("{n}-direct.json5")))
+                .unwrap_or_else(|e| panic!("{n}-direct: {e}"));
+            assert_eq!(cfg.get_json("mode").unwrap(), "\"peer\"");
+            let acl = cfg.get_json("access_control").unwrap();
+            // Each takes the loop's topics only from the other end of the loop.
+            let other = if n == "plant" { "controller" } else { "plant" };
+            assert!(acl.contains(&format!("unit-{other}")), "{acl}");
+            assert!(!acl.contains("unit-rogue"), "{acl}");
+        }
         assert!(read_manifest(dir.path(), "unit").is_ok());
         assert!(read_manifest(dir.path(), "other").is_err());
     }

@@ -194,3 +194,148 @@ async fn a_wrong_identity_cannot_move_the_robot() {
         router.logs()
     );
 }
+
+/// Sends 100 rounds of garbage, 1e9 N m, plausible torques, garbage states and a lying
+/// reference from `c`, and tries to declare the planner's token.
+async fn attack(c: &Client) {
+    let huge = codec::encode(&TorqueCommand { seq: 0, tau: 1e9 });
+    let lie = codec::encode(&Reference {
+        kind: Reference::HOLD,
+        amplitude: 0.0,
+        omega: 0.0,
+        kp: 30.0,
+        kd: 8.0,
+        k: 0.0,
+        energy_avg: 0.0,
+        torque_limit: 0.0,
+    });
+    let k = &c.keys;
+    for i in 0..100u64 {
+        let t = codec::encode(&TorqueCommand {
+            seq: 500 + i,
+            tau: 12.345,
+        });
+        for (key, payload) in [
+            (k.controller_torque(), GARBAGE),
+            (k.controller_torque(), &huge[..]),
+            (k.controller_torque(), &t[..]),
+            (k.plant_state(), GARBAGE),
+            (k.planner_reference(), &lie[..]),
+        ] {
+            c.session
+                .put(key.to_owned(), payload.to_vec())
+                .await
+                .unwrap();
+        }
+    }
+    let _ = c
+        .session
+        .liveliness()
+        .declare_token(c.keys.alive_planner().to_owned())
+        .await;
+}
+
+/// The direct loop of `tilting live --secure`: the plant (`plant-direct.json5`) listens on its
+/// own TLS endpoint and the controller (`controller-direct.json5`) dials it, both also
+/// connected to the router; each enforces its own ingress rules (`security::node_acl`). The
+/// logger's and a `rogue` identity attack both ways in: directly at the plant's endpoint (where
+/// only the plant's rules judge them) and through the router. Nothing of theirs reaches the
+/// plant or the controller. A stolen controller key dialling the plant is delivered (5 garbage
+/// torques, so the counter could show it); a stolen plant key can reach the controller only
+/// through the router, whose copies of plant topics the controller refuses (0 delivered).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_wrong_identity_cannot_move_the_robot_over_the_direct_loop() {
+    let dir = Scratch::new("secure-direct");
+    let robot = robot("secure_direct");
+    let keys = Keys::new(&robot).unwrap();
+    let certs = dir.path().join("certs");
+    tilting::security::generate(&keys, &certs, &[], "tls/127.0.0.1:7447", &["rogue".into()])
+        .expect("certificates");
+    let ep = format!("tls/127.0.0.1:{}", free_port());
+    let plant_ep = format!("tls/127.0.0.1:{}", free_port());
+    let mut router = start_router(dir.path(), &certs, &ep);
+    let file = |name: &str| certs.join(name).display().to_string();
+    let flags = |node: &str, extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> = vec![
+            "--robot".into(),
+            robot.clone(),
+            "--zenoh-config".into(),
+            file(&format!("{node}-direct.json5")),
+        ];
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let mut plant = Proc::spawn(
+        "plant",
+        &bin("tilting-plant"),
+        &flags(
+            "plant",
+            &["--listen", &plant_ep, "--connect", &ep, "--duration", "3"],
+        ),
+        dir.path(),
+    );
+    let mut ctl = Proc::spawn(
+        "controller",
+        &bin("tilting-controller"),
+        &flags("controller", &["--connect", &plant_ep, "--connect", &ep]),
+        dir.path(),
+    );
+    let logger = Client::open_config(&robot, &certs.join("logger.json5"), &ep).await;
+    let (logger_states, _s1) = counting_subscriber(&logger, keys.plant_state()).await;
+    let running = poll_until(Duration::from_secs(10), || {
+        (logger_states.load(Ordering::Relaxed) > 100).then_some(())
+    })
+    .await;
+    assert!(
+        running.is_some(),
+        "the loop did not start\n{}\n{}\n{}",
+        router.logs(),
+        plant.logs(),
+        ctl.logs()
+    );
+    for node in ["logger", "rogue"] {
+        for at in [&plant_ep, &ep] {
+            let c = Client::open_config(&robot, &certs.join(format!("{node}.json5")), at).await;
+            attack(&c).await;
+        }
+    }
+    let stolen_ctl =
+        Client::open_config(&robot, &certs.join("controller-direct.json5"), &plant_ep).await;
+    let stolen_plant = Client::open_config(&robot, &certs.join("plant.json5"), &ep).await;
+    for (c, key, n) in [
+        (&stolen_ctl, keys.controller_torque(), 5),
+        (&stolen_plant, keys.plant_state(), 7),
+    ] {
+        for _ in 0..n {
+            c.session
+                .put(key.to_owned(), GARBAGE.to_vec())
+                .congestion_control(CongestionControl::Block)
+                .await
+                .unwrap();
+        }
+    }
+
+    let s = plant.expect_exit(Duration::from_secs(20));
+    assert!(s.success(), "plant: {s}\n{}", plant.logs());
+    assert!(
+        ctl.interrupt(Duration::from_secs(10)).success(),
+        "{}",
+        ctl.logs()
+    );
+    let p = plant.plant_summary();
+    let c = ctl.controller_summary();
+    eprintln!("plant: {p:?}\ncontroller: {c:?}");
+    assert!(p.steps >= 2900, "{p:?}");
+    assert!(p.torques_received > 1000, "{p:?}");
+    assert!(p.fault.is_none(), "{p:?}");
+    assert_eq!(p.watchdog_trips, 0, "{p:?}");
+    assert_eq!(p.torques_dropped, 5, "{p:?}");
+    assert_eq!(c.states_dropped, 0, "{c:?}");
+    assert_eq!(c.references_received, 0, "{c:?}");
+    router.signal(libc::SIGINT);
+    assert!(
+        router.expect_exit(Duration::from_secs(10)).success(),
+        "{}",
+        router.logs()
+    );
+}

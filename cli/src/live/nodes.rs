@@ -105,15 +105,37 @@ impl Topology {
         Ok(())
     }
 
-    /// The session flags of child `node`: its certificate and the router, or loopback peers.
+    /// The plant's TLS endpoint of the direct loop (`--secure`).
+    fn plant_tls(&self) -> String {
+        format!("tls/127.0.0.1:{}", self.plant_port)
+    }
+
+    /// The session flags of child `node`: its certificate, its own access control and the
+    /// direct loop (the plant listens on its port, the controller dials it) beside the router;
+    /// or loopback peers. Certificates of a `tilting certs` without the `{node}-direct.json5`
+    /// files run the loop through the router, as clients.
     fn session_flags(&self, node: &str, listen: u16, connect: &[u16]) -> Vec<String> {
         match &self.secure {
-            Some(s) => vec![
-                "--zenoh-config".into(),
-                s.certs.join(format!("{node}.json5")).display().to_string(),
-                "--connect".into(),
-                s.endpoint.clone(),
-            ],
+            Some(s) => {
+                let direct = s.certs.join(format!("{node}-direct.json5"));
+                if !direct.is_file() {
+                    let client = s.certs.join(format!("{node}.json5"));
+                    return vec![
+                        "--zenoh-config".into(),
+                        client.display().to_string(),
+                        "--connect".into(),
+                        s.endpoint.clone(),
+                    ];
+                }
+                let mut v = vec!["--zenoh-config".into(), direct.display().to_string()];
+                if node == "plant" {
+                    v.extend(["--listen".into(), self.plant_tls()]);
+                } else {
+                    v.extend(["--connect".into(), self.plant_tls()]);
+                }
+                v.extend(["--connect".into(), s.endpoint.clone()]);
+                v
+            }
             None => {
                 let mut v = vec!["--listen".into(), endpoint(listen)];
                 for c in connect {
@@ -143,7 +165,7 @@ impl Topology {
     pub(super) fn endpoints(&self) -> Endpoints {
         match &self.secure {
             Some(s) => Endpoints {
-                plant: String::new(),
+                plant: self.plant_tls(),
                 controller: String::new(),
                 planner: String::new(),
                 router: Some(s.endpoint.clone()),

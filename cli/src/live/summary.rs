@@ -76,8 +76,8 @@ pub struct Endpoints {
     pub controller: String,
     /// Where the in-process planner listens.
     pub planner: String,
-    /// `--secure`: the router every node connects to (the nodes listen nowhere; the three
-    /// fields above are empty).
+    /// `--secure`: the router every node connects to (then only the plant listens, on its TLS
+    /// endpoint of the direct loop; the two other fields above are empty).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub router: Option<String>,
 }
