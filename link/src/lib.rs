@@ -267,6 +267,19 @@ impl Link {
     }
 }
 
+/// What the plant's watchdog did in a loop that models it (`tilting_plant::safe`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SafeModeStats {
+    /// Times the safe mode was entered.
+    pub trips: u64,
+    /// Periods run in safe mode.
+    pub periods: u64,
+    /// When it was first entered (s).
+    pub entered: Option<f64>,
+    /// In safe mode at the end of the run, since this time (s).
+    pub since: Option<f64>,
+}
+
 /// What an impaired loop did (see [`ImpairedHold`]).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NetStats {
@@ -293,6 +306,10 @@ pub struct NetStats {
     /// trips when this reaches `--watchdog`).
     #[serde(default)]
     pub longest_gap: u64,
+    /// The plant's watchdog and safe mode, where the loop models them (`tilting simulate`
+    /// over links).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub safe_mode: Option<SafeModeStats>,
 }
 
 impl NetStats {

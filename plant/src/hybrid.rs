@@ -122,6 +122,19 @@ pub enum Fault {
     /// The integrator failed.
     #[error("integrator: {0}")]
     Integrator(#[from] OdeError),
+    /// A sampled loop's plant was in safe mode at the end of the run: its watchdog saw no valid
+    /// torque for `watchdog` periods from `t` on and it held the arm ([`crate::safe`]). Not a
+    /// fault of the model: the run went on to its end, as the plant node's does.
+    #[error(
+        "safe mode from t = {t:.3} s to the end: the plant's watchdog saw no valid torque for \
+         {watchdog} periods (none arrived, or all older than --max-age) and held the arm"
+    )]
+    SafeMode {
+        /// When the safe mode was entered, the last time (s).
+        t: f64,
+        /// The watchdog's limit (periods).
+        watchdog: u64,
+    },
     /// A fault read back from a report: reports carry a fault as its message text
     /// ([`Fault`]'s serde form), so reading one gives this variant with the message.
     #[error("{0}")]
@@ -144,7 +157,7 @@ impl<'de> serde::Deserialize<'de> for Fault {
 
 impl Fault {
     /// A short name of the kind of fault: `contact loss`, `fall`, `Zeno guard`,
-    /// `non-finite torque`, `integrator failure` or `reported fault`.
+    /// `non-finite torque`, `integrator failure`, `safe mode` or `reported fault`.
     pub fn kind(&self) -> &'static str {
         match self {
             Fault::ContactLoss { .. } => "contact loss",
@@ -152,6 +165,7 @@ impl Fault {
             Fault::Zeno { .. } => "Zeno guard",
             Fault::NonFiniteTorque { .. } => "non-finite torque",
             Fault::Integrator(_) => "integrator failure",
+            Fault::SafeMode { .. } => "safe mode",
             Fault::Reported(_) => "reported fault",
         }
     }
@@ -162,7 +176,8 @@ impl Fault {
             Fault::ContactLoss { t, .. }
             | Fault::Fall { t, .. }
             | Fault::Zeno { t, .. }
-            | Fault::NonFiniteTorque { t, .. } => Some(t),
+            | Fault::NonFiniteTorque { t, .. }
+            | Fault::SafeMode { t, .. } => Some(t),
             Fault::Integrator(_) | Fault::Reported(_) => None,
         }
     }

@@ -43,6 +43,7 @@ pub mod node;
 pub mod ode;
 pub mod paper;
 pub mod params;
+pub mod safe;
 pub mod sampled;
 
 pub use dynamics::Joint;

@@ -8,7 +8,7 @@
 //! - sampled (`control_period = T > 0`): the controller runs at `t_k = k T` on the state at that
 //!   instant and its torque is held until `t_{k+1}` ([`Plant::advance_held`]), as over a network.
 
-use crate::network::{run_sampled_over, Impairment, LoopOptions, NetStats};
+use crate::network::{run_sampled_over, Impairment, LoopOptions, NetStats, Predict};
 use crate::scenario::{Scenario, ScenarioError};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -137,7 +137,11 @@ impl SimulationReport {
             samples: self.samples.clone(),
             events: self.events.clone(),
             end: self.final_state.t,
-            stopped_early: self.fault.is_some(),
+            // A loop that ended in safe mode ran to its end.
+            stopped_early: self
+                .fault
+                .as_ref()
+                .is_some_and(|f| !matches!(f, Fault::SafeMode { .. })),
         }
     }
 }
@@ -340,6 +344,9 @@ pub fn simulate_with_progress(
         })),
         n => n,
     };
+    if let (Some(n), Some(Predict::Given(d))) = (&network, opts.loop_options.predict) {
+        crate::network::check_max_age(d, sc.control_period, n.max_age)?;
+    }
     if let (Some(n), false) = (&network, sc.is_sampled()) {
         let _ = n;
         return Err(ScenarioError::OutOfRange {
@@ -391,7 +398,19 @@ pub fn simulate_with_progress(
             &mut rec,
             progress,
         );
-        net_stats = network.is_some().then_some(st);
+        // The run ended in safe mode: say so, as the plant would (it holds the arm).
+        let r = match (
+            r,
+            st.safe_mode.and_then(|s| s.since),
+            opts.loop_options.safe,
+        ) {
+            (Ok(()), Some(t), Some(safe)) => Err(Fault::SafeMode {
+                t,
+                watchdog: safe.watchdog,
+            }),
+            (r, _, _) => r,
+        };
+        net_stats = (network.is_some() || st.safe_mode.is_some_and(|s| s.trips > 0)).then_some(st);
         (r, n)
     } else if sc.is_sampled() {
         run_sampled(
@@ -517,6 +536,20 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
             n.torques_too_old,
             n.periods_before_first_torque
         );
+        if let Some(m) = n.safe_mode.filter(|m| m.trips > 0) {
+            let _ = writeln!(
+                s,
+                "safe mode (the plant's watchdog): entered {} times, first at t = {:.3} s; {} \
+                 periods ({:.3} s) in safe mode{}",
+                m.trips,
+                m.entered.unwrap_or(f64::NAN),
+                m.periods,
+                m.periods as f64 * sc.control_period,
+                m.since.map_or(String::new(), |t| format!(
+                    "; in safe mode since t = {t:.3} s at the end"
+                ))
+            );
+        }
     }
     if let Some(i) = &r.imperfections {
         let _ = writeln!(

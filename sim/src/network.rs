@@ -41,11 +41,12 @@ use tilting_controller::estimate::EstimatorChoice;
 use tilting_controller::{Estimation, Predictor};
 use tilting_link::ImpairedHold;
 use tilting_plant::imperfect::{Actuator, Hardware, Measurement};
+use tilting_plant::safe::{SafeSettings, Watchdog};
 use tilting_plant::sampled::{self, Grid, Transport};
 use tilting_plant::{Fault, Mode, Observer, Plant, State, TorqueLaw};
 
 pub use tilting_link::Impairment;
-pub use tilting_link::NetStats;
+pub use tilting_link::{NetStats, SafeModeStats};
 
 /// How often an estimating predictor reads the ages (periods): the plant's status goes out at
 /// 10 Hz, every 100 periods at 1 kHz.
@@ -68,6 +69,11 @@ pub struct LoopOptions {
     /// configuration, no model mismatch).
     #[serde(skip)]
     pub model: Option<tilting_plant::SimConfig>,
+    /// The plant's watchdog and safe mode ([`tilting_plant::safe`]; `tilting simulate` sets
+    /// the plant's defaults): after `watchdog` periods without a new valid torque the plant
+    /// applies the safe mode's torque until one comes. `None`: the last torque is held.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub safe: Option<SafeSettings>,
 }
 
 impl LoopOptions {
@@ -143,9 +149,39 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
         estimated: false,
         events: opts.sample_on_event,
         pending: Vec::new(),
+        safe: opts.safe.map(|s| SafeState {
+            settings: s,
+            watchdog: Watchdog::new(s.watchdog),
+            entered: None,
+            previous: None,
+        }),
     };
     let (r, n) = sampled::run(&mut links, Grid { period, t_end }, progress);
-    (r.map(|_| ()), n, links.hold.stats().clone())
+    let mut stats = links.hold.stats().clone();
+    if let Some(s) = &links.safe {
+        stats.safe_mode = Some(SafeModeStats {
+            trips: s.watchdog.trips(),
+            periods: s.watchdog.safe_periods(),
+            entered: s.entered.map(|(first, _)| first),
+            since: s
+                .watchdog
+                .is_safe()
+                .then(|| s.entered.map(|(_, last)| last))
+                .flatten(),
+        });
+    }
+    (r.map(|_| ()), n, stats)
+}
+
+/// The plant's watchdog in a sampled loop over links.
+struct SafeState {
+    settings: SafeSettings,
+    watchdog: Watchdog,
+    /// When the safe mode was first and last entered (s).
+    entered: Option<(f64, f64)>,
+    /// The previous sample's time (s) and measured angles (rad), for the safe mode's rates
+    /// when they are not measured.
+    previous: Option<(f64, [f64; 2])>,
 }
 
 /// The transport of [`run_sampled_over`]: the state measured by the hardware crosses the state
@@ -172,6 +208,8 @@ struct OverLinks<'a, L, O> {
     events: bool,
     /// Answers to extra states in flight.
     pending: InFlight,
+    /// The plant's watchdog and safe mode, if modelled.
+    safe: Option<SafeState>,
 }
 
 impl<L: TorqueLaw, O: Observer> OverLinks<'_, L, O> {
@@ -211,14 +249,31 @@ impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
         }
         let (mode, y) = (self.plant.mode(), self.hw.measure(self.plant));
         let (predictor, est, law) = (&mut self.predictor, &mut self.estimation, self.law);
+        let taken = self.hold.stats().torques_applied;
         let tau = self
             .hold
             .step(k, t_k, || answer(predictor, est, law, t_k, mode, &y, true));
-        if self.pending.is_empty() {
+        let tau = if self.pending.is_empty() {
+            tau
+        } else {
+            self.take_arrived(t_k, k);
+            self.hold.torque()
+        };
+        let Some(s) = &mut self.safe else {
             return Some(tau);
+        };
+        // The plant's rule (`tilting_plant::safe`), as the plant node applies it.
+        if self.hold.stats().torques_applied > taken {
+            s.watchdog.take();
+        } else if s.watchdog.miss() && s.watchdog.trip() {
+            s.entered = Some((s.entered.map_or(t_k, |e| e.0), t_k));
         }
-        self.take_arrived(t_k, k);
-        Some(self.hold.torque())
+        let previous = s.previous.replace((t_k, y.angles));
+        if s.watchdog.count_period() {
+            let x = tilting_plant::safe::measured_state(&y, t_k, previous);
+            return Some(s.settings.torque(&self.plant.config().params, mode, &x));
+        }
+        Some(tau)
     }
 
     fn samples_events(&self) -> bool {
@@ -250,8 +305,35 @@ impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
 
     fn torque_at(&mut self, k: u64, t: f64) -> Option<f64> {
         self.take_arrived(t, k);
+        if self.safe.as_ref().is_some_and(|s| s.watchdog.is_safe()) {
+            return None; // the safe mode's torque holds until the next sample
+        }
         Some(self.hold.torque())
     }
+}
+
+/// `--predict D` against the plant's `--max-age`: a torque predicted over `D` (s) acts at the
+/// first sample at or after its state's time plus `D`, i.e. `ceil(D / period)` periods after
+/// it, and the plant drops torques older than `max_age` periods. A delay longer than the age
+/// limit would drop every predicted torque, so the combination is refused, naming both flags
+/// and the allowed range (`tilting simulate` and `tilting live` alike).
+pub fn check_max_age(delay: f64, period: f64, max_age: u64) -> Result<(), crate::ScenarioError> {
+    let need = (delay / period - 1e-9).ceil().max(0.0) as u64;
+    if need <= max_age {
+        return Ok(());
+    }
+    Err(crate::ScenarioError::OutOfRange {
+        field: "max_age".into(),
+        flag: "--max-age".into(),
+        value: max_age.to_string(),
+        allowed: format!(
+            ">= {need} periods with --predict {delay} (s) at a period of {period} s: the \
+             predicted torques act {need} periods after the state they answer and the plant \
+             drops older ones; give --max-age {need} or more (at most 1000), or a shorter \
+             --predict (at most {} s with this --max-age)",
+            max_age as f64 * period
+        ),
+    })
 }
 
 #[cfg(feature = "clap")]
@@ -282,6 +364,7 @@ impl LoopArgs {
             sample_on_event: self.sample_on_event,
             estimator: self.estimator.choice(),
             model: None,
+            safe: None,
         }
     }
 }

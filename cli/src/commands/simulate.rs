@@ -29,6 +29,10 @@ pub struct SimulateArgs {
     /// Prediction and sampling on events (sampled loop only).
     #[command(flatten)]
     pub loop_args: LoopArgs,
+    /// The plant's watchdog and safe mode, modelled over an impaired network or with
+    /// prediction (a run in which no valid torque arrives ends in safe mode, as the plant's).
+    #[command(flatten)]
+    pub safe: tilting_plant::safe::SafeArgs,
     /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
     /// summary
     #[arg(long)]
@@ -62,10 +66,24 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
             }
         }
     }
-    let network = args
+    let mut network = args
         .network
         .impairment(args.max_age)
         .map_err(|e| CommandError::Usage(e.into()))?;
+    let mut loop_options = args.loop_args.options();
+    if !loop_options.is_plain() && network.is_none() {
+        // Prediction or sampling on events over a perfect network: the plant's age rule is
+        // still --max-age.
+        network = Some(tilting_sim::Impairment {
+            max_age: args.max_age,
+            ..Default::default()
+        });
+    }
+    loop_options.safe = Some(
+        args.safe
+            .settings()
+            .map_err(|e| CommandError::Usage(e.into()))?,
+    );
     let imperfect = args
         .imperfect
         .imperfections(args.network.seed)
@@ -73,7 +91,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
     let opts = SimOptions {
         record_samples: args.plot.is_some(),
         network,
-        loop_options: args.loop_args.options(),
+        loop_options,
         imperfect,
     };
     let report = super::simulate_with_bar(&sc, opts, args.json)
@@ -87,8 +105,12 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
     } else {
         print_stdout(&tilting_sim::closed_loop::summary(&sc, &report))?;
     }
-    if let Some(f) = &report.fault {
-        eprintln!("warning: the simulation stopped early: {f}");
+    match &report.fault {
+        Some(f @ tilting_plant::Fault::SafeMode { .. }) => {
+            eprintln!("warning: the run ended in the plant's safe mode: {f}")
+        }
+        Some(f) => eprintln!("warning: the simulation stopped early: {f}"),
+        None => {}
     }
     if let Some(p) = &args.plot {
         plot_run(p, &sc, &report)

@@ -232,6 +232,11 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
             args.max_age
         )));
     }
+    if let Some(tilting_sim::Predict::Given(d)) = args.predict.predict {
+        // The controller predicts over `d`; the plant drops torques older than --max-age.
+        tilting_sim::network::check_max_age(d, 1.0 / args.rate, args.max_age)
+            .map_err(|e| usage(e.into()))?;
+    }
     if args.port == Some(0) {
         return Err(usage(anyhow!(
             "invalid `--port` = 0: allowed 1 to 65535 (omit it for a free port)"

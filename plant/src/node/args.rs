@@ -14,15 +14,6 @@ pub enum ClockMode {
     Lockstep,
 }
 
-/// The torque applied in safe mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum SafeMode {
-    /// No torque.
-    Zero,
-    /// A holding computed-torque PD towards `beta = pi/2`.
-    Hold,
-}
-
 /// Flags of `tilting-plant`.
 #[derive(Debug, Clone, clap::Parser)]
 #[command(
@@ -62,18 +53,9 @@ pub struct PlantArgs {
     /// this many periods old (0 = only the answer to the current state, the strict rule)
     #[arg(long, default_value_t = DEFAULT_MAX_AGE, value_name = "PERIODS")]
     pub max_age: u64,
-    /// Safe mode after this many periods without a valid torque (realtime clock)
-    #[arg(long, default_value_t = 50, value_name = "PERIODS")]
-    pub watchdog: u64,
-    /// Torque in safe mode
-    #[arg(long, value_enum, default_value_t = SafeMode::Hold)]
-    pub safe_mode: SafeMode,
-    /// Stiffness (1/s^2) of the holding PD of --safe-mode hold
-    #[arg(long, default_value_t = 25.0, value_name = "1/S2")]
-    pub safe_kp: f64,
-    /// Damping (1/s) of the holding PD of --safe-mode hold
-    #[arg(long, default_value_t = 10.0, value_name = "1/S")]
-    pub safe_kd: f64,
+    /// The watchdog and the safe mode ([`crate::safe`]).
+    #[command(flatten)]
+    pub safe: crate::safe::SafeArgs,
     /// Lockstep clock: wait this long for a torque, then apply the safe mode for that period
     #[arg(long, default_value_t = 1000, value_name = "MS")]
     pub lockstep_timeout_ms: u64,
@@ -193,21 +175,7 @@ impl PlantArgs {
             "invalid --max-age = {}: allowed 0 to 1000 periods",
             self.max_age
         );
-        anyhow::ensure!(
-            (1..=1_000_000).contains(&self.watchdog),
-            "invalid --watchdog = {}: allowed 1 to 1000000 periods",
-            self.watchdog
-        );
-        anyhow::ensure!(
-            self.safe_kp.is_finite() && (0.0..=1e6).contains(&self.safe_kp),
-            "invalid --safe-kp = {}: allowed 0 to 1e6 1/s^2",
-            self.safe_kp
-        );
-        anyhow::ensure!(
-            self.safe_kd.is_finite() && (0.0..=1e4).contains(&self.safe_kd),
-            "invalid --safe-kd = {}: allowed 0 to 1e4 1/s",
-            self.safe_kd
-        );
+        self.safe.settings()?;
         anyhow::ensure!(
             self.torque_limit.is_finite() && self.torque_limit >= 0.0,
             "invalid --torque-limit = {}: allowed >= 0 N m (0 = none)",
@@ -281,8 +249,10 @@ mod tests {
         let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
         assert_eq!(a.clock, ClockMode::Realtime);
         assert_eq!(a.period(), 0.001);
-        assert_eq!(a.watchdog, 50);
-        assert_eq!(a.safe_mode, SafeMode::Hold);
+        assert_eq!(
+            a.safe.settings().unwrap(),
+            crate::safe::SafeSettings::default()
+        );
         assert_eq!(a.mode, Mode::Left);
         assert_eq!(a.zenoh.robot, "demo");
         a.validate().unwrap();
@@ -330,7 +300,7 @@ mod tests {
                 "1000000000",
                 "invalid --spin-us = 1000000000: allowed 0 to 500 us",
             ),
-            ("--watchdog", "0", "invalid --watchdog = 0"),
+            ("--watchdog", "0", "invalid `--watchdog` = 0"),
             ("--rtol", "1", "invalid --rtol = 1"),
             (
                 "--rt-priority",

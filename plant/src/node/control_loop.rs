@@ -50,7 +50,10 @@ pub(super) struct Loop {
     pub(super) args: PlantArgs,
     pub(super) h: f64,
     pub(super) plant: Plant,
-    pub(super) safe_pd: (f64, f64),
+    /// The safe mode's torque.
+    pub(super) safe: crate::safe::SafeSettings,
+    /// The watchdog's count and the safe mode (`crate::safe`, the rule `simulate` applies too).
+    pub(super) watchdog: crate::safe::Watchdog,
     pub(super) shared: Arc<Shared>,
     pub(super) pubs: Arc<Publishers>,
     pub(super) obs: Obs,
@@ -80,7 +83,6 @@ pub(super) struct Loop {
     pub(super) status_state: u8,
     pub(super) fault: String,
     pub(super) tau: f64,
-    pub(super) missed: u64,
     /// `seq` of the state the torque in force answered.
     pub(super) applied_seq: Option<u64>,
     /// Torques applied after their own period (age > 0).
@@ -90,10 +92,8 @@ pub(super) struct Loop {
     /// Age of each applied torque (periods).
     pub(super) age: Ring,
     pub(super) deadline_misses: u64,
-    pub(super) watchdog_trips: u64,
     /// When the newest torque taken into force arrived (ns), for the token verdict.
     pub(super) last_answer: Option<u64>,
-    pub(super) safe_periods: u64,
     pub(super) overruns: u64,
     pub(super) step_overrun_max: f64,
     pub(super) jitter: Ring,
@@ -135,17 +135,7 @@ impl Loop {
     /// first sample, the plant's own fallback; the controller estimates them properly).
     fn measured_for_safe_mode(&mut self) -> State {
         let y = self.measured();
-        if let Some(x) = y.state() {
-            return x;
-        }
-        let [a, b] = y.angles;
-        let t = self.plant.time();
-        match self.previous_angles {
-            Some((t0, [a0, b0])) if t > t0 => {
-                State::new(a, b, (a - a0) / (t - t0), (b - b0) / (t - t0))
-            }
-            _ => State::new(a, b, 0.0, 0.0),
-        }
+        crate::safe::measured_state(&y, self.plant.time(), self.previous_angles)
     }
 
     pub(super) fn publish_state(&mut self) {
@@ -194,7 +184,7 @@ impl Loop {
             torques_dropped: self.shared.torques.dropped(),
             torques_stale: self.shared.stale.load(Ordering::Relaxed),
             deadline_misses: self.deadline_misses,
-            watchdog_trips: self.watchdog_trips,
+            watchdog_trips: self.watchdog.trips(),
             jitter_p50_us: p.p50,
             jitter_p99_us: p.p99,
             max_overrun_us: self.max_overrun_us(),
@@ -268,20 +258,9 @@ impl Loop {
     }
 
     pub(super) fn safe_torque(&mut self) -> f64 {
-        match self.args.safe_mode {
-            SafeMode::Zero => 0.0,
-            SafeMode::Hold => {
-                let x = self.measured_for_safe_mode();
-                let (kp, kd) = self.safe_pd;
-                let v = kd * (0.0 - x[3]) + kp * (FRAC_PI_2 - x[1]);
-                crate::dynamics::torque_for_beta_ddot(
-                    &self.plant.config().params,
-                    self.plant.mode(),
-                    &x,
-                    v,
-                )
-            }
-        }
+        let x = self.measured_for_safe_mode();
+        self.safe
+            .torque(&self.plant.config().params, self.plant.mode(), &x)
     }
 
     /// The bound (ns of wall time) that tells a controller gone from a link renegotiated:
@@ -302,8 +281,7 @@ impl Loop {
     }
 
     pub(super) fn enter_safe(&mut self, why: &str) {
-        if self.status_state != Status::SAFE_MODE {
-            self.watchdog_trips += 1;
+        if self.watchdog.trip() {
             tracing::warn!(seq = self.seq, t = self.plant.time(), "safe mode: {why}");
             self.set_state(Status::SAFE_MODE);
         }
@@ -340,7 +318,7 @@ impl Loop {
                     // The first age at once: a predicting controller learns the delay from it.
                     self.publish_status();
                 }
-                self.missed = 0;
+                self.watchdog.take();
                 self.tau = cmd.tau;
                 if self.status_state != Status::RUNNING {
                     if self.status_state == Status::SAFE_MODE {
@@ -351,7 +329,7 @@ impl Loop {
             }
             None => {
                 self.deadline_misses += 1;
-                self.missed += 1;
+                let over = self.watchdog.miss();
                 if self.controller_gone() {
                     let why = format!(
                         "the controller is gone: its liveliness token has been absent, and no \
@@ -361,17 +339,17 @@ impl Loop {
                     self.enter_safe(&why);
                 } else if lockstep {
                     self.enter_safe("lockstep timeout: no torque answered the state");
-                } else if self.missed >= self.args.watchdog {
+                } else if over {
                     let why = format!(
                         "no valid torque at most --max-age {} periods old for {} periods",
-                        self.args.max_age, self.missed
+                        self.args.max_age,
+                        self.watchdog.missed()
                     );
                     self.enter_safe(&why);
                 }
             }
         }
-        let tau = if self.status_state == Status::SAFE_MODE {
-            self.safe_periods += 1;
+        let tau = if self.watchdog.count_period() {
             self.safe_torque()
         } else {
             self.tau
@@ -709,9 +687,9 @@ impl Loop {
                 window,
             }),
             deadline_misses: self.deadline_misses,
-            watchdog_trips: self.watchdog_trips,
+            watchdog_trips: self.watchdog.trips(),
             token_losses: self.shared.token_losses.load(Ordering::Relaxed),
-            safe_periods: self.safe_periods,
+            safe_periods: self.watchdog.safe_periods(),
             overruns: self.overruns,
             max_overrun_us: self.step_overrun_max,
             jitter_us: Window {

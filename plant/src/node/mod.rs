@@ -64,7 +64,6 @@ pub mod stats;
 pub mod summary;
 
 use std::collections::VecDeque;
-use std::f64::consts::FRAC_PI_2;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -80,7 +79,7 @@ use crate::{
     Transition,
 };
 pub use args::{
-    ClockMode, PlantArgs, SafeMode, DEFAULT_MAX_AGE, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US,
+    ClockMode, PlantArgs, DEFAULT_MAX_AGE, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US,
     PERIOD_RANGE,
 };
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
@@ -167,7 +166,7 @@ async fn run_async(
     let _token = tilting_net::declare_token(&session, keys.alive_plant()).await?;
 
     let h = args.period();
-    let safe_pd = (args.safe_kp, args.safe_kd);
+    let safe = args.safe.settings()?;
     let hold = impairment
         .filter(|_| args.clock == ClockMode::Lockstep)
         .map(|imp| imp.hold(args.period()));
@@ -176,7 +175,8 @@ async fn run_async(
         args,
         h,
         plant,
-        safe_pd,
+        safe,
+        watchdog: crate::safe::Watchdog::new(safe.watchdog),
         shared: shared.clone(),
         pubs,
         obs: Obs::default(),
@@ -188,7 +188,6 @@ async fn run_async(
         status_state: Status::STARTING,
         fault: String::new(),
         tau: 0.0,
-        missed: 0,
         applied_seq: None,
         torques_late: 0,
         torques_lost: 0,
@@ -200,9 +199,7 @@ async fn run_async(
         link: link.clone(),
         age: Ring::new(),
         deadline_misses: 0,
-        watchdog_trips: 0,
         last_answer: None,
-        safe_periods: 0,
         overruns: 0,
         step_overrun_max: 0.0,
         jitter: Ring::new(),
