@@ -158,7 +158,9 @@ pub fn run_sampled_over<L: TorqueLaw, O: Observer>(
     };
     let (r, n) = sampled::run(&mut links, Grid { period, t_end }, progress);
     let mut stats = links.hold.stats().clone();
-    if let Some(s) = &links.safe {
+    // Only when it acted, so that a run the watchdog never saw reports what the plant node
+    // reports (its summary's `network`).
+    if let Some(s) = links.safe.as_ref().filter(|s| s.watchdog.trips() > 0) {
         stats.safe_mode = Some(SafeModeStats {
             trips: s.watchdog.trips(),
             periods: s.watchdog.safe_periods(),

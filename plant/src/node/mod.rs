@@ -45,6 +45,9 @@
 //! waits at most 1 ms per period for an answer, so a run without its controller goes on at
 //! about real-time speed instead of one period per timeout.
 //!
+//! The watchdog's count and the safe mode's torque are [`crate::safe`]'s, the rule `tilting
+//! simulate` applies to its loop over links too.
+//!
 //! # End of a run
 //!
 //! After `--duration` plant seconds (status `stopped`, exit code 0), at Ctrl-C/SIGTERM
