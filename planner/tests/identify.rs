@@ -2,13 +2,17 @@
 //! sampled closed loop at 1 kHz, the controller knowing the robot) whose parameters differ from
 //! the paper's by up to 20 %, identified from its trace alone.
 //!
+//! These tests use the recorded (exact) velocities ([`Velocities::Recorded`]): on this
+//! robot's orbit the joint sticks or reverses within every 0.1 s, so the angles-only weak
+//! form (`cli/tests/identify_cli.rs`, `simulate --record`) has no torque window here.
+//!
 //! Compared: the seven base parameters (docs/model.md, "Linear in the parameters"), the only
 //! combinations the motion fixes, computed here from the hidden robot by their definitions; and
 //! the physical parameters derived from them with the robot's weighed arm mass `m_l` as the
 //! prior (the motion cannot tell `m_l` from `l_c` and `i_l`), which must be the hidden ones.
 
 use std::cell::RefCell;
-use tilting_planner::identify::{identify, IdentifyError, Options};
+use tilting_planner::identify::{identify, IdentifyError, Options, Velocities};
 use tilting_plant::dynamics::Terms;
 use tilting_plant::{Mode, Observer, Params, Plant, State, TorqueLaw, Transition};
 use tilting_record::{EventRecord, Sample, Trace};
@@ -130,6 +134,7 @@ fn identifies_a_changed_robot_within_one_percent() {
             m_l: truth.m_l,
             ..Params::default()
         },
+        velocities: Velocities::Recorded,
         ..Options::default()
     };
     let id = identify(&trace, &tau, &opts).unwrap();
@@ -166,6 +171,7 @@ fn prior() -> Options {
             m_l: robot().m_l,
             ..Params::default()
         },
+        velocities: Velocities::Recorded,
         ..Options::default()
     }
 }

@@ -314,6 +314,17 @@ pub fn simulate_with_progress(
 ) -> Result<SimulationReport, ScenarioError> {
     sc.validate()?;
     let ctrl = sc.controller()?;
+    simulate_law(sc, opts, &ctrl, progress)
+}
+
+/// [`simulate_with_progress`] with the scenario's controller `ctrl` given (wrapped by
+/// [`crate::recording`] to keep every sample it reads and every torque it answers).
+pub(crate) fn simulate_law<L: TorqueLaw>(
+    sc: &Scenario,
+    opts: SimOptions,
+    ctrl: &L,
+    progress: &mut dyn FnMut(f64),
+) -> Result<SimulationReport, ScenarioError> {
     let imperfect = opts.imperfect.filter(|i| !i.is_perfect());
     let mut plant = plant_for(sc, imperfect.as_ref())?;
     let mut rec = Collector {
@@ -386,7 +397,7 @@ pub fn simulate_with_progress(
         let perfect = Impairment::default();
         let (r, n, st) = run_sampled_over(
             &mut plant,
-            &ctrl,
+            ctrl,
             sc.control_period,
             t_end,
             network.as_ref().unwrap_or(&perfect),
@@ -415,7 +426,7 @@ pub fn simulate_with_progress(
     } else if sc.is_sampled() {
         run_sampled(
             &mut plant,
-            &ctrl,
+            ctrl,
             sc.control_period,
             t_end,
             &mut rec,
@@ -423,7 +434,7 @@ pub fn simulate_with_progress(
         )
     } else {
         let pieces = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
-        let r = run_continuous(&mut plant, &ctrl, t_end, pieces, &mut rec, progress);
+        let r = run_continuous(&mut plant, ctrl, t_end, pieces, &mut rec, progress);
         (r, 0)
     };
     let wall = start.elapsed().as_secs_f64();

@@ -3,11 +3,11 @@
 //! as an MCAP recording with the channels `live` writes for them ([`write_mcap`]), so an
 //! offline run can be identified (`tilting identify`) or drawn like a real one.
 
-use crate::{Scenario, ScenarioError};
+use crate::{Scenario, ScenarioError, SimOptions, SimulationReport};
 use std::cell::RefCell;
 use std::path::Path;
 use tilting_plant::dynamics::Terms;
-use tilting_plant::{Fault, Mode, Observer, Params, Plant, State, TorqueLaw, Transition};
+use tilting_plant::{Fault, Mode, Params, State, TorqueLaw};
 use tilting_proto::{encode, Keys, ModeEvent, PlantState, TorqueCommand};
 use tilting_record::{EventRecord, McapWriter, Sample, Topic, Trace};
 
@@ -52,65 +52,78 @@ impl<L> Logging<'_, L> {
     }
 }
 
-#[derive(Default)]
-struct Events(Vec<EventRecord>);
-
-impl Observer for Events {
-    fn transition(&mut self, ev: &Transition) {
-        self.0.push(EventRecord {
-            t: ev.t,
-            from: ev.from,
-            to: ev.to,
-            x_before: ev.x_before.into(),
-            x_after: ev.x_after.into(),
-        });
-    }
-}
-
-/// Runs the scenario's sampled loop ([`crate::run_sampled`], the perfect link: no network or
-/// sensor imperfections), keeping every sample and torque. Refuses a continuous scenario
-/// (`control_period` = 0: there are no samples to keep).
-pub fn run_logged(sc: &Scenario) -> Result<Logged, ScenarioError> {
+/// Runs the scenario as [`crate::simulate_with_progress`] does, keeping every state the
+/// controller read (the *measured* state, with the robot's sensor noise and encoder, as a
+/// plant publishes it) and every torque it answered: the report and the recording of one run.
+///
+/// Refused (naming the flag): a continuous scenario (`control_period` = 0: there are no
+/// samples to keep), and a run over impaired links or with prediction or sampling on events
+/// (a torque then answers another state than the one it is held after, or a predicted state:
+/// record those runs with `live`).
+pub fn simulate_logged(
+    sc: &Scenario,
+    opts: SimOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(SimulationReport, Logged), ScenarioError> {
     sc.validate()?;
+    let refuse = |field: &str, flag: &str, value: String, allowed: &str| {
+        Err(ScenarioError::OutOfRange {
+            field: field.into(),
+            flag: flag.into(),
+            value,
+            allowed: allowed.into(),
+        })
+    };
     if !sc.is_sampled() {
-        return Err(ScenarioError::OutOfRange {
-            field: "control_period".into(),
-            flag: "--control-period".into(),
-            value: sc.control_period.to_string(),
-            allowed: "> 0 to record a run: a recording holds the controller's samples".into(),
-        });
+        return refuse(
+            "control_period",
+            "--control-period",
+            sc.control_period.to_string(),
+            "> 0 to record a run: a recording holds the controller's samples",
+        );
+    }
+    if opts.network.is_some_and(|n| !n.is_perfect()) {
+        return refuse(
+            "network",
+            "--delay/--jitter/--loss",
+            "an impaired network".into(),
+            "a perfect link to record a run offline (each torque held after the state it \
+             answers); record a run over a network with `tilting live`",
+        );
+    }
+    if !opts.loop_options.is_plain() {
+        return refuse(
+            "loop_options",
+            "--predict/--sample-on-event",
+            "given".into(),
+            "neither, to record a run offline (the controller answers predicted or extra \
+             states)",
+        );
     }
     let ctrl = sc.controller()?;
-    let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).map_err(|e| {
-        ScenarioError::File {
-            path: "initial state".into(),
-            message: e.to_string(),
-        }
-    })?;
     let law = Logging {
         law: &ctrl,
         log: RefCell::new((Vec::new(), Vec::new())),
     };
-    let mut ev = Events::default();
-    let (r, _) = crate::run_sampled(
-        &mut plant,
-        &law,
-        sc.control_period,
-        sc.duration,
-        &mut ev,
-        &mut |_| {},
-    );
+    let report = crate::closed_loop::simulate_law(sc, opts, &law, progress)?;
     let (samples, tau) = law.log.into_inner();
-    Ok(Logged {
+    let logged = Logged {
         trace: Trace {
             samples,
-            events: ev.0,
-            end: plant.time(),
-            stopped_early: r.is_err(),
+            events: report.events.clone(),
+            end: report.final_state.t,
+            stopped_early: report.fault.is_some(),
         },
         tau,
-        fault: r.err(),
-    })
+        fault: report.fault.clone(),
+    };
+    Ok((report, logged))
+}
+
+/// Runs the scenario's sampled loop over a perfect link and a perfect robot, keeping every
+/// sample and torque ([`simulate_logged`] with the default options).
+pub fn run_logged(sc: &Scenario) -> Result<Logged, ScenarioError> {
+    simulate_logged(sc, SimOptions::default(), &mut |_| {}).map(|(_, l)| l)
 }
 
 /// Writes `run` as an MCAP recording of the robot `robot`: a `PlantState` (seq `k`) and its

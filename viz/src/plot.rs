@@ -159,6 +159,86 @@ pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
     Ok(())
 }
 
+/// The fit check of `tilting identify --plot`: the recorded `alpha(t)` and `beta(t)` (black)
+/// with the re-simulation's pieces (red, one per restart window,
+/// [`tilting_planner::identify::fit`]) in two stacked panels; `title` names the figures.
+pub fn plot_fit(
+    path: &Path,
+    recorded: &Trace,
+    resim: &tilting_planner::identify::fit::Resimulation,
+    title: &str,
+) -> Result<()> {
+    register_fonts()?;
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(title, ("sans-serif", 26))?;
+    let panels = root.split_evenly((2, 1));
+    let s = &recorded.samples;
+    let (t0, t1) = (
+        s.first().map_or(0.0, |x| x.t),
+        s.last()
+            .map_or(1.0, |x| x.t)
+            .max(s.first().map_or(0.0, |x| x.t) + 1e-6),
+    );
+    let red = RGBColor(220, 40, 40);
+    for (panel, (i, caption, ylabel)) in panels.iter().zip([
+        (0, "Plate tilt angle α(t)", "α [rad]"),
+        (1, "Arm angle β(t) relative to the plate", "β [rad]"),
+    ]) {
+        let (lo, hi) = padded_range(s.iter().map(|x| x.x[i]), 0.08);
+        let top = hi + 0.25 * (hi - lo);
+        let mut chart = ChartBuilder::on(panel)
+            .caption(caption, ("sans-serif", 24))
+            .margin(12)
+            .margin_right(40)
+            .x_label_area_size(55)
+            .y_label_area_size(95)
+            .build_cartesian_2d(t0..t1, lo..top)?;
+        chart
+            .configure_mesh()
+            .x_desc("time t [s]")
+            .y_desc(ylabel)
+            .axis_desc_style(("sans-serif", 22))
+            .label_style(("sans-serif", 18))
+            .light_line_style(WHITE.mix(0.0))
+            .bold_line_style(BLACK.mix(0.08))
+            .y_label_formatter(&|v| format!("{v:.3}"))
+            .draw()?;
+        chart
+            .draw_series(LineSeries::new(
+                s.iter().map(|x| (x.t, x.x[i])),
+                BLACK.stroke_width(3),
+            ))?
+            .label("recorded")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], BLACK.stroke_width(3)));
+        let mut ends = resim.starts.clone();
+        ends.push(resim.samples.len());
+        for (j, w) in ends.windows(2).enumerate() {
+            let piece = &resim.samples[w[0]..w[1]];
+            let series = chart.draw_series(LineSeries::new(
+                piece.iter().map(|x| (x.t, x.x[i])),
+                red.stroke_width(2),
+            ))?;
+            if j == 0 {
+                series
+                    .label("re-simulated (identified parameters, restarted per window)")
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(3))
+                    });
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", 18))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK.mix(0.4))
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

@@ -6,7 +6,7 @@ use super::{print_stdout, usage};
 use crate::CommandError;
 use clap::Args;
 use std::path::PathBuf;
-use tilting_planner::identify::{self, Identification, IdentifyError, Options};
+use tilting_planner::identify::{self, Identification, IdentifyError, Options, Velocities};
 use tilting_plant::Params;
 
 /// Flags of `tilting identify`.
@@ -26,27 +26,116 @@ pub struct IdentifyArgs {
     /// Write the identified robot's parameters here, as `--params` reads them
     #[arg(long, value_name = "params.toml")]
     pub out: Option<PathBuf>,
+    /// Where the velocities and accelerations come from: `angles` (differentiated from the
+    /// recorded angles, a zero-phase Savitzky-Golay filter: works with or without recorded
+    /// velocities, e.g. `--measure angles`) or `recorded` (the recorded velocities, taken as
+    /// exact)
+    #[arg(long, value_enum, default_value = "angles")]
+    pub velocities: VelocitiesArg,
+    /// Half width of the differentiator's window (s), in [0.002, 0.5]: wider smooths more
+    /// noise, narrower follows faster motion
+    #[arg(long, value_name = "SECONDS", default_value_t = identify::HALF_WINDOW)]
+    pub half_window: f64,
+    /// Length of the weak form's windows (s), in [0.01, 2]: each equation is integrated
+    /// against a smooth bump this long; longer averages more noise, but a torque equation
+    /// needs the arm sliding one way over the whole window
+    #[arg(long, value_name = "SECONDS", default_value_t = identify::WINDOW)]
+    pub window: f64,
+    /// Slowest joint speed (rad/s), in [0, 10]: a window where the arm reverses or is slower
+    /// gives no torque equation (the joint may stick there)
+    #[arg(long, value_name = "RAD/S", default_value_t = Options::default().v_min, allow_negative_numbers = true)]
+    pub min_speed: f64,
+    /// Draw the fit check into this PNG: the recorded angles beside their re-simulation with
+    /// the identified parameters under the recorded torques (restarted from the recorded state
+    /// every --fit-window s); its RMS error is reported either way
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+    /// Restart interval of the fit check's re-simulation (s), in [0.01, 10]
+    #[arg(long, value_name = "SECONDS", default_value_t = identify::fit::WINDOW)]
+    pub fit_window: f64,
     /// Print one JSON object instead of a human summary
     #[arg(long)]
     pub json: bool,
 }
 
+/// `--velocities`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum VelocitiesArg {
+    /// Differentiated from the angles.
+    Angles,
+    /// The recorded ones.
+    Recorded,
+}
+
 /// Runs `tilting identify`.
 pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
+    if !(args.half_window.is_finite() && (0.002..=0.5).contains(&args.half_window)) {
+        return Err(usage(format!(
+            "invalid `--half-window` = {}: allowed a time in s in [0.002, 0.5]",
+            args.half_window
+        )));
+    }
+    if !(args.window.is_finite() && (0.01..=2.0).contains(&args.window)) {
+        return Err(usage(format!(
+            "invalid `--window` = {}: allowed a time in s in [0.01, 2]",
+            args.window
+        )));
+    }
+    if !(args.min_speed.is_finite() && (0.0..=10.0).contains(&args.min_speed)) {
+        return Err(usage(format!(
+            "invalid `--min-speed` = {}: allowed a speed in rad/s in [0, 10]",
+            args.min_speed
+        )));
+    }
     let base = match &args.params {
         Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into()))?,
         None => Params::default(),
     };
+    if !(args.fit_window.is_finite() && (0.01..=10.0).contains(&args.fit_window)) {
+        return Err(usage(format!(
+            "invalid `--fit-window` = {}: allowed a time in s in [0.01, 10]",
+            args.fit_window
+        )));
+    }
+    if let Some(p) = &args.plot {
+        if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            return Err(usage(format!(
+                "invalid `--plot` = {}: must be a file name ending in .png",
+                p.display()
+            )));
+        }
+    }
     let rec = identify::load(&args.file, args.robot.as_deref()).map_err(refused)?;
-    let id = identify::identify(
+    let mut id = identify::identify(
         &rec.trace,
         &rec.tau,
         &Options {
             base,
+            velocities: match args.velocities {
+                VelocitiesArg::Angles => Velocities::Angles,
+                VelocitiesArg::Recorded => Velocities::Recorded,
+            },
+            half_window: args.half_window,
+            window: args.window,
+            v_min: args.min_speed,
             ..Options::default()
         },
     )
     .map_err(refused)?;
+    let resim = id.check_fit(&rec.trace, &rec.tau, &base, args.fit_window);
+    if let Some(p) = &args.plot {
+        let f = id.fit.as_ref().map(|f| &f.identified);
+        let title = f.map_or(String::new(), |f| {
+            format!(
+                "Fit check: re-simulated with the identified parameters, restarted every {} s \
+                 (RMS α {:.2e} rad, β {:.2e} rad)",
+                f.window_s, f.rms_alpha, f.rms_beta
+            )
+        });
+        tilting_viz::plot::plot_fit(p, &rec.trace, &resim, &title).map_err(|e| {
+            CommandError::Failed(anyhow::anyhow!("cannot draw {}: {e}", p.display()))
+        })?;
+    }
     if let Some(out) = &args.out {
         std::fs::write(out, id.params.to_toml_string()).map_err(|e| {
             CommandError::Failed(anyhow::anyhow!("cannot write {}: {e}", out.display()))
@@ -130,6 +219,20 @@ fn human(id: &Identification, source: &str, out: Option<&PathBuf>) -> String {
     }
     for w in &id.warnings {
         let _ = writeln!(s, "warning: {w}");
+    }
+    if let Some(f) = &id.fit {
+        let _ = writeln!(
+            s,
+            "fit check (re-simulated under the recorded torques, restarted every {} s, {} \
+             windows): RMS alpha {:.3e} rad, beta {:.3e} rad with the identified parameters; \
+             {:.3e} rad, {:.3e} rad with the prior",
+            f.identified.window_s,
+            f.identified.windows,
+            f.identified.rms_alpha,
+            f.identified.rms_beta,
+            f.prior.rms_alpha,
+            f.prior.rms_beta
+        );
     }
     if let Some(o) = out {
         let _ = writeln!(s, "wrote {} (use it with --params)", o.display());

@@ -40,6 +40,14 @@ pub struct SimulateArgs {
     /// Draw alpha(t) and beta(t) with the event times into this PNG file
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
+    /// Record the run as `live` does (every measured state the controller read, the torque it
+    /// answered, every mode transition) into this MCAP file, for `tilting identify` (sampled
+    /// loop over a perfect link; the robot's imperfections are recorded as measured)
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
+    /// The robot name of the recording's channels (with --record)
+    #[arg(long, value_name = "NAME", default_value = tilting_proto::keys::DEFAULT_ROBOT)]
+    pub robot: String,
 }
 
 /// `tilting simulate`.
@@ -94,8 +102,21 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
         loop_options,
         imperfect,
     };
-    let report = super::simulate_with_bar(&sc, opts, args.json)
-        .map_err(|e| CommandError::Usage(e.into()))?;
+    let report = match &args.record {
+        None => super::simulate_with_bar(&sc, opts, args.json)
+            .map_err(|e| CommandError::Usage(e.into()))?,
+        Some(path) => {
+            tilting_proto::Keys::new(&args.robot).map_err(|e| {
+                CommandError::Usage(anyhow::anyhow!("invalid `--robot` = {:?}: {e}", args.robot))
+            })?;
+            let (report, logged) = tilting_sim::recording::simulate_logged(&sc, opts, &mut |_| {})
+                .map_err(|e| CommandError::Usage(e.into()))?;
+            tilting_sim::recording::write_mcap(path, &args.robot, &logged).map_err(|e| {
+                CommandError::Failed(anyhow::anyhow!("cannot write {}: {e}", path.display()))
+            })?;
+            report
+        }
+    };
     if args.json {
         let mut text = serde_json::to_string(&report)
             .context("cannot serialise the report")

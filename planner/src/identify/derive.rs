@@ -31,8 +31,9 @@ pub(super) fn params(
     let m_l = prior.m_l;
     if let Some(pi2) = value[1] {
         let lc = pi2 / m_l;
-        if lc > 0.0 && lc <= p.l {
-            p.l_c = Some(lc);
+        // A centre of mass at the tip estimated a hair beyond it is the tip.
+        if lc > 0.0 && lc <= p.l * (1.0 + 1e-4) {
+            p.l_c = Some(lc.min(p.l));
         } else {
             warnings.push(format!(
                 "l_c = m_l l_c / m_l = {lc:.4} m is outside (0, l = {}]: the prior m_l = {m_l} \

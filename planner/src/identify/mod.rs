@@ -11,8 +11,10 @@
 //! How rows are made (accelerations without straddling a torque step, an impact or a mode
 //! transition): [`rows`].
 
+pub mod fit;
 pub mod load;
 pub mod rows;
+pub mod smooth;
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -36,6 +38,20 @@ pub const BASE: [(&str, &str, &str); N_BASE] = [
 /// A regressor whose scaled condition number exceeds this is refused as singular.
 pub const MAX_CONDITION: f64 = 1e9;
 
+/// Where the velocities and accelerations come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Velocities {
+    /// Differentiated from the recorded angles ([`smooth`]): works with or without recorded
+    /// velocities (`--measure angles`), and smooths the angles' noise.
+    #[default]
+    Angles,
+    /// The recorded velocities, taken as exact: one row per held-torque interval with its
+    /// exact mean acceleration ([`rows::build`]). For recordings whose velocities are measured
+    /// well.
+    Recorded,
+}
+
 /// What the identification needs besides the recording.
 #[derive(Debug, Clone, Copy)]
 pub struct Options {
@@ -44,13 +60,32 @@ pub struct Options {
     pub base: Params,
     /// Shortest recording accepted (s of usable intervals).
     pub min_duration: f64,
+    /// Where the velocities come from.
+    pub velocities: Velocities,
+    /// Half width (s) of the differentiator's window ([`Velocities::Angles`]): the
+    /// velocities inside the weak form's terms.
+    pub half_window: f64,
+    /// Length (s) of the weak form's windows ([`Velocities::Angles`], [`rows::build_from_angles`]).
+    pub window: f64,
+    /// Slowest joint speed (rad/s) at which a torque row is used ([`Velocities::Angles`]):
+    /// below it the joint may stick, and the estimated speed's sign may be noise.
+    pub v_min: f64,
 }
+
+/// The differentiator's default half width (s): 4th-degree polynomials over 21 ms.
+pub const HALF_WINDOW: f64 = 0.01;
+/// The weak form's default window (s).
+pub const WINDOW: f64 = 0.1;
 
 impl Default for Options {
     fn default() -> Self {
         Self {
             base: Params::default(),
             min_duration: 1.0,
+            velocities: Velocities::Angles,
+            half_window: HALF_WINDOW,
+            window: WINDOW,
+            v_min: 0.01,
         }
     }
 }
@@ -103,6 +138,16 @@ pub struct Identification {
     pub not_identifiable: Vec<String>,
     /// Things to look at: estimates clamped to their range, a prior that does not fit.
     pub warnings: Vec<String>,
+    /// Where the velocities came from.
+    pub velocities: Velocities,
+    /// The fit check ([`fit`]): the recording re-simulated with the identified parameters
+    /// and, for comparison, with the prior's; filled by [`Identification::check_fit`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitChecks>,
+    /// The state `(alpha, beta, alpha_dot, beta_dot)` at each sample as the fit saw it
+    /// (smoothed, or recorded), `None` where unused; not serialised.
+    #[serde(skip)]
+    pub states: Vec<Option<[f64; 4]>>,
 }
 
 /// Why a recording cannot be identified.
@@ -150,6 +195,24 @@ pub enum IdentifyError {
         /// What to record.
         advice: String,
     },
+    /// No equation carries a torque: nothing sets the scale of the parameters.
+    #[error(
+        "the recording has no excitation: none of its {equations} equations carries a torque \
+         (the arm never slid one way through a window with a torque applied); record the arm \
+         moving under torque, e.g. `tilting simulate --record` or `live` on the orbit"
+    )]
+    NoExcitation {
+        /// Equations (all homogeneous).
+        equations: usize,
+    },
+    /// The torques do not match the samples.
+    #[error("{torques} torques for {samples} samples: one torque (or none) per sample needed")]
+    Mismatch {
+        /// Samples.
+        samples: usize,
+        /// Torques.
+        torques: usize,
+    },
     /// A friction estimate is negative beyond its error.
     #[error(
         "the friction estimate {field} = {value:.4e} is negative (standard error {std_error:.1e}); \
@@ -173,7 +236,33 @@ pub fn identify(
     opts: &Options,
 ) -> Result<Identification, IdentifyError> {
     let p = &opts.base;
-    let r = rows::build(trace, tau, p.f, p.g);
+    if tau.len() != trace.samples.len() {
+        return Err(IdentifyError::Mismatch {
+            samples: trace.samples.len(),
+            torques: tau.len(),
+        });
+    }
+    let (r, states, corr) = match opts.velocities {
+        Velocities::Recorded => {
+            let r = rows::build(trace, tau, p.f, p.g);
+            let states = trace.samples.iter().map(|s| Some(s.x)).collect();
+            (r, states, 1.0)
+        }
+        Velocities::Angles => {
+            let h = sample_spacing(trace);
+            let m = (opts.half_window / h).round().max(1.0) as usize;
+            let sg = smooth::Savgol::new(m);
+            let win = std::env::var("WIN")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(opts.window);
+            let w = (win / h).round().max(1.0) as usize + 1;
+            let (r, st) = rows::build_from_angles(trace, tau, p.f, p.g, &sg, w, opts.v_min);
+            // Overlapping windows share their noise: four windows cover each sample, so the
+            // independent-row standard errors are scaled up by 2 (conservative).
+            (r, st, 2.0)
+        }
+    };
     let used = r.flat + r.tilted;
     let intervals = used + r.skipped;
     let span =
@@ -188,6 +277,11 @@ pub fn identify(
             usable,
             equations: r.y.len(),
             min: opts.min_duration,
+        });
+    }
+    if r.rhs.iter().all(|t| *t == 0.0) {
+        return Err(IdentifyError::NoExcitation {
+            equations: r.y.len(),
         });
     }
     let mut out = vec![None::<String>; N_BASE];
@@ -232,7 +326,7 @@ pub fn identify(
     for (j, &c) in cols.iter().enumerate() {
         if !(merge35 && c == 2) {
             value[c] = Some(fit.x[j]);
-            se[c] = Some(fit.se[j]);
+            se[c] = Some(fit.se[j] * corr);
         }
     }
     let mut base: Vec<Estimate> = (0..N_BASE)
@@ -247,7 +341,7 @@ pub fn identify(
         .collect();
     let sum35 = merge35.then(|| {
         let j = cols.iter().position(|&c| c == 2).unwrap_or(0);
-        (fit.x[j], fit.se[j])
+        (fit.x[j], fit.se[j] * corr)
     });
     if let Some((v, s)) = sum35 {
         base.push(Estimate {
@@ -277,7 +371,55 @@ pub fn identify(
         params,
         not_identifiable,
         warnings,
+        velocities: opts.velocities,
+        fit: None,
+        states,
     })
+}
+
+/// The fit check with the identified parameters and with the prior.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FitChecks {
+    /// With the identified parameters.
+    pub identified: fit::FitCheck,
+    /// With the prior (`--params`, default the paper's).
+    pub prior: fit::FitCheck,
+}
+
+impl Identification {
+    /// Re-simulates the recording (`trace`, `tau`) with the identified parameters and with
+    /// `prior`, restarting every `window` s ([`fit::resimulate`]); keeps the figures in
+    /// [`Identification::fit`] and returns the identified re-simulation (for a figure).
+    pub fn check_fit(
+        &mut self,
+        trace: &Trace,
+        tau: &[Option<f64>],
+        prior: &Params,
+        window: f64,
+    ) -> fit::Resimulation {
+        let id = fit::resimulate(trace, tau, &self.states, &self.params, window);
+        let pr = fit::resimulate(trace, tau, &self.states, prior, window);
+        self.fit = Some(FitChecks {
+            identified: id.check.clone(),
+            prior: pr.check,
+        });
+        id
+    }
+}
+
+/// The median spacing of the samples (s); 1 ms for fewer than two.
+fn sample_spacing(trace: &Trace) -> f64 {
+    let mut d: Vec<f64> = trace
+        .samples
+        .windows(2)
+        .map(|w| w[1].t - w[0].t)
+        .filter(|d| *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return 1e-3;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The friction estimates `(b_v, tau_c)`, clamped to 0 when negative within their noise (or
