@@ -119,6 +119,15 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
             law.k,
             report.solutions.len()
         );
+        if let Some(e) = report.energy_avg_adaptation {
+            // The orbit's own E_av below is its mean energy; the adaptation's is the k = 0
+            // orbit's, the one `simulate`/`live --energy-avg` need to run this orbit.
+            s += &format!(
+                "  adaptation E_av = {e:.9} J (the k = 0 orbit's): run it with --k {} \
+                 --energy-avg {e:.9}\n",
+                law.k
+            );
+        }
         for o in &report.solutions {
             let mult: Vec<String> = o
                 .multipliers

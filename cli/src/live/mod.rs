@@ -124,6 +124,26 @@ pub struct LiveArgs {
     /// `simulate`; the noise draws from --seed.
     #[command(flatten)]
     pub imperfect: tilting_plant::imperfect::ImperfectArgs,
+    /// The controller's model (TOML, the keys of docs/model.md, e.g. `tilting identify
+    /// --out`); also the robot the plant simulates unless --plant-params [default: the
+    /// paper's]
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// The robot the plant simulates (TOML), when it differs from the controller's model
+    /// [default: --params]
+    #[arg(long, value_name = "FILE.toml")]
+    pub plant_params: Option<PathBuf>,
+}
+
+impl LiveArgs {
+    /// The plant's and the controller's parameter files, absolute (the children run in the
+    /// output directory).
+    pub(crate) fn params_files(&self) -> (Option<PathBuf>, Option<PathBuf>) {
+        let abs = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        let ctl = self.params.as_ref().map(abs);
+        let plant = self.plant_params.as_ref().map(abs).or_else(|| ctl.clone());
+        (plant, ctl)
+    }
 }
 
 /// Largest `--max-age` (periods), as the plant allows.
@@ -246,6 +266,15 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
     if let Some(c) = &args.certs {
         security::read_manifest(c, keys.robot())
             .map_err(|e| usage(e.context(format!("--certs {}", c.display()))))?;
+    }
+    for (flag, f) in [
+        ("--params", &args.params),
+        ("--plant-params", &args.plant_params),
+    ] {
+        if let Some(f) = f {
+            tilting_plant::Params::from_toml_file(f)
+                .map_err(|e| usage(anyhow!("invalid `{flag}` = {}: {e}", f.display())))?;
+        }
     }
     let reference = args.law.resolve()?;
     args.imperfect

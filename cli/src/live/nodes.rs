@@ -214,6 +214,9 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
         v.extend(["--torque-limit".into(), limit.to_string()]);
     }
     v.extend(["--max-age".into(), args.max_age.to_string()]);
+    if let Some(p) = args.params_files().0 {
+        v.extend(["--params".into(), p.display().to_string()]);
+    }
     let imperfect = args.imperfect.to_args();
     if job.impairment.is_some() || !imperfect.is_empty() {
         // The link, and the seed of the sensor noise.
@@ -231,6 +234,9 @@ fn controller_args(job: &Job, topo: &Topology) -> Vec<String> {
     v.extend(job.reference.to_args());
     v.extend(job.args.predict.to_args());
     v.extend(job.args.estimator.to_args());
+    if let Some(p) = job.args.params_files().1 {
+        v.extend(["--params".into(), p.display().to_string()]);
+    }
     v
 }
 
