@@ -319,6 +319,9 @@ pub fn simulate_with_progress(
 
 /// [`simulate_with_progress`] with the scenario's controller `ctrl` given (wrapped by
 /// [`crate::recording`] to keep every sample it reads and every torque it answers).
+// long: the run's refusals, its three couplings and the report, as simulate_with_progress had
+// them (moved here whole so that a recording runs the same code); to be split with the
+// watchdog's setup.
 pub(crate) fn simulate_law<L: TorqueLaw>(
     sc: &Scenario,
     opts: SimOptions,
