@@ -10,21 +10,31 @@ pub enum CommandError {
     Usage(anyhow::Error),
     /// The command failed while running (I/O, drawing) (exit code 1).
     Failed(anyhow::Error),
+    /// A live run that ended on a fault of the model (exit code 3, the plant's own).
+    Fault(anyhow::Error),
+    /// A live run whose orbit was lost (exit code 4).
+    OrbitLost(anyhow::Error),
 }
 
 impl CommandError {
-    /// The process exit code: 2 for usage and configuration errors, 1 otherwise.
+    /// The process exit code: 2 for usage and configuration errors, 3 for a fault of the
+    /// model, 4 for a lost orbit, 1 otherwise.
     pub fn exit_code(&self) -> u8 {
         match self {
             CommandError::Usage(_) => 2,
             CommandError::Failed(_) => 1,
+            CommandError::Fault(_) => 3,
+            CommandError::OrbitLost(_) => 4,
         }
     }
 
     /// The underlying error.
     pub fn error(&self) -> &anyhow::Error {
         match self {
-            CommandError::Usage(e) | CommandError::Failed(e) => e,
+            CommandError::Usage(e)
+            | CommandError::Failed(e)
+            | CommandError::Fault(e)
+            | CommandError::OrbitLost(e) => e,
         }
     }
 }

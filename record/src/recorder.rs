@@ -254,20 +254,25 @@ impl Recorder {
     }
 }
 
-/// A write error in words: its chain of causes, and for a full disk `ENOSPC` by name.
+/// A write error in words: the file, the system's error, and for a full disk `ENOSPC` by name.
 pub fn describe(e: &RecordError) -> String {
+    let io = match e {
+        RecordError::Csv { cause, .. } => Some(cause),
+        RecordError::Mcap(WriteError::Io { cause, .. }) => Some(cause),
+        RecordError::Mcap(WriteError::Mcap {
+            cause: mcap::McapError::Io(io),
+            ..
+        }) => Some(io),
+        _ => None,
+    };
     let mut text = e.to_string();
-    let mut cause: Option<&dyn std::error::Error> = std::error::Error::source(e);
-    while let Some(c) = cause {
-        if let Some(io) = c.downcast_ref::<std::io::Error>() {
-            if !text.contains(&io.to_string()) {
-                text.push_str(&format!(": {io}"));
-            }
-            if io.kind() == std::io::ErrorKind::StorageFull {
-                text.push_str(" (ENOSPC: the disk is full)");
-            }
+    if let Some(io) = io {
+        if !text.contains(&io.to_string()) {
+            text.push_str(&format!(": {io}"));
         }
-        cause = c.source();
+        if io.kind() == std::io::ErrorKind::StorageFull {
+            text.push_str(" (ENOSPC: the disk is full)");
+        }
     }
     text
 }

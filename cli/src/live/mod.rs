@@ -216,16 +216,21 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
         .map_err(CommandError::Failed)?;
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     let signals = Signals::start(&rt);
-    let ok = rt
+    let ending = rt
         .block_on(live(&job, &bins, signals))
         .map_err(CommandError::Failed)?;
-    if ok {
-        Ok(())
-    } else {
-        Err(CommandError::Failed(anyhow!(
-            "the live run did not end cleanly (see above; logs in {})",
-            job.dir.display()
-        )))
+    let logs = job.dir.display();
+    match ending {
+        report::Ending::Clean => Ok(()),
+        report::Ending::Failed => Err(CommandError::Failed(anyhow!(
+            "the live run did not end cleanly (see above; logs in {logs})"
+        ))),
+        report::Ending::Fault => Err(CommandError::Fault(anyhow!(
+            "the live run ended on a fault of the model (see above; logs in {logs})"
+        ))),
+        report::Ending::OrbitLost => Err(CommandError::OrbitLost(anyhow!(
+            "the live run lost the orbit (see the verdict above; logs in {logs})"
+        ))),
     }
 }
 
@@ -315,9 +320,13 @@ fn announce(job: &Job) {
     }
 }
 
-/// Runs the live job: spawn, record, monitor, shut down, summarise. `Ok(false)` when a child
-/// failed (the recording is written anyway).
-async fn live(job: &Job<'_>, bins: &NodeBinaries, signals: Signals) -> anyhow::Result<bool> {
+/// Runs the live job: spawn, record, monitor, shut down, summarise; how it ended (the
+/// recording and the summary are written whatever happened).
+async fn live(
+    job: &Job<'_>,
+    bins: &NodeBinaries,
+    signals: Signals,
+) -> anyhow::Result<report::Ending> {
     let force = signals.force();
     let mut topo = Topology::ports(job)?;
     let recorder = Recorder::create(&job.dir, &job.keys, job.args.csv, Some(job.rules()))?;

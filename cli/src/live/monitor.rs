@@ -252,7 +252,7 @@ impl Watch<'_> {
         let verdict = self.check.zip(st.as_ref()).map(|(c, st)| {
             let fault = (!st.fault.is_empty()).then_some(st.fault.as_str());
             let peaks: Vec<(f64, f64)> = view.peaks.iter().copied().collect();
-            c.judge(&peaks, st.time, st.watchdog_trips, fault)
+            c.judge(&peaks, st.time, fault)
         });
         let mut line = status_line(
             st.as_ref(),

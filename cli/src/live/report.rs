@@ -75,13 +75,12 @@ fn verdict(check: OrbitCheck, o: &Outcome, fault: Option<&str>) -> OrbitVerdict 
     match &o.plant {
         Some(p) => {
             let peaks: Vec<(f64, f64)> = p.tilt_peaks.iter().map(|x| (x[0], x[1])).collect();
-            check.judge(&peaks, p.time, p.watchdog_trips, fault)
+            check.judge(&peaks, p.time, fault)
         }
         None => {
             let peaks: Vec<(f64, f64)> = o.view.peaks.iter().copied().collect();
             let now = o.view.last_state.map_or(0.0, |s| s.time);
-            let trips = o.last_status.as_ref().map_or(0, |s| s.watchdog_trips);
-            check.judge(&peaks, now, trips, fault)
+            check.judge(&peaks, now, fault)
         }
     }
 }
@@ -108,14 +107,28 @@ fn record_counts(o: &Outcome, csv: bool) -> RecordCounts {
     }
 }
 
+/// How a live run ended, for its exit code (README, "Faults").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Ending {
+    /// Every node ended cleanly and the orbit holds (or the law has none): exit code 0.
+    Clean,
+    /// A node failed or had to be killed, the recording failed, or `summary.json` could not
+    /// be written to the run's directory: exit code 1.
+    Failed,
+    /// The plant faulted (fall, contact loss, Zeno, non-finite torque): exit code 3.
+    Fault,
+    /// The run ended cleanly but its orbit was lost: exit code 4.
+    OrbitLost,
+}
+
 /// Draws the figures, writes `summary.json` and prints the report (and the problems, on
-/// stderr); whether the run ended cleanly.
+/// stderr); how the run ended.
 pub(super) fn summarise(
     job: &Job,
     scenario: &Scenario,
     check: Option<OrbitCheck>,
     mut o: Outcome,
-) -> anyhow::Result<bool> {
+) -> anyhow::Result<Ending> {
     let fault = o.plant.as_ref().and_then(|s| s.fault.clone()).or_else(|| {
         o.last_status
             .as_ref()
@@ -158,7 +171,19 @@ pub(super) fn summarise(
     for p in &o.problems {
         tilting_net::say_err(&format!("live: error: {p}"));
     }
-    Ok(ok && saved)
+    let lost = summary
+        .orbit
+        .as_ref()
+        .is_some_and(|v| v.state == super::summary::OrbitState::Lost);
+    Ok(if fault.is_some() {
+        Ending::Fault
+    } else if !(ok && saved) {
+        Ending::Failed
+    } else if lost {
+        Ending::OrbitLost
+    } else {
+        Ending::Clean
+    })
 }
 
 /// Writes `summary.json` into `dir`; if that fails (a full disk), into the fallback

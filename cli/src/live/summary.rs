@@ -24,8 +24,8 @@ pub enum LiveResult {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum OrbitState {
-    /// Alternating tilts, still coming, no safe mode, no fault, and the last peaks within the
-    /// tolerance of the nominal orbit's.
+    /// Alternating tilts, still coming, no fault, and the last peaks within the tolerance of
+    /// the nominal orbit's (safe-mode stays are reported beside the verdict, not in it).
     Holds,
     /// One of these failed (see `why`).
     Lost,
@@ -62,6 +62,32 @@ impl OrbitVerdict {
             OrbitState::Pending => "pending".into(),
         }
     }
+}
+
+/// The plant's safe-mode stays in words: how many, how long in all, and the first three with
+/// their start, duration and cause.
+pub fn describe_safe_modes(p: &PlantSummary) -> String {
+    if p.watchdog_trips == 0 {
+        return "never entered".into();
+    }
+    let dur = |e: &tilting_plant::node::SafeModeEntry| e.end.unwrap_or(p.time) - e.start;
+    let total: f64 = p.safe_modes.iter().map(dur).sum();
+    let mut text = format!(
+        "{} entr{}, {total:.3} s in all ({} periods)",
+        p.watchdog_trips,
+        if p.watchdog_trips == 1 { "y" } else { "ies" },
+        p.safe_periods
+    );
+    for e in p.safe_modes.iter().take(3) {
+        text.push_str(&format!(
+            "; at {:.3} s for {:.3} s{}: {}",
+            e.start,
+            dur(e),
+            if e.end.is_none() { " (to the end)" } else { "" },
+            e.cause
+        ));
+    }
+    text
 }
 
 /// The law that was published, in the layout of the `Reference` message.
@@ -269,6 +295,9 @@ impl LiveSummary {
         }
         if let Some(o) = &self.orbit {
             let _ = writeln!(out, "orbit: {}", o.describe());
+        }
+        if let Some(p) = p {
+            let _ = writeln!(out, "safe mode: {}", describe_safe_modes(p));
         }
         let _ = writeln!(out, "faults: {}", fault.unwrap_or("none"));
         let r = &self.record;

@@ -94,6 +94,8 @@ pub(super) struct Loop {
     pub(super) deadline_misses: u64,
     /// When the newest torque taken into force arrived (ns), for the token verdict.
     pub(super) last_answer: Option<u64>,
+    /// The safe-mode entries (the first [`SAFE_MODES_KEPT`]).
+    pub(super) safe_modes: Vec<super::SafeModeEntry>,
     pub(super) overruns: u64,
     pub(super) step_overrun_max: f64,
     pub(super) jitter: Ring,
@@ -113,6 +115,9 @@ pub(super) struct Loop {
 pub(super) const SAFE_MODE_POLL: Duration = Duration::from_millis(1);
 
 pub(super) const TIMING_LOG_INTERVAL: Duration = Duration::from_secs(10);
+
+/// Safe-mode entries kept for the summary.
+pub(super) const SAFE_MODES_KEPT: usize = 100;
 
 impl Loop {
     /// What the sensors measured at the current `seq` (measured at its first use).
@@ -283,6 +288,13 @@ impl Loop {
     pub(super) fn enter_safe(&mut self, why: &str) {
         if self.watchdog.trip() {
             tracing::warn!(seq = self.seq, t = self.plant.time(), "safe mode: {why}");
+            if self.safe_modes.len() < SAFE_MODES_KEPT {
+                self.safe_modes.push(super::SafeModeEntry {
+                    start: self.plant.time(),
+                    end: None,
+                    cause: why.to_owned(),
+                });
+            }
             self.set_state(Status::SAFE_MODE);
         }
     }
@@ -323,6 +335,9 @@ impl Loop {
                 if self.status_state != Status::RUNNING {
                     if self.status_state == Status::SAFE_MODE {
                         tracing::info!(seq = self.seq, age, "torque is back: leaving safe mode");
+                        if let Some(e) = self.safe_modes.last_mut().filter(|e| e.end.is_none()) {
+                            e.end = Some(self.plant.time());
+                        }
                     }
                     self.set_state(Status::RUNNING);
                 }
@@ -690,6 +705,7 @@ impl Loop {
             watchdog_trips: self.watchdog.trips(),
             token_losses: self.shared.token_losses.load(Ordering::Relaxed),
             safe_periods: self.watchdog.safe_periods(),
+            safe_modes: self.safe_modes.clone(),
             overruns: self.overruns,
             max_overrun_us: self.step_overrun_max,
             jitter_us: Window {

@@ -89,7 +89,7 @@ use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
 use recording::Recording;
 use stats::Ring;
-pub use summary::{LinkEmulation, PlantSummary, RunResult, Window};
+pub use summary::{LinkEmulation, PlantSummary, RunResult, SafeModeEntry, Window};
 
 /// The columns of a state row in every CSV the project writes (the plant's `--record`, the
 /// `state.csv` of `tilting live`): sample number, plant time (s), mode byte (0 flat, 1 left,
@@ -203,6 +203,7 @@ async fn run_async(
         age: Ring::new(),
         deadline_misses: 0,
         last_answer: None,
+        safe_modes: Vec::new(),
         overruns: 0,
         step_overrun_max: 0.0,
         jitter: Ring::new(),

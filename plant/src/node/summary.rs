@@ -6,6 +6,18 @@
 use serde::{Deserialize, Serialize};
 
 use super::ClockMode;
+
+/// One stay in the safe mode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SafeModeEntry {
+    /// Plant time of the entry (s).
+    pub start: f64,
+    /// Plant time of the exit (s), `None` if the run ended in it.
+    pub end: Option<f64>,
+    /// Why: the watchdog (no valid torque for `--watchdog` periods), the controller's
+    /// liveliness token gone, or the lockstep timeout.
+    pub cause: String,
+}
 use crate::Mode;
 
 /// How a plant run ended.
@@ -136,6 +148,9 @@ pub struct PlantSummary {
     pub token_losses: u64,
     /// Periods run in safe mode.
     pub safe_periods: u64,
+    /// Each entry into the safe mode: when, why and for how long (at most the first 100).
+    #[serde(default)]
+    pub safe_modes: Vec<SafeModeEntry>,
     /// Periods whose integration overran the deadline.
     pub overruns: u64,
     /// Largest overrun (µs).
