@@ -76,16 +76,23 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
     let (stdout, stderr) = (live.stdout(), live.stderr());
     assert!(status.success(), "{status}\n{}", live.logs());
     let s = live_summary(&out);
-    // Refused by the front door, counted, never recorded: the state, the forged torque and
-    // the controller's answer to the forged state (it answers every state; seq 2^63).
-    assert_eq!(s.record.refused, [1, 2, 0, 0, 0], "{:?}", s.record);
-    let first = s.record.first_refusal.as_deref().unwrap_or_default();
-    assert!(first.contains("PlantState"), "{first}");
-    assert!(stderr.contains("refused 3"), "{stderr}");
+    // Refused by the front door, counted, never recorded: the state, the forged torque and,
+    // when it reached the controller, the controller's answer to the forged state (seq 2^63).
+    let r = s.record.refused;
     assert!(
-        stdout.contains("refused messages: 3 implausible"),
-        "{stdout}"
+        r[0] == 1 && (1..=2).contains(&r[1]) && r[2..] == [0; 3],
+        "{:?}",
+        s.record
     );
+    let first = s.record.first_refusal.as_deref().unwrap_or_default();
+    assert!(
+        first.contains("PlantState") || first.contains("TorqueCommand"),
+        "{first}"
+    );
+    let total: u64 = r.iter().sum();
+    assert!(stderr.contains(&format!("refused {total}")), "{stderr}");
+    let said = format!("refused messages: {total} implausible");
+    assert!(stdout.contains(&said), "{stdout}");
     // The recording: every state of the run (one per period, no gap), its plant-time span.
     let run = tilting_record::read(&out.join("run.mcap")).unwrap();
     let states = run.count(Topic::State);
