@@ -351,33 +351,29 @@ pub fn direct_config(keys: &Keys, dir: &Path, node: &str, nodes: &[String]) -> V
     })
 }
 
-/// The ingress rules `node` (one of [`DIRECT`]) enforces on its own links in the direct loop
-/// (zenoh applies ACL only in the session that holds it: eclipse-zenoh/zenoh#2137). Every
-/// identity of the robot (the router's included) may subscribe, query and watch tokens, and
-/// receive what it subscribed to; beyond that, default deny:
-///
-/// - the plant accepts torques and the controller's token **only from the controller's
-///   identity**, so only on the direct link (the router's copies are refused);
-/// - the controller accepts states, events, statuses and the plant's token only from the
-///   plant's identity, and the reference (puts, replies, queryable, the planner's token) only
-///   from the router's, which let only the planner's identity publish it.
-pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
-    let robot = keys.robot();
-    let all = format!("tilting/{robot}/**");
-    let rule = |id: &str, flows: &[&str], messages: &[&str], key_exprs: Vec<&str>| {
-        json!({ "id": id, "permission": "allow", "flows": flows, "messages": messages,
-                "key_exprs": key_exprs })
-    };
-    let subject = |id: &str, cns: Vec<String>| json!({ "id": id, "cert_common_names": cns });
-    let policy = |id: &str, rules: &[&str], subjects: &[&str]| json!({ "id": id, "rules": rules, "subjects": subjects });
-    let mut listeners: Vec<String> = nodes
-        .iter()
-        .filter(|n| NODES.contains(&n.as_str()) || n.starts_with("logger"))
-        .map(|n| common_name(robot, n))
-        .collect();
-    listeners.sort();
-    let mut rules = vec![
-        rule(
+/// One allow rule of a zenoh ACL: `id`, the flows (`ingress`/`egress`), the message kinds and
+/// the key expressions it covers.
+fn acl_rule(id: &str, flows: &[&str], messages: &[&str], key_exprs: Vec<&str>) -> Value {
+    json!({ "id": id, "permission": "allow", "flows": flows, "messages": messages,
+            "key_exprs": key_exprs })
+}
+
+/// A subject of a zenoh ACL: the certificates' common names it matches.
+fn acl_subject(id: &str, cns: Vec<String>) -> Value {
+    json!({ "id": id, "cert_common_names": cns })
+}
+
+/// A policy of a zenoh ACL: which rules apply to which subjects.
+fn acl_policy(id: &str, rules: &[&str], subjects: &[&str]) -> Value {
+    json!({ "id": id, "rules": rules, "subjects": subjects })
+}
+
+/// The rules every authenticated identity of the robot gets, in the router's ACL and in each
+/// node's own: "listen" (subscribe, query, watch tokens: ingress) and "receive" (get what it
+/// listens to: egress), both on `all` (`tilting/<robot>/**`).
+fn listen_rules(all: &str) -> [Value; 2] {
+    [
+        acl_rule(
             "listen",
             &["ingress"],
             &[
@@ -386,9 +382,9 @@ pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
                 "liveliness_query",
                 "declare_liveliness_subscriber",
             ],
-            vec![&all],
+            vec![all],
         ),
-        rule(
+        acl_rule(
             "receive",
             &["egress"],
             &[
@@ -402,9 +398,34 @@ pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
                 "liveliness_query",
                 "declare_liveliness_subscriber",
             ],
-            vec![&all],
+            vec![all],
         ),
-    ];
+    ]
+}
+
+/// The ingress rules `node` (one of [`DIRECT`]) enforces on its own links in the direct loop
+/// (zenoh applies ACL only in the session that holds it: eclipse-zenoh/zenoh#2137). Every
+/// identity of the robot (the router's included) may subscribe, query and watch tokens, and
+/// receive what it subscribed to; beyond that, default deny:
+///
+/// - the plant accepts torques and the controller's token **only from the controller's
+///   identity**, so only on the direct link (the router's copies are refused);
+/// - the controller accepts states, events, statuses and the plant's token only from the
+///   plant's identity, and the reference (puts, replies, queryable, the planner's token) only
+///   from the router's, which let only the planner's identity publish it.
+pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
+    let robot = keys.robot();
+    let all = format!("tilting/{robot}/**");
+    let rule = acl_rule;
+    let subject = acl_subject;
+    let policy = acl_policy;
+    let mut listeners: Vec<String> = nodes
+        .iter()
+        .filter(|n| NODES.contains(&n.as_str()) || n.starts_with("logger"))
+        .map(|n| common_name(robot, n))
+        .collect();
+    listeners.sort();
+    let mut rules = listen_rules(&all).to_vec();
     let mut subjects = vec![subject("robot", listeners)];
     let mut policies = vec![policy(
         "everyone listens",
@@ -485,40 +506,11 @@ pub fn router_config(keys: &Keys, dir: &Path, nodes: &[String]) -> Value {
 pub fn acl(keys: &Keys, nodes: &[String]) -> Value {
     let robot = keys.robot();
     let all = format!("tilting/{robot}/**");
-    let rule = |id: &str, flows: &[&str], messages: &[&str], key_exprs: Vec<&str>| {
-        json!({ "id": id, "permission": "allow", "flows": flows, "messages": messages,
-                "key_exprs": key_exprs })
-    };
+    let rule = acl_rule;
+    let [listen, receive] = listen_rules(&all);
     let rules = vec![
-        // Everyone authenticated may listen: subscribe, query, watch tokens (ingress), and
-        // receive what it listens to (egress).
-        rule(
-            "listen",
-            &["ingress"],
-            &[
-                "declare_subscriber",
-                "query",
-                "liveliness_query",
-                "declare_liveliness_subscriber",
-            ],
-            vec![&all],
-        ),
-        rule(
-            "receive",
-            &["egress"],
-            &[
-                "put",
-                "delete",
-                "declare_subscriber",
-                "query",
-                "reply",
-                "declare_queryable",
-                "liveliness_token",
-                "liveliness_query",
-                "declare_liveliness_subscriber",
-            ],
-            vec![&all],
-        ),
+        listen,
+        receive,
         rule(
             "plant publishes",
             &["ingress"],
@@ -563,14 +555,14 @@ pub fn acl(keys: &Keys, nodes: &[String]) -> Value {
         })
         .map(|n| common_name(robot, n))
         .collect();
-    let subject = |id: &str, cns: Vec<String>| json!({ "id": id, "cert_common_names": cns });
+    let subject = acl_subject;
     let subjects = vec![
         subject("nodes", listeners),
         subject("plant", vec![common_name(robot, "plant")]),
         subject("controller", vec![common_name(robot, "controller")]),
         subject("planner", vec![common_name(robot, "planner")]),
     ];
-    let policy = |id: &str, rules: &[&str], subjects: &[&str]| json!({ "id": id, "rules": rules, "subjects": subjects });
+    let policy = acl_policy;
     json!({
         "enabled": true,
         "default_permission": "deny",
