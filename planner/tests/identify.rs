@@ -11,12 +11,11 @@
 //! the physical parameters derived from them with the robot's weighed arm mass `m_l` as the
 //! prior (the motion cannot tell `m_l` from `l_c` and `i_l`), which must be the hidden ones.
 
-use std::cell::RefCell;
 use tilting_planner::identify::{identify, IdentifyError, Options, Velocities};
-use tilting_plant::dynamics::Terms;
-use tilting_plant::{Mode, Observer, Params, Plant, State, TorqueLaw, Transition};
-use tilting_record::{EventRecord, Sample, Trace};
-use tilting_sim::Scenario;
+use tilting_plant::{Mode, Params};
+use tilting_record::{Sample, Trace};
+use tilting_sim::recording::simulate_logged;
+use tilting_sim::{Scenario, SimOptions};
 
 /// The hidden robot: every physical parameter the identification estimates changed from the
 /// paper's (`m_f = m_l = 1`, `l_c = l = 2`, no inertia, motor or friction) by up to 20 %, or
@@ -49,53 +48,9 @@ fn base_of(p: &Params) -> [f64; 7] {
     ]
 }
 
-/// Logs every sample the loop takes and the torque it holds.
-struct Logging<'a, L> {
-    law: &'a L,
-    log: RefCell<(Vec<Sample>, Vec<Option<f64>>)>,
-}
-
-impl<L: TorqueLaw> TorqueLaw for Logging<'_, L> {
-    fn torque(&self, t: f64, mode: Mode, x: &State) -> f64 {
-        let tau = self.law.torque(t, mode, x);
-        self.push(t, mode, x, tau)
-    }
-    fn torque_t(&self, t: f64, mode: Mode, x: &State, p: &Params, tm: &Terms) -> f64 {
-        let tau = self.law.torque_t(t, mode, x, p, tm);
-        self.push(t, mode, x, tau)
-    }
-}
-
-impl<L> Logging<'_, L> {
-    fn push(&self, t: f64, mode: Mode, x: &State, tau: f64) -> f64 {
-        let mut l = self.log.borrow_mut();
-        l.0.push(Sample {
-            t,
-            mode,
-            x: (*x).into(),
-        });
-        l.1.push(Some(tau));
-        tau
-    }
-}
-
-#[derive(Default)]
-struct Events(Vec<EventRecord>);
-
-impl Observer for Events {
-    fn transition(&mut self, ev: &Transition) {
-        self.0.push(EventRecord {
-            t: ev.t,
-            from: ev.from,
-            to: ev.to,
-            x_before: ev.x_before.into(),
-            x_after: ev.x_after.into(),
-        });
-    }
-}
-
 /// Runs the robot on the orbit's controller (with the robot as its model) at 1 kHz for
-/// `duration` s; the trace as a recording holds it, and the held torques.
+/// `duration` s (the sim crate's logged run, as `simulate --record` does): the trace as a
+/// recording holds it, the held torques, and the number of tilts.
 fn record(p: Params, duration: f64) -> (Trace, Vec<Option<f64>>, u64) {
     let sc = Scenario {
         params: p,
@@ -103,23 +58,10 @@ fn record(p: Params, duration: f64) -> (Trace, Vec<Option<f64>>, u64) {
         duration,
         ..Scenario::default()
     };
-    let ctrl = sc.controller().unwrap();
-    let mut plant = Plant::new(sc.sim_config(), 0.0, sc.mode, sc.initial_state()).unwrap();
-    let law = Logging {
-        law: &ctrl,
-        log: RefCell::new((Vec::new(), Vec::new())),
-    };
-    let mut ev = Events::default();
-    let (r, _) = tilting_sim::run_sampled(&mut plant, &law, 1e-3, duration, &mut ev, &mut |_| {});
-    r.unwrap();
-    let (samples, tau) = law.log.into_inner();
-    let trace = Trace {
-        end: plant.time(),
-        samples,
-        events: ev.0,
-        stopped_early: false,
-    };
-    (trace, tau, plant.tilts())
+    let (report, logged) = simulate_logged(&sc, SimOptions::default(), &mut |_| {}).unwrap();
+    assert!(report.fault.is_none(), "{:?}", report.fault);
+    let tau = logged.tau.into_iter().map(Some).collect();
+    (logged.trace, tau, report.stats.tilts)
 }
 
 #[test]
