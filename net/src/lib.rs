@@ -91,7 +91,40 @@ pub fn config_from_file(path: &std::path::Path) -> Result<Config, String> {
     // The size first: zenoh reads a file whole, however long (`/dev/zero`).
     bounded::read(path, bounded::CONFIG_LIMIT, "a zenoh configuration")
         .map_err(|e| e.to_string())?;
-    Config::from_file(path).map_err(|e| zenoh_error(&e))
+    let config = Config::from_file(path).map_err(|e| zenoh_error(&e))?;
+    check_tls_files(&config)?;
+    Ok(config)
+}
+
+/// The TLS files a configuration names (`transport/link/tls/*`), each checked to be a readable
+/// file of at most [`tilting_proto::bounded::CONFIG_LIMIT`] bytes before zenoh reads it whole
+/// (a certificate path pointing at `/dev/zero` would otherwise fill the memory).
+fn check_tls_files(config: &Config) -> Result<(), String> {
+    use tilting_proto::bounded;
+    for field in [
+        "root_ca_certificate",
+        "listen_certificate",
+        "listen_private_key",
+        "connect_certificate",
+        "connect_private_key",
+    ] {
+        let key = format!("transport/link/tls/{field}");
+        let Ok(json) = config.get_json(&key) else {
+            continue;
+        };
+        let Ok(Some(file)) = serde_json::from_str::<Option<String>>(&json) else {
+            continue;
+        };
+        let what = format!("the TLS file of {key}");
+        bounded::read(std::path::Path::new(&file), bounded::CONFIG_LIMIT, &what).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::InvalidData {
+                e.to_string()
+            } else {
+                format!("{key} = {file}: {e}")
+            }
+        })?;
+    }
+    Ok(())
 }
 
 impl ZenohArgs {
@@ -590,6 +623,40 @@ mod tests {
         );
     }
     use tilting_proto::TorqueCommand;
+
+    #[test]
+    fn tls_files_of_a_config_are_bounded_and_named() {
+        let dir = std::env::temp_dir().join(format!("tilting-net-tls-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cfg = dir.join("c.json5");
+        let write = |ca: &str| {
+            let text = format!(
+                r#"{{ mode: "peer", transport: {{ link: {{ tls: {{ root_ca_certificate: "{ca}" }} }} }} }}"#
+            );
+            std::fs::write(&cfg, text).unwrap();
+        };
+        // An endless "certificate" is refused at the limit, the key named.
+        write("/dev/zero");
+        let e = config_from_file(&cfg).unwrap_err();
+        assert!(
+            e.contains("limit") && e.contains("root_ca_certificate"),
+            "{e}"
+        );
+        // A missing one is named with its key.
+        let missing = dir.join("missing.pem");
+        write(&missing.display().to_string());
+        let e = config_from_file(&cfg).unwrap_err();
+        assert!(
+            e.contains("transport/link/tls/root_ca_certificate") && e.contains("missing.pem"),
+            "{e}"
+        );
+        // A small file passes.
+        let ca = dir.join("ca.pem");
+        std::fs::write(&ca, "-----BEGIN CERTIFICATE-----\n").unwrap();
+        write(&ca.display().to_string());
+        assert!(config_from_file(&cfg).is_ok());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn default_config_is_loopback_peer_without_multicast() {

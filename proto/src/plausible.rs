@@ -24,6 +24,10 @@ use crate::{PlantState, TorqueCommand};
 /// floating-point steps).
 pub const GRID_TOLERANCE: f64 = 1e-9;
 
+/// The shortest control period (s) a plant may run at: 0.1 ms (10 kHz). The plant refuses a
+/// shorter `--period`; a receiver that does not know the period bounds jumps with this one.
+pub const MIN_PERIOD: f64 = 1e-4;
+
 /// Why a well-formed message is not believed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Implausible {
@@ -179,6 +183,94 @@ pub fn state_bounds(s: &PlantState, fall_angle: f64) -> Result<(), Implausible> 
     Ok(())
 }
 
+/// The rules on the stream of states one receiver believes: the wall-clock window
+/// ([`within_clock`]) against the newest believed state, the period's time grid ([`on_grid`])
+/// when the period is known, and the fall angle ([`state_bounds`]). The front door's recorder
+/// and the controller node each keep one, so a forged state (`seq = 2^63`, `time = 1e300`)
+/// moves neither a recording nor a controller's estimator.
+///
+/// Only jumps *ahead* are bounded: an old or repeated state is believed (it is late, not a lie)
+/// and does not move the newest. A plant in lockstep runs ahead of the wall clock, but one
+/// period per state, well inside `slack`.
+#[derive(Debug, Clone)]
+pub struct StateWindow {
+    /// The control period (s), if known: then times must lie on its grid.
+    pub period: Option<f64>,
+    /// The shortest control period the plant allows (s), for the wall-clock window while the
+    /// period is unknown.
+    pub min_period: f64,
+    /// The plant's fall angle (rad).
+    pub fall_angle: f64,
+    /// Delivery slack of the wall-clock window (s).
+    pub slack: f64,
+    /// The receiver started with the plant (seq 0 at `started`); otherwise the first state is
+    /// believed as it comes, as by a receiver that joins a running robot.
+    pub from_start: bool,
+    started: std::time::Instant,
+    /// `(seq, time, when)` of the newest believed state.
+    last: Option<(u64, f64, std::time::Instant)>,
+}
+
+impl StateWindow {
+    /// A window that starts now (see the fields for the arguments).
+    pub fn new(
+        period: Option<f64>,
+        min_period: f64,
+        fall_angle: f64,
+        slack: f64,
+        from_start: bool,
+    ) -> Self {
+        Self {
+            period,
+            min_period,
+            fall_angle,
+            slack,
+            from_start,
+            started: std::time::Instant::now(),
+            last: None,
+        }
+    }
+
+    fn step(&self) -> f64 {
+        self.period.unwrap_or(self.min_period)
+    }
+
+    /// The newest `seq` a message may speak of at `now`: the newest believed state's, plus
+    /// what the wall clock allows since it (with the slack); `u64::MAX` before any state when
+    /// not [`Self::from_start`].
+    pub fn newest(&self, now: std::time::Instant) -> u64 {
+        let (seq, since) = match self.last {
+            Some((seq, _, at)) => (seq, at),
+            None if self.from_start => (0, self.started),
+            None => return u64::MAX,
+        };
+        let periods = (now.duration_since(since).as_secs_f64() + self.slack) / self.step();
+        seq.saturating_add(periods as u64)
+    }
+
+    /// Whether state `s`, received at `now`, is believed; a believed state newer than the
+    /// newest becomes the newest.
+    pub fn check(&mut self, s: &PlantState, now: std::time::Instant) -> Result<(), Implausible> {
+        let last = match self.last {
+            Some((seq, time, at)) => Some(((seq, time), at)),
+            None if self.from_start => Some(((0, 0.0), self.started)),
+            None => None,
+        };
+        if let Some((last, since)) = last {
+            let elapsed = now.duration_since(since).as_secs_f64();
+            within_clock(s, last, elapsed, self.step(), self.slack)?;
+        }
+        if let Some(p) = self.period {
+            on_grid("PlantState", s.seq, s.time, p)?;
+        }
+        state_bounds(s, self.fall_angle)?;
+        if self.last.is_none_or(|l| s.seq > l.0) {
+            self.last = Some((s.seq, s.time, now));
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -239,5 +331,30 @@ mod tests {
         let mut fallen = state(1, 1e-3);
         fallen.alpha = -1.6;
         assert!(state_bounds(&fallen, std::f64::consts::FRAC_PI_2).is_err());
+    }
+
+    #[test]
+    fn a_window_believes_a_fast_lockstep_plant_and_not_the_forgery() {
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let now = std::time::Instant::now();
+        // Joins a running robot: the first state is believed as it comes.
+        let mut w = StateWindow::new(None, 1e-4, half_pi, 1.0, false);
+        assert_eq!(w.newest(now), u64::MAX);
+        assert!(w.check(&state(5000, 5.0), now).is_ok());
+        // A lockstep plant: 10,000 states in no wall-clock time at all, one period apart.
+        for k in 5001..15_000u64 {
+            assert!(w.check(&state(k, k as f64 * 1e-3), now).is_ok(), "{k}");
+        }
+        // The forged state, then one on the grid but far ahead: refused, and the newest stays.
+        assert!(w.check(&state(1 << 63, 1e300), now).is_err());
+        let ahead = 14_999 + 20_000; // 2 s of 1 kHz states after no wall-clock time (1 s slack)
+        assert!(w.check(&state(ahead, ahead as f64 * 1e-3), now).is_err());
+        assert!(w.check(&state(15_000, 15.0), now).is_ok());
+        // An old state is late, not a lie.
+        assert!(w.check(&state(10, 0.01), now).is_ok());
+        // The period known: off the grid is refused.
+        let mut g = StateWindow::new(Some(1e-3), 1e-4, half_pi, 1.0, false);
+        assert!(g.check(&state(10, 0.0105), now).is_ok());
+        assert!(g.check(&state(11, 0.0125), now).is_err());
     }
 }

@@ -7,8 +7,7 @@
 
 use crate::recorder::Record;
 use std::time::Instant;
-use tilting_proto::plausible::{self, Implausible};
-use tilting_proto::PlantState;
+use tilting_proto::plausible::{self, Implausible, StateWindow};
 
 /// Delivery slack of the wall-clock window (s): how far the plant's messages may run ahead of
 /// the wall clock as the recorder sees them (a burst after a stall of the recorder's thread).
@@ -32,38 +31,25 @@ pub struct Rules {
     pub from_start: bool,
 }
 
-/// The gate of one recording: the rules and the last state it believed.
+/// The gate of one recording: the state window of the rules.
 #[derive(Debug)]
 pub(crate) struct Guard {
     rules: Rules,
-    started: Instant,
-    /// `(seq, time, when)` of the newest believed state.
-    last: Option<(u64, f64, Instant)>,
+    window: StateWindow,
 }
 
 impl Guard {
     pub(crate) fn new(rules: Rules) -> Self {
         Self {
             rules,
-            started: Instant::now(),
-            last: None,
+            window: StateWindow::new(
+                rules.period,
+                rules.min_period,
+                rules.fall_angle,
+                SLACK,
+                rules.from_start,
+            ),
         }
-    }
-
-    fn period(&self) -> f64 {
-        self.rules.period.unwrap_or(self.rules.min_period)
-    }
-
-    /// The newest `seq` a message may speak of now: the newest believed state's, plus what the
-    /// wall clock allows since it (with [`SLACK`]).
-    fn newest(&self, now: Instant) -> u64 {
-        let (seq, since) = match self.last {
-            Some((seq, _, at)) => (seq, at),
-            None if self.rules.from_start => (0, self.started),
-            None => return u64::MAX,
-        };
-        let periods = (now.duration_since(since).as_secs_f64() + SLACK) / self.period();
-        seq.saturating_add(periods as u64)
     }
 
     /// Whether `rec` is believed; a believed state becomes the newest.
@@ -74,36 +60,19 @@ impl Guard {
             None => Ok(()),
         };
         match rec {
-            Record::State(s) => {
-                self.state(s, now)?;
-                grid("PlantState", s.seq, s.time)?;
-                plausible::state_bounds(s, self.rules.fall_angle)?;
-                if self.last.is_none_or(|l| s.seq > l.0) {
-                    self.last = Some((s.seq, s.time, now));
-                }
-                Ok(())
+            Record::State(s) => self.window.check(s, now),
+            Record::Torque(c) => {
+                plausible::torque(c, self.window.newest(now), self.rules.max_torque)
             }
-            Record::Torque(c) => plausible::torque(c, self.newest(now), self.rules.max_torque),
             Record::Event(e) => {
-                plausible::ahead("ModeEvent", e.seq, self.newest(now))?;
+                plausible::ahead("ModeEvent", e.seq, self.window.newest(now))?;
                 grid("ModeEvent", e.seq, e.time)
             }
             Record::Status(st) => {
-                plausible::ahead("Status", st.seq, self.newest(now))?;
+                plausible::ahead("Status", st.seq, self.window.newest(now))?;
                 grid("Status", st.seq, st.time)
             }
             Record::Reference(_) | Record::Wire(..) => Ok(()),
         }
-    }
-
-    /// The wall-clock window of a state.
-    fn state(&self, s: &PlantState, now: Instant) -> Result<(), Implausible> {
-        let (last, since) = match self.last {
-            Some((seq, time, at)) => ((seq, time), at),
-            None if self.rules.from_start => ((0, 0.0), self.started),
-            None => return Ok(()),
-        };
-        let elapsed = now.duration_since(since).as_secs_f64();
-        plausible::within_clock(s, last, elapsed, self.period(), SLACK)
     }
 }

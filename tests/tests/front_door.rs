@@ -76,14 +76,14 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
     let (stdout, stderr) = (live.stdout(), live.stderr());
     assert!(status.success(), "{status}\n{}", live.logs());
     let s = live_summary(&out);
-    // Refused by the front door, counted, never recorded: the state, the forged torque and,
-    // when it reached the controller, the controller's answer to the forged state (seq 2^63).
+    // Refused by the front door, counted, never recorded: the state and the forged torque.
+    // The controller refuses the forged state too (the same window), so no answer to it
+    // (a torque with seq 2^63) reaches the front door.
     let r = s.record.refused;
-    assert!(
-        r[0] == 1 && (1..=2).contains(&r[1]) && r[2..] == [0; 3],
-        "{:?}",
-        s.record
-    );
+    assert!(r[..] == [1, 1, 0, 0, 0], "{:?}", s.record);
+    let ctl = s.controller.as_ref().expect("the controller's summary");
+    eprintln!("the controller refused {} state(s)", ctl.states_refused);
+    assert!(ctl.states_refused <= 1, "{ctl:?}");
     let first = s.record.first_refusal.as_deref().unwrap_or_default();
     assert!(
         first.contains("PlantState") || first.contains("TorqueCommand"),

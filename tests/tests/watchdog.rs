@@ -8,6 +8,9 @@ use tilting_tests::*;
 
 /// Periods without a valid torque before the safe mode (1 kHz: 50 ms).
 const WATCHDOG: u64 = 50;
+/// The plant's `--max-age` and `--watchdog` (periods, 1 kHz: 200 ms) in the cut-link test: a
+/// reconnect shorter than this must not be a trip, whatever the machine's load.
+const RECONNECT_GRACE: u64 = 200;
 /// Slack for a loaded 2-core machine on top of the watchdog bound.
 const MARGIN: Duration = Duration::from_millis(400);
 
@@ -190,6 +193,11 @@ async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
 /// the periods without an answer meanwhile. (Before issue 22 the first period without an
 /// answer after the token's loss tripped the watchdog.) Then the controller is killed: the
 /// token goes for good, no torque comes, and the safe mode follows within the watchdog bound.
+///
+/// The rule is what is under test, not this machine's reconnect time: on an idle machine the
+/// controller is back within 2-5 ms, but a loaded CI machine took about 40 ms per cut (124
+/// torques lost over 3 cuts), which at the default 10-period grace is rightly a trip. So the
+/// plant runs with a grace (`--max-age`) and a `--watchdog` of [`RECONNECT_GRACE`] periods.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_cut_link_that_reconnects_is_not_a_controller_gone() {
     let dir = Scratch::new("renegotiated");
@@ -203,7 +211,16 @@ async fn a_cut_link_that_reconnects_is_not_a_controller_gone() {
     let mut plant = Proc::spawn(
         "plant",
         &bin("tilting-plant"),
-        &plant_args(&robot, port, &[]),
+        &plant_args(
+            &robot,
+            port,
+            &[
+                "--max-age",
+                &RECONNECT_GRACE.to_string(),
+                "--watchdog",
+                &RECONNECT_GRACE.to_string(),
+            ],
+        ),
         dir.path(),
     );
     let client = Client::open(&robot, None, Some(port)).await;
@@ -237,11 +254,12 @@ async fn a_cut_link_that_reconnects_is_not_a_controller_gone() {
         .await
         .unwrap_or_else(|| panic!("never running\n{}\n{}", plant.logs(), ctl.logs()));
 
-    // Cut the controller's link three times, 300 ms apart.
+    // Cut the controller's link three times, 600 ms apart (well past the grace, so each cut is
+    // judged on its own).
     let mut cut = 0;
     for _ in 0..3 {
         cut += proxy.cut();
-        tokio::time::sleep(Duration::from_millis(300)).await;
+        tokio::time::sleep(Duration::from_millis(600)).await;
     }
     assert!(cut >= 3, "the proxy carried no connection to cut");
     let s = status.latest().unwrap();
@@ -252,7 +270,7 @@ async fn a_cut_link_that_reconnects_is_not_a_controller_gone() {
     ctl.signal(libc::SIGKILL);
     let (t1, s) = status
         .wait_for(
-            Duration::from_millis(WATCHDOG) + MARGIN + Duration::from_secs(2),
+            Duration::from_millis(RECONNECT_GRACE) + MARGIN + Duration::from_secs(2),
             |s| s.state == Status::SAFE_MODE,
         )
         .await

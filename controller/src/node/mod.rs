@@ -25,6 +25,7 @@ use std::time::Duration;
 use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_plant::imperfect::Measurement;
 use tilting_plant::ParamsArgs;
+use tilting_proto::plausible::{StateWindow, MIN_PERIOD};
 use tilting_proto::{Keys, PlantState, Status, TorqueCommand};
 
 use crate::estimate::{EstimatorArgs, Method};
@@ -77,6 +78,11 @@ struct Node {
     orbit_peak: Option<f64>,
     law: Mutex<Controller>,
     states: DropCounter,
+    /// The plausibility window of the states (`tilting_proto::plausible`): a forged state
+    /// moves neither the law nor the estimator nor the predictor's period.
+    window: Mutex<StateWindow>,
+    /// Well-formed states the window refused (not answered).
+    states_refused: AtomicU64,
     references: DropCounter,
     torques_published: AtomicU64,
     torques_not_finite: AtomicU64,
@@ -116,6 +122,17 @@ impl Node {
         let Ok(mode) = s.mode() else {
             return; // unreachable: decode validated the mode
         };
+        let believed = {
+            let mut w = self.window.lock().unwrap_or_else(|e| e.into_inner());
+            w.check(&s, std::time::Instant::now())
+        };
+        if let Err(e) = believed {
+            let n = self.states_refused.fetch_add(1, Ordering::Relaxed) + 1;
+            if n.is_power_of_two() {
+                tracing::warn!("state refused, not answered ({n} so far): {e}");
+            }
+            return;
+        }
         let y = Measurement {
             angles: s.angles(),
             rates: s.rates(),
@@ -283,6 +300,7 @@ impl Node {
             estimation,
             states_received: self.states.received(),
             states_dropped: self.states.dropped(),
+            states_refused: self.states_refused.load(Ordering::Relaxed),
             torques_published: self.torques_published.load(Ordering::Relaxed),
             torques_not_finite: self.torques_not_finite.load(Ordering::Relaxed),
             publish_errors: self.publish_errors.load(Ordering::Relaxed),
@@ -304,6 +322,10 @@ pub struct ControllerSummary {
     pub states_received: u64,
     /// State messages dropped as malformed or invalid.
     pub states_dropped: u64,
+    /// Well-formed states refused as implausible (`tilting_proto::plausible::StateWindow`:
+    /// ahead of the wall clock, off the time grid, beyond the fall angle) and not answered.
+    #[serde(default)]
+    pub states_refused: u64,
     /// Torques published.
     pub torques_published: u64,
     /// States whose torque came out NaN or infinite (not published).
@@ -401,6 +423,16 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         orbit_peak: law.config().law.orbit_peak,
         law: Mutex::new(law),
         states: DropCounter::new(keys.plant_state()),
+        // The period is learnt by the predictor only; the window bounds jumps by the shortest
+        // one. The slack (1 s) is the recorder's: a burst after a stall of this process.
+        window: Mutex::new(StateWindow::new(
+            None,
+            MIN_PERIOD,
+            tilting_plant::SimConfig::default().fall_angle,
+            1.0,
+            false,
+        )),
+        states_refused: AtomicU64::new(0),
         references: DropCounter::new(keys.planner_reference()),
         torques_published: AtomicU64::new(0),
         torques_not_finite: AtomicU64::new(0),

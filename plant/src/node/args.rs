@@ -107,7 +107,7 @@ pub struct PlantArgs {
 
 /// Allowed control periods (s): 100 us (10 kHz; a faster loop spends its period in the
 /// integrator and zenoh) to 10 s.
-pub const PERIOD_RANGE: (f64, f64) = (1e-4, 10.0);
+pub const PERIOD_RANGE: (f64, f64) = (tilting_proto::plausible::MIN_PERIOD, 10.0);
 /// Most periods in one run (`--duration` / period).
 pub const MAX_PERIODS: f64 = 1e9;
 /// The default bound on commanded torques (N m): ten times the largest torque along the
