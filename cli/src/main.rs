@@ -3,7 +3,9 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use tilting::commands::{animate, figures, identify, margins, plan, recording, simulate, topics};
+use tilting::commands::{
+    animate, continuation, figures, identify, margins, plan, recording, simulate, topics,
+};
 use tilting::live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -18,7 +20,7 @@ Run:
   simulate    The closed loop offline for one scenario (default: the paper's orbit)
 
 Plan:
-  plan        orbit | sinusoid | bifurcation | gains | margins: the paper's boundary value
+  plan        orbit | sinusoid | bifurcation | gains | margins | continuation: the paper's boundary value
               problems, stability, sweeps, and what the orbit survives on a network
 
 Look:
@@ -104,6 +106,9 @@ enum Plan {
     Gains(plan::GainsArgs),
     /// What the stabilised orbit survives: maps over delay × loss and over the control rate
     Margins(margins::MarginsArgs),
+    /// Pseudo-arclength continuation of the orbit in k (or --param), its flips, the
+    /// period-doubling cascade to period 16 and the largest Lyapunov exponent
+    Continuation(continuation::ContinuationArgs),
 }
 
 fn main() -> ExitCode {
@@ -117,6 +122,7 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Bifurcation(args)) => plan::bifurcation(args),
         Command::Plan(Plan::Gains(args)) => plan::gains(args),
         Command::Plan(Plan::Margins(args)) => margins::margins(args),
+        Command::Plan(Plan::Continuation(args)) => continuation::continuation(args),
         Command::Figures(args) => figures::figures(args),
         Command::Animate(args) => animate::run(args),
         Command::Echo(args) => topics::echo(args),

@@ -6,6 +6,10 @@
 //!   their Floquet multipliers;
 //! - [`gains`]: orbits over a `(K_P, K_D)` grid (Fig. 6);
 //! - [`bifurcation`]: the sweep over the adaptation gain `k` (Fig. 8) and `k*`;
+//! - [`continuation`]: pseudo-arclength continuation of the orbits, flips, folds and
+//!   Neimark–Sacker points, branch switching up the period-doubling cascade;
+//! - [`lyapunov`]: the largest Lyapunov exponent of the tilting loop (variational equations
+//!   through the landings);
 //! - [`margins`]: what the stabilised orbit survives: delay × loss, control rate;
 //! - [`node`] (feature `node`): the planner node that publishes the controller's reference over
 //!   zenoh (the `tilting-planner` binary).
@@ -15,8 +19,10 @@
 #![warn(missing_docs)]
 
 pub mod bifurcation;
+pub mod continuation;
 pub mod gains;
 pub mod identify;
+pub mod lyapunov;
 pub mod margins;
 #[cfg(feature = "node")]
 pub mod node;

@@ -64,7 +64,7 @@ impl OrbitProblem {
         self
     }
 
-    fn law(&self) -> ComputedTorque {
+    pub(crate) fn law(&self) -> ComputedTorque {
         ComputedTorque::new(self.control).expect("validated control settings")
     }
 
@@ -125,14 +125,14 @@ pub enum OrbitError {
 type Aug = SVector<f64, 20>;
 
 /// Flow of the left-tilt closed loop over `[0, t]` from `x0`, with sensitivities.
-struct Flow {
-    x: Vector4<f64>,
-    phi: Matrix4<f64>,
-    f: Vector4<f64>,
-    energy_integral: f64,
+pub(crate) struct Flow {
+    pub(crate) x: Vector4<f64>,
+    pub(crate) phi: Matrix4<f64>,
+    pub(crate) f: Vector4<f64>,
+    pub(crate) energy_integral: f64,
 }
 
-fn closed_loop(p: &Params, law: &ComputedTorque, x: &State) -> State {
+pub(crate) fn closed_loop(p: &Params, law: &ComputedTorque, x: &State) -> State {
     rhs(p, Mode::Left, x, law.torque(0.0, Mode::Left, x))
 }
 
@@ -141,7 +141,7 @@ fn closed_loop(p: &Params, law: &ComputedTorque, x: &State) -> State {
 /// tolerance below that noise would only shrink the steps. Newton's final accuracy does not
 /// depend on the Jacobian's (the residual is integrated at the problem's tolerance), and the
 /// multipliers come out to about 1e-8.
-const SENSITIVITY_TOL: Tolerance = Tolerance {
+pub(crate) const SENSITIVITY_TOL: Tolerance = Tolerance {
     rtol: 1e-9,
     atol: 1e-11,
 };
@@ -175,7 +175,7 @@ fn integrate<const N: usize>(
 
 /// The left-tilt flow over `[0, t]` from `x0` with the energy integral, at the problem's
 /// tolerance; with `sensitivities`, also `Phi` (at [`SENSITIVITY_TOL`]).
-fn flow(
+pub(crate) fn flow(
     pb: &OrbitProblem,
     law: &ComputedTorque,
     x0: &State,
@@ -232,7 +232,7 @@ fn flow(
 }
 
 /// `dc/dbeta` of the impact coefficient, by central difference (`c` is smooth; error ~1e-11).
-fn impact_slope(pb: &OrbitProblem, beta: f64) -> f64 {
+pub(crate) fn impact_slope(pb: &OrbitProblem, beta: f64) -> f64 {
     let h = 1e-5;
     (pb.impact.coefficient(&pb.params, Mode::Left, beta + h)
         - pb.impact.coefficient(&pb.params, Mode::Left, beta - h))
@@ -270,7 +270,7 @@ fn residual(
 /// at a left-tilt start, from the sensitivities at the landing: the saltation of the event
 /// `alpha = 0`, the impact map's Jacobian and the mirror `(beta, beta_dot) -> (pi - beta,
 /// -beta_dot)`.
-fn monodromy(pb: &OrbitProblem, fl: &Flow) -> Matrix2<f64> {
+pub(crate) fn monodromy(pb: &OrbitProblem, fl: &Flow) -> Matrix2<f64> {
     let x = fl.x;
     // Event time sensitivity: d tau / d x0 = -(d alpha / d x0) / alpha_dot.
     let dtau = -fl.phi.row(0) / fl.f[0];
@@ -334,6 +334,24 @@ fn simulate_first_tilt(pb: &OrbitProblem, x0: &State, t_max: f64) -> Result<Firs
             .map_err(|e| OrbitError::Integration(e.to_string()))?;
     }
     Ok(obs)
+}
+
+/// The landing of the first tilt from the left-tilt start `x0` within `t_max` (s): its time and
+/// the post-impact state, when the plate tilts right at once (`None` otherwise).
+pub(crate) fn first_landing(pb: &OrbitProblem, x0: &State, t_max: f64) -> Option<(f64, State)> {
+    let obs = simulate_first_tilt(pb, x0, t_max).ok()?;
+    let land = obs.events.iter().position(|e| e.from == Mode::Left)?;
+    let ev = obs.events[land];
+    let next = obs.events.get(land + 1)?;
+    (next.to == Mode::Right && next.t == ev.t).then_some((ev.t, ev.x_after))
+}
+
+/// The tilt extreme `alpha` (rad) of the first tilt from the left-tilt start `x0`.
+pub(crate) fn first_tilt_peak(pb: &OrbitProblem, x0: &State, t_max: f64) -> Option<f64> {
+    simulate_first_tilt(pb, x0, t_max)
+        .ok()?
+        .peak
+        .map(|p| p.alpha)
 }
 
 /// The first landing time from a left-tilt start, as a guess for `t_end`.

@@ -1,0 +1,322 @@
+//! `tilting plan continuation`: the orbits continued in a parameter, their flips, the
+//! period-doubling cascade and the largest Lyapunov exponent (issue 19). The computations live
+//! in `tilting_planner::continuation` and `tilting_planner::lyapunov`.
+
+use super::{bar, check, emit, usage, ModelArgs};
+use crate::CommandError;
+use anyhow::anyhow;
+use clap::Args;
+use serde::Serialize;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+use tilting_planner::bifurcation::{self, Sweep};
+use tilting_planner::continuation::{self, Diagram, EventKind, Param, Settings};
+use tilting_planner::lyapunov::{self, Exponent};
+use tilting_planner::orbit::{self, OrbitProblem};
+use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
+
+/// `continuation`: pseudo-arclength continuation of the period-1 orbit, branch switching at
+/// each flip, and the Lyapunov exponent.
+#[derive(Debug, Clone, Args)]
+pub struct ContinuationArgs {
+    /// The parameter to continue in: k, kp, kd, m_l (robot and model), m_l_plant (the robot's
+    /// arm mass with the model's kept: the model error), m_f
+    #[arg(long, default_value = "k", value_parser = parse_param)]
+    pub param: Param,
+    /// Where to continue to (in the parameter's units) [default: 2400 for k; required otherwise]
+    #[arg(long, allow_negative_numbers = true)]
+    pub to: Option<f64>,
+    /// The adaptation gain k (1/(J s^2)) of the loop when the parameter is another one; the
+    /// continuation in k starts at this value too (the orbit attracts there)
+    #[arg(long, default_value_t = ORBIT_K, allow_negative_numbers = true)]
+    pub k: f64,
+    /// K_P0 (1/s^2)
+    #[arg(long, default_value_t = ORBIT_KP, allow_negative_numbers = true)]
+    pub kp: f64,
+    /// K_D (1/s)
+    #[arg(long, default_value_t = ORBIT_KD, allow_negative_numbers = true)]
+    pub kd: f64,
+    /// First continuation step (parameter units) [default: 1/200 of the range]
+    #[arg(long)]
+    pub step: Option<f64>,
+    /// Largest continuation step (parameter units) [default: 1/50 of the range]
+    #[arg(long)]
+    pub max_step: Option<f64>,
+    /// Switch branches at flips until this period (tilts): 1 follows the period-1 orbit only
+    #[arg(long, default_value_t = 16)]
+    pub max_period: usize,
+    /// Spacing of the Lyapunov curve in the parameter (0: no curve) [default: 1/200 of the
+    /// range, from the continuation's start]
+    #[arg(long)]
+    pub lyapunov_step: Option<f64>,
+    /// Lyapunov: tilts discarded before averaging
+    #[arg(long, default_value_t = 200)]
+    pub transient: usize,
+    /// Lyapunov: tilts averaged
+    #[arg(long, default_value_t = 400)]
+    pub tilts: usize,
+    /// The model, impact law and output format.
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+fn parse_param(s: &str) -> Result<Param, String> {
+    s.parse()
+}
+
+/// The JSON of `continuation`.
+#[derive(Debug, Serialize)]
+pub struct ContinuationReport {
+    /// E_av of the k = 0 orbit (J), the adaptation's target.
+    pub energy_avg: f64,
+    /// Where the continuation started.
+    pub p_start: f64,
+    /// The branches, flips, ratios and accumulation point.
+    pub diagram: Diagram,
+    /// The largest Lyapunov exponent against the parameter.
+    pub lyapunov: Vec<Exponent>,
+    /// Continuation steps over all branches.
+    pub steps: usize,
+    /// Wall times (s).
+    pub timing: ContinuationTiming,
+}
+
+/// Wall times of one `continuation` command (s).
+#[derive(Debug, Serialize)]
+pub struct ContinuationTiming {
+    /// The base orbit and the attracting start (s).
+    pub setup_s: f64,
+    /// All branches with their events and switches (s).
+    pub continuation_s: f64,
+    /// The Lyapunov curve on all cores (s).
+    pub lyapunov_s: f64,
+    /// `continuation_s` per step (ms).
+    pub per_step_ms: f64,
+}
+
+/// Runs `continuation`.
+pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
+    let params = args.model.params()?;
+    check("kp", args.kp, args.kp > 0.0, "finite and > 0")?;
+    check("kd", args.kd, args.kd > 0.0, "finite and > 0")?;
+    check("k", args.k, args.k >= 0.0, "finite and >= 0")?;
+    if !(1..=64).contains(&args.max_period) || !args.max_period.is_power_of_two() {
+        return Err(usage(format!(
+            "invalid `--max-period` = {}: must be a power of two in 1..=64",
+            args.max_period
+        )));
+    }
+    if args.tilts == 0 || args.tilts > 100_000 || args.transient > 100_000 {
+        return Err(usage(format!(
+            "invalid `--tilts` = {} / `--transient` = {}: allowed 1..=100000 and 0..=100000",
+            args.tilts, args.transient
+        )));
+    }
+    let start = Instant::now();
+    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let o = orbit::smallest(&pb).ok_or_else(|| {
+        CommandError::Failed(anyhow!(
+            "no periodic orbit for K_P = {}, K_D = {}",
+            args.kp,
+            args.kd
+        ))
+    })?;
+    let sw = Sweep {
+        problem: pb,
+        start_beta0: o.beta0,
+        start_beta_dot0: o.beta_dot0,
+        energy_avg: o.energy_avg,
+        tilts: 0,
+        keep: 1,
+        period_tol: 1e-5,
+    };
+    let base = pb.with_adaptation(args.k, o.energy_avg);
+    let p0 = args.param.get(&base);
+    let to = match (args.to, args.param) {
+        (Some(v), _) => v,
+        (None, Param::K) => 2400.0,
+        (None, p) => {
+            return Err(usage(format!(
+                "`--param {p}` needs `--to` (where to continue to)"
+            )))
+        }
+    };
+    let (ok, range) = args.param.allows(to);
+    check(
+        "to",
+        to,
+        ok && to != p0,
+        &format!("{range} and not the start {p0}"),
+    )?;
+    let span = (to - p0).abs();
+    let ds = check(
+        "step",
+        args.step.unwrap_or(span / 200.0),
+        args.step.is_none_or(|s| s > 0.0),
+        "finite and > 0",
+    )?;
+    let ds_max = args.max_step.unwrap_or(span / 50.0).max(ds);
+    let guess = bifurcation::attracting_orbit_guess(&sw, args.k, 200).ok_or_else(|| {
+        CommandError::Failed(anyhow!(
+            "the adapted loop at k = {} does not settle on a tilting orbit to start from",
+            args.k
+        ))
+    })?;
+    let setup_s = start.elapsed().as_secs_f64();
+    let set = Settings {
+        p_min: p0.min(to),
+        p_max: p0.max(to),
+        ds,
+        ds_min: ds * 1e-4,
+        ds_max,
+        max_steps: 2000,
+        locate_tol: 1e-7,
+        max_period: args.max_period,
+    };
+    let b = bar(1000, "continuation", args.model.json);
+    let at = AtomicU64::new(0);
+    let start = Instant::now();
+    let diagram = continuation::diagram(&base, args.param, p0, guess, &set, &|tilts, p| {
+        // Position: the branch's share of the range, in blocks per period.
+        let block =
+            (tilts.trailing_zeros() as u64) * 1000 / (args.max_period.trailing_zeros() as u64 + 1);
+        let frac = ((p - p0) / (to - p0)).clamp(0.0, 1.0);
+        let pos = block + (frac * 1000.0 / (args.max_period.trailing_zeros() as f64 + 1.0)) as u64;
+        at.fetch_max(pos, Ordering::Relaxed);
+        b.set_position(at.load(Ordering::Relaxed));
+    })
+    .map_err(|e| CommandError::Failed(anyhow!("continuation failed: {e}")))?;
+    let continuation_s = start.elapsed().as_secs_f64();
+    b.finish_and_clear();
+    let lstep = args.lyapunov_step.unwrap_or(span / 200.0);
+    check("lyapunov-step", lstep, lstep >= 0.0, "finite and >= 0")?;
+    let ps: Vec<f64> = if lstep > 0.0 {
+        let n = (span / lstep).floor() as usize;
+        (0..=n)
+            .map(|i| p0 + (to - p0).signum() * lstep * i as f64)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let b = bar(ps.len() as u64, "lyapunov", args.model.json);
+    let start = Instant::now();
+    let param = args.param;
+    let lyap = lyapunov::curve(
+        &ps,
+        &|p| param.set(&base, p),
+        [o.beta0, o.beta_dot0],
+        args.transient,
+        args.tilts,
+        &|| b.inc(1),
+    );
+    let lyapunov_s = start.elapsed().as_secs_f64();
+    b.finish_and_clear();
+    let steps = diagram.steps();
+    let report = ContinuationReport {
+        energy_avg: o.energy_avg,
+        p_start: p0,
+        steps,
+        timing: ContinuationTiming {
+            setup_s,
+            continuation_s,
+            lyapunov_s,
+            per_step_ms: 1e3 * continuation_s / steps.max(1) as f64,
+        },
+        diagram,
+        lyapunov: lyap,
+    };
+    emit(args.model.json, &report, || human(&report))
+}
+
+/// The human summary.
+fn human(r: &ContinuationReport) -> String {
+    let d = &r.diagram;
+    let name = d.param.name();
+    let mut s = format!(
+        "continuation in {name} from {} (E_av = {:.9} J): {} branches, {} steps\n",
+        r.p_start,
+        r.energy_avg,
+        d.branches.len(),
+        r.steps
+    );
+    for br in &d.branches {
+        let (lo, hi) = br
+            .points
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.p), b.max(p.p))
+            });
+        let worst = br.points.iter().map(|p| p.residual).fold(0.0, f64::max);
+        s += &format!(
+            "  period {:>2}: {} points in {name} [{lo:.4}, {hi:.4}], {} steps, {} Newton iterations, \
+             largest residual {worst:.1e}, end: {:?}\n",
+            br.tilts,
+            br.points.len(),
+            br.steps,
+            br.newton_iterations,
+            br.end
+        );
+        for ev in &br.events {
+            let mu: Vec<String> = ev
+                .point
+                .multipliers
+                .iter()
+                .map(|m| format!("{:.6}{:+.6}i", m[0], m[1]))
+                .collect();
+            s += &format!(
+                "    {}: {name} = {:.7}, multipliers {}\n",
+                match ev.kind {
+                    EventKind::Flip => "flip",
+                    EventKind::Fold => "fold",
+                    EventKind::NeimarkSacker => "Neimark-Sacker",
+                },
+                ev.p,
+                mu.join(", ")
+            );
+        }
+    }
+    s += "flips (period 2^(n-1) -> 2^n):\n";
+    for (i, k) in d.flips.iter().enumerate() {
+        let ratio = (i >= 2).then(|| d.ratios[i - 2]);
+        s += &format!(
+            "  {name}_{} = {k:.7}{}\n",
+            i + 1,
+            ratio.map_or(String::new(), |q| format!(
+                "   ratio ({name}_{} - {name}_{}) / ({name}_{} - {name}_{}) = {q:.4} (Feigenbaum {:.4})",
+                i,
+                i - 1,
+                i + 1,
+                i,
+                continuation::FEIGENBAUM_DELTA
+            ))
+        );
+    }
+    if let Some(pi) = d.p_inf {
+        s += &format!("accumulation point {name}_inf = {pi:.4} (own ratio)");
+        if let Some(pf) = d.p_inf_feigenbaum {
+            s += &format!(", {pf:.4} (Feigenbaum's)");
+        }
+        s += "\n";
+    }
+    if !r.lyapunov.is_empty() {
+        let pos = r
+            .lyapunov
+            .iter()
+            .find(|e| e.lambda.is_some_and(|l| l > 0.0));
+        s += &format!(
+            "Lyapunov: {} values; first positive exponent at {name} = {}\n",
+            r.lyapunov.len(),
+            pos.map_or("none".into(), |e| format!(
+                "{} ({:.4} 1/s)",
+                e.p,
+                e.lambda.unwrap_or(0.0)
+            ))
+        );
+    }
+    let tm = &r.timing;
+    s += &format!(
+        "wall time: set-up {:.3} s, continuation {:.3} s ({:.2} ms per step), Lyapunov {:.3} s\n",
+        tm.setup_s, tm.continuation_s, tm.per_step_ms, tm.lyapunov_s
+    );
+    s
+}

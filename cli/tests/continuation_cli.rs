@@ -1,0 +1,63 @@
+//! Runs the built `tilting plan continuation`: the JSON carries the branches, the flips (the
+//! first one at the project's k* = 1923.99) and the Lyapunov curve (negative on the stable
+//! period-1 orbit); bad input is refused naming the flag and its range.
+
+use std::process::Command;
+
+mod common;
+use common::BIN;
+
+#[test]
+fn a_short_continuation_reports_the_first_flip_and_the_exponent() {
+    let o = Command::new(BIN)
+        .args(["plan", "continuation", "--to", "2000", "--max-period", "2"])
+        .args([
+            "--lyapunov-step",
+            "500",
+            "--transient",
+            "20",
+            "--tilts",
+            "50",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let flips = v["diagram"]["flips"].as_array().unwrap();
+    let k1 = flips[0].as_f64().unwrap();
+    assert!((k1 - 1923.99).abs() < 0.01, "k_1 = {k1}");
+    let branches = v["diagram"]["branches"].as_array().unwrap();
+    assert_eq!(branches.len(), 2);
+    assert_eq!(branches[1]["tilts"], 2);
+    assert!(v["steps"].as_u64().unwrap() > 10);
+    // k = 500, 1000, 1500, 2000: the first three on the stable period-1 orbit.
+    let ly = v["lyapunov"].as_array().unwrap();
+    assert_eq!(ly.len(), 4);
+    for e in &ly[..3] {
+        assert!(e["lambda"].as_f64().unwrap() < 0.0, "{e}");
+    }
+}
+
+#[test]
+fn bad_input_names_the_flag_and_the_range() {
+    for (args, want) in [
+        (
+            vec!["--param", "q"],
+            "invalid parameter `q`: must be one of k, kp, kd",
+        ),
+        (vec!["--param", "kd"], "`--param kd` needs `--to`"),
+        (vec!["--max-period", "3"], "invalid `--max-period` = 3"),
+        (vec!["--to", "-5"], "invalid `--to` = -5"),
+        (vec!["--kd", "0"], "invalid `--kd` = 0"),
+    ] {
+        let o = Command::new(BIN)
+            .args(["plan", "continuation"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}

@@ -1,0 +1,308 @@
+//! One branch: the predictor-corrector loop with step control, the test functions along it,
+//! the location of each bifurcation, and the switch at a flip to the doubled-period branch.
+
+use super::arclength::{self, Continuation, Solved};
+use super::cycle;
+use super::{Branch, EndReason, Event, EventKind, Point, Settings};
+use crate::orbit::{eigenvalues2, OrbitError};
+use nalgebra::{DVector, Matrix2};
+
+/// Multipliers as `[re, im]` pairs and whether all lie inside the unit circle.
+fn multipliers(m: &Matrix2<f64>) -> (Vec<[f64; 2]>, bool) {
+    let mu = eigenvalues2(m);
+    let stable = mu.iter().all(|v| v[0].hypot(v[1]) < 1.0);
+    (mu, stable)
+}
+
+/// The public point of a solved `y` (with the simulator's peaks and re-simulation check).
+fn point(c: &Continuation, s: &Solved) -> Result<Point, OrbitError> {
+    let m = s.y.len() - 1;
+    let z = s.y.rows(0, m).into_owned();
+    let pb = c.problem(&s.y)?;
+    let mismatch = cycle::resimulated_mismatch(&pb, &z)
+        .ok_or_else(|| OrbitError::Invalid("a tilt does not land and tilt back at once".into()))?;
+    let (mu, stable) = multipliers(&arclength::monodromy_of(s));
+    Ok(Point {
+        p: c.p(&s.y),
+        z: z.iter().copied().collect(),
+        peaks: cycle::peaks(&pb, &z),
+        multipliers: mu,
+        stable,
+        residual: s.residual,
+        resimulated_mismatch: mismatch,
+    })
+}
+
+/// Locates the zero of test function `which` between the solved points `a` and `b` (whose
+/// values have opposite signs) by the Illinois variant of regula falsi on the chord parameter
+/// `theta` (each trial corrected onto the branch on the hyperplane through the chord point
+/// orthogonal to the chord), until the parameter bracket is below `tol`.
+fn locate(
+    c: &Continuation,
+    a: &Solved,
+    b: &Solved,
+    which: usize,
+    tol: f64,
+) -> Result<Solved, OrbitError> {
+    let d = &b.y - &a.y;
+    let t = d.normalize();
+    let f = |s: &Solved| arclength::tests(&arclength::monodromy_of(s))[which];
+    let (mut t_lo, mut f_lo) = (0.0, f(a));
+    let (mut t_hi, mut f_hi) = (1.0, f(b));
+    let (mut p_lo, mut p_hi) = (c.p(&a.y), c.p(&b.y));
+    let mut best = None;
+    let mut side = 0i8;
+    for _ in 0..60 {
+        if (p_hi - p_lo).abs() < tol {
+            break;
+        }
+        let mut th = (t_lo * f_hi - t_hi * f_lo) / (f_hi - f_lo);
+        if !(th > t_lo && th < t_hi) {
+            th = 0.5 * (t_lo + t_hi);
+        }
+        let s = c.correct(&(&a.y + &d * th), &t)?;
+        let fs = f(&s);
+        let ps = c.p(&s.y);
+        if fs == 0.0 {
+            return Ok(s);
+        }
+        if fs.signum() == f_lo.signum() {
+            (t_lo, f_lo, p_lo) = (th, fs, ps);
+            if side == -1 {
+                f_hi *= 0.5;
+            }
+            side = -1;
+        } else {
+            (t_hi, f_hi, p_hi) = (th, fs, ps);
+            if side == 1 {
+                f_lo *= 0.5;
+            }
+            side = 1;
+        }
+        best = Some(s);
+    }
+    best.ok_or_else(|| OrbitError::Invalid("no test-function zero between the points".into()))
+}
+
+/// The event of a located point.
+fn event(c: &Continuation, s: &Solved, kind: EventKind) -> Result<Event, OrbitError> {
+    let m = arclength::monodromy_of(s);
+    let pt = point(c, s)?;
+    Ok(Event {
+        kind,
+        p: pt.p,
+        test: arclength::tests(&m)[kind as usize],
+        point: pt,
+    })
+}
+
+/// The kinds whose test function changes sign from `a` to `b` (a Neimark–Sacker point only
+/// while the pair of multipliers is complex on both sides).
+fn crossings(a: &Matrix2<f64>, b: &Matrix2<f64>, skip_fold: bool) -> Vec<EventKind> {
+    let (ta, tb) = (arclength::tests(a), arclength::tests(b));
+    let complex = |m: &Matrix2<f64>| m.trace().powi(2) < 4.0 * m.determinant();
+    let mut out = Vec::new();
+    for (i, kind) in [EventKind::Flip, EventKind::Fold, EventKind::NeimarkSacker]
+        .into_iter()
+        .enumerate()
+    {
+        let changed = ta[i] * tb[i] < 0.0;
+        let relevant = match kind {
+            EventKind::Flip => true,
+            EventKind::Fold => !skip_fold,
+            EventKind::NeimarkSacker => complex(a) && complex(b),
+        };
+        if changed && relevant {
+            out.push(kind);
+        }
+    }
+    out
+}
+
+/// Continues from the solved `first` along `dir` until the parameter leaves the settings'
+/// range, the step count runs out, or the corrector fails at the smallest step. `born_at_flip`
+/// skips fold detection on the first step (a doubled branch starts with a multiplier at +1).
+pub(crate) fn follow(
+    c: &Continuation,
+    first: Solved,
+    dir: DVector<f64>,
+    set: &Settings,
+    born_at_flip: bool,
+    tick: &(dyn Fn(usize, f64) + Sync),
+) -> Branch {
+    let tilts = (first.y.len() - 1) / 3;
+    let mut br = Branch {
+        tilts,
+        points: Vec::new(),
+        events: Vec::new(),
+        steps: 0,
+        newton_iterations: first.iterations,
+        end: EndReason::Steps,
+    };
+    match point(c, &first) {
+        Ok(p) => br.points.push(p),
+        Err(e) => {
+            br.end = EndReason::Failed(e.to_string());
+            return br;
+        }
+    }
+    let mut ds = set.ds / c.scale;
+    let (ds_min, ds_max) = (set.ds_min / c.scale, set.ds_max / c.scale);
+    let mut cur = first;
+    let mut t = match c.tangent(&cur.y, &dir) {
+        Ok(t) => t,
+        Err(e) => {
+            br.end = EndReason::Failed(e.to_string());
+            return br;
+        }
+    };
+    while br.steps < set.max_steps {
+        let trial = c.correct(&(&cur.y + &t * ds), &t);
+        let next = match trial {
+            // A corrector that lands far from its predictor jumped to another branch.
+            Ok(s) if (&s.y - &cur.y).norm() <= 2.0 * ds => s,
+            other => {
+                if ds <= ds_min {
+                    br.end = EndReason::Failed(match other {
+                        Err(e) => e.to_string(),
+                        Ok(_) => "the corrector jumped".into(),
+                    });
+                    return br;
+                }
+                ds = (ds * 0.5).max(ds_min);
+                continue;
+            }
+        };
+        br.steps += 1;
+        br.newton_iterations += next.iterations;
+        let (ma, mb) = (
+            arclength::monodromy_of(&cur),
+            arclength::monodromy_of(&next),
+        );
+        for kind in crossings(&ma, &mb, born_at_flip && br.steps == 1) {
+            match locate(c, &cur, &next, kind as usize, set.locate_tol)
+                .and_then(|s| event(c, &s, kind))
+            {
+                Ok(ev) => br.events.push(ev),
+                Err(e) => {
+                    br.end = EndReason::Failed(format!("locating a {kind:?}: {e}"));
+                    return br;
+                }
+            }
+        }
+        let pt = match point(c, &next) {
+            Ok(p) => p,
+            Err(e) => {
+                br.end = EndReason::Failed(e.to_string());
+                return br;
+            }
+        };
+        let p = pt.p;
+        br.points.push(pt);
+        tick(tilts, p);
+        if p > set.p_max || p < set.p_min {
+            br.end = EndReason::Range;
+            return br;
+        }
+        let t_new = match c.tangent(&next.y, &t) {
+            Ok(v) => v,
+            Err(e) => {
+                br.end = EndReason::Failed(e.to_string());
+                return br;
+            }
+        };
+        ds = if next.iterations <= 3 {
+            (ds * 1.5).min(ds_max)
+        } else {
+            ds
+        };
+        t = t_new;
+        cur = next;
+    }
+    br
+}
+
+/// The flip's eigenvector carried along the cycle: for each tilt `i` the start deviation
+/// `(d beta0_i, d beta_dot0_i, d t_i)`, with `v_{i+1} = P_i v_i` and the landing-time shift.
+fn flip_direction(s: &Solved) -> Result<DVector<f64>, OrbitError> {
+    let m = arclength::monodromy_of(s);
+    // The eigenvector of the real eigenvalue nearest -1.
+    let mu = eigenvalues2(&m)
+        .into_iter()
+        .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()))
+        .expect("two eigenvalues")[0];
+    let a = m - Matrix2::identity() * mu;
+    // A null vector of the 2x2 `a`: orthogonal to its larger row.
+    let row = if a.row(0).norm() >= a.row(1).norm() {
+        a.row(0).into_owned()
+    } else {
+        a.row(1).into_owned()
+    };
+    let mut v = nalgebra::Vector2::new(-row[1], row[0]);
+    if v.norm() == 0.0 {
+        return Err(OrbitError::Invalid("no flip eigenvector".into()));
+    }
+    v /= v.norm();
+    let n = s.maps.len();
+    let mut w = DVector::zeros(3 * n);
+    for i in 0..n {
+        let g = cycle::landing_time_gradient(&s.flows[i]);
+        w[3 * i] = v[0];
+        w[3 * i + 1] = v[1];
+        w[3 * i + 2] = g[0] * v[0] + g[1] * v[1];
+        v = s.maps[i] * v;
+    }
+    Ok(w)
+}
+
+/// Switches at the located flip `s` of a period-`n` branch to the period-`2 n` branch: the
+/// doubled cycle plus `eps` times the flip direction `(w, -w, 0)`, corrected on the hyperplane
+/// orthogonal to that direction (which the doubled period-`n` cycle never meets: its two
+/// halves are equal, so its projection on `(w, -w)` is zero). `eps` is halved from 2e-3 until
+/// the new branch's first point lies within `max_dp` of the flip in the parameter (the branch
+/// bends away as `eps^2`, more sharply the deeper in the cascade). Returns the first point of
+/// the new branch and the direction to continue in.
+pub(crate) fn switch(
+    c: &Continuation,
+    s: &Solved,
+    max_dp: f64,
+) -> Result<(Solved, DVector<f64>), OrbitError> {
+    let w = flip_direction(s)?;
+    let m = s.y.len() - 1;
+    let z2 = cycle::doubled(&s.y.rows(0, m).into_owned());
+    let p_star = c.p(&s.y);
+    let y_star = c.join(&z2, p_star);
+    let mut d = DVector::zeros(2 * m + 1);
+    d.rows_mut(0, m).copy_from(&w);
+    d.rows_mut(m, m).copy_from(&(-&w));
+    let d = d.normalize();
+    let mut last = OrbitError::Invalid("no switch tried".into());
+    let mut eps = 2e-3;
+    while eps > 1e-7 {
+        match c.correct(&(&y_star + &d * eps), &d) {
+            Ok(first) => {
+                // Not the doubled cycle: the halves differ by about eps.
+                let gap = (first.y.rows(0, m) - first.y.rows(m, m)).norm();
+                let dp = (c.p(&first.y) - p_star).abs();
+                if gap > 0.1 * eps && dp <= max_dp {
+                    return Ok((first, d));
+                }
+                last = OrbitError::Invalid(format!(
+                    "branch switching at {p_star}: halves {gap:e} apart, {dp} from the flip"
+                ));
+            }
+            Err(e) => last = e,
+        }
+        eps *= 0.5;
+    }
+    Err(last)
+}
+
+/// Locates a single flip again from a branch's event for switching: the `Solved` form.
+pub(crate) fn resolve(c: &Continuation, ev: &Event) -> Result<Solved, OrbitError> {
+    let y = c.join(&DVector::from_vec(ev.point.z.clone()), ev.p);
+    // Corrected at fixed parameter: the tangent hyperplane `p = const`.
+    let mut t = DVector::zeros(y.len());
+    t[y.len() - 1] = 1.0;
+    c.correct(&y, &t)
+}

@@ -1,0 +1,244 @@
+//! Pseudo-arclength continuation of the periodic tilting orbits (issue 19): the period-1 orbit
+//! of approach 2 followed in a parameter (`k` by default), its Floquet multipliers along the
+//! branch, flips (period doubling), folds and Neimark–Sacker points located by a test function,
+//! and branch switching at each flip to the doubled-period orbit, solved as its own boundary
+//! value problem ([`cycle`]: `n` tilts of the mirrored half-period map by multiple shooting).
+//!
+//! The method is the one of AUTO-07p, MatCont, COCO (its `hspo` toolbox for hybrid periodic
+//! orbits) and BifurcationKit.jl, applied to the hybrid shooting map of [`orbit`](crate::orbit):
+//! the landing event, the impact map and the mirror sit inside the residual, and the
+//! multipliers come from the same variational equations with the landing's saltation.
+//! - Predictor: the unit tangent of `R(z, p) = 0` (null vector of `[dR/dz, dR/dp]`, `dR/dp` by
+//!   central differences), corrector: Newton on `R = 0` with the hyperplane through the
+//!   predictor orthogonal to the tangent; step doubled by 1.5 after an easy corrector, halved
+//!   after a failure or a jump.
+//! - Test functions of the cycle's 2x2 monodromy `M`: `det(I + M)` (flip), `det(I - M)`
+//!   (fold), `det M - 1` with complex multipliers (Neimark–Sacker), each zero located by the
+//!   Illinois regula falsi along the chord between the two bracketing points until the
+//!   parameter bracket is below [`Settings::locate_tol`].
+//! - Branch switching at a flip: the doubled cycle plus `eps (w, -w)` with `w` the flip
+//!   eigenvector carried along the tilts, corrected on the hyperplane orthogonal to `(w, -w)`.
+
+pub(crate) mod arclength;
+mod branch;
+pub(crate) mod cycle;
+pub mod param;
+
+pub use param::Param;
+
+use crate::orbit::{self, OrbitError, OrbitProblem};
+use arclength::Continuation;
+use nalgebra::DVector;
+use serde::{Deserialize, Serialize};
+
+/// Feigenbaum's constant `delta` for period-doubling cascades of one-humped maps.
+pub const FEIGENBAUM_DELTA: f64 = 4.669_201_609_102_99;
+
+/// How to continue.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// Lowest parameter value: a branch stops when it leaves `[p_min, p_max]`.
+    pub p_min: f64,
+    /// Highest parameter value.
+    pub p_max: f64,
+    /// First step, in parameter units (arclength scaled by the parameter's scale).
+    pub ds: f64,
+    /// Smallest step before a branch is given up.
+    pub ds_min: f64,
+    /// Largest step.
+    pub ds_max: f64,
+    /// Most steps per branch.
+    pub max_steps: usize,
+    /// Width of the parameter bracket a bifurcation is located to.
+    pub locate_tol: f64,
+    /// Switch at flips until the branches reach this period (in tilts): 16 follows the
+    /// period-1, 2, 4, 8 and 16 orbits and locates the flip of the last one too.
+    pub max_period: usize,
+}
+
+/// One point of a branch: a solved period-`n` cycle.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Point {
+    /// Parameter value.
+    pub p: f64,
+    /// The cycle `(beta0_i - ..., beta_dot0_i, t_i)` per tilt (rad, rad/s, s): `beta0` is
+    /// `beta - pi/2` at the (mirrored) start of tilt `i`, `t_i` its duration.
+    pub z: Vec<f64>,
+    /// Maximal `|alpha|` (rad) of each tilt, by the hybrid simulator.
+    pub peaks: Vec<f64>,
+    /// Floquet multipliers of the cycle's map (the `n`-fold mirrored half-period map), `[re,
+    /// im]`.
+    pub multipliers: Vec<[f64; 2]>,
+    /// All multipliers inside the unit circle.
+    pub stable: bool,
+    /// 2-norm of the BVP residual.
+    pub residual: f64,
+    /// Largest mismatch when each tilt is re-simulated by the hybrid simulator (post-impact
+    /// state against the next mirrored start, and landing time), an independent check.
+    pub resimulated_mismatch: f64,
+}
+
+/// What a test function found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EventKind {
+    /// A real multiplier crosses -1: period doubling.
+    Flip = 0,
+    /// A real multiplier crosses +1: a fold (limit point) of the branch.
+    Fold = 1,
+    /// A complex pair crosses the unit circle.
+    NeimarkSacker = 2,
+}
+
+/// A located bifurcation.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Event {
+    /// Its kind.
+    pub kind: EventKind,
+    /// Parameter value, located to [`Settings::locate_tol`].
+    pub p: f64,
+    /// The test function's value there (0 at the exact point).
+    pub test: f64,
+    /// The orbit there.
+    pub point: Point,
+}
+
+/// Why a branch ended.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EndReason {
+    /// It left the parameter range.
+    Range,
+    /// It took the most steps allowed.
+    Steps,
+    /// The corrector failed at the smallest step (the message says why).
+    Failed(String),
+}
+
+/// One continued branch.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Branch {
+    /// Tilts per period of its orbits (1, 2, 4, ...).
+    pub tilts: usize,
+    /// Its points, in continuation order.
+    pub points: Vec<Point>,
+    /// The bifurcations located along it.
+    pub events: Vec<Event>,
+    /// Continuation steps taken.
+    pub steps: usize,
+    /// Newton iterations of its correctors (location and switching not included).
+    pub newton_iterations: usize,
+    /// Why it ended.
+    pub end: EndReason,
+}
+
+/// The period-doubling cascade: the branches, the flip sequence and its ratios.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Diagram {
+    /// The continuation parameter.
+    pub param: Param,
+    /// The branches: period 1, then each doubled one.
+    pub branches: Vec<Branch>,
+    /// `p_1 < p_2 < ...`: the first flip of each branch.
+    pub flips: Vec<f64>,
+    /// `(p_n - p_{n-1}) / (p_{n+1} - p_n)`, to compare with [`FEIGENBAUM_DELTA`].
+    pub ratios: Vec<f64>,
+    /// The accumulation point extrapolated from the last three flips with their own ratio,
+    /// `p_n + (p_n - p_{n-1}) / (delta_n - 1)`.
+    pub p_inf: Option<f64>,
+    /// The same from the last two flips with Feigenbaum's `delta`.
+    pub p_inf_feigenbaum: Option<f64>,
+}
+
+impl Diagram {
+    /// Continuation steps over all branches.
+    pub fn steps(&self) -> usize {
+        self.branches.iter().map(|b| b.steps).sum()
+    }
+}
+
+/// The problem `base` with `param` at `p0` and its period-1 orbit from `guess` `(beta0,
+/// beta_dot0, t_end)` as a first point.
+fn first_point(
+    c: &Continuation,
+    p0: f64,
+    guess: [f64; 3],
+) -> Result<arclength::Solved, OrbitError> {
+    let pb = c.param.set(&c.base, p0).map_err(OrbitError::Invalid)?;
+    let s = orbit::solve(&pb, guess)?;
+    let y = c.join(&DVector::from_vec(vec![s.beta0, s.beta_dot0, s.t_end]), p0);
+    let mut t = DVector::zeros(4);
+    t[3] = 1.0;
+    c.correct(&y, &t)
+}
+
+/// The flip sequence's ratios and accumulation estimates.
+pub fn cascade(flips: &[f64]) -> (Vec<f64>, Option<f64>, Option<f64>) {
+    let ratios: Vec<f64> = flips
+        .windows(3)
+        .map(|w| (w[1] - w[0]) / (w[2] - w[1]))
+        .collect();
+    let n = flips.len();
+    let p_inf = ratios
+        .last()
+        .map(|d| flips[n - 1] + (flips[n - 1] - flips[n - 2]) / (d - 1.0));
+    let p_inf_f =
+        (n >= 2).then(|| flips[n - 1] + (flips[n - 1] - flips[n - 2]) / (FEIGENBAUM_DELTA - 1.0));
+    (ratios, p_inf, p_inf_f)
+}
+
+/// Continues the period-1 orbit of `base` with `param` from `p0` (the orbit near `guess`)
+/// towards `p_max` (or `p_min` when `p0` is above `p_max`... the direction is the one of
+/// increasing `p` unless `p0 >= p_max`), switching at the first flip of each branch until the
+/// period reaches `set.max_period`. `tick(tilts, p)` is called after each step.
+pub fn diagram(
+    base: &OrbitProblem,
+    param: Param,
+    p0: f64,
+    guess: [f64; 3],
+    set: &Settings,
+    tick: &(dyn Fn(usize, f64) + Sync),
+) -> Result<Diagram, OrbitError> {
+    let c = Continuation {
+        base: *base,
+        param,
+        scale: p0.abs().max(1.0),
+    };
+    let first = first_point(&c, p0, guess)?;
+    let mut dir = DVector::zeros(4);
+    dir[3] = if p0 >= set.p_max { -1.0 } else { 1.0 };
+    let mut branches = vec![branch::follow(&c, first, dir, set, false, tick)];
+    let mut flips = Vec::new();
+    loop {
+        let br = branches.last().expect("one branch");
+        let Some(flip) = br.events.iter().find(|e| e.kind == EventKind::Flip) else {
+            break;
+        };
+        flips.push(flip.p);
+        if br.tilts >= set.max_period {
+            break;
+        }
+        // The next flip comes about 1/4.67 of the last gap later: the new branch starts well
+        // before it, and its first steps are a small share of that gap.
+        let gap = flips
+            .windows(2)
+            .last()
+            .map_or(set.ds * 10.0, |w| (w[1] - w[0]).abs());
+        let s = branch::resolve(&c, flip)?;
+        let (first, d) = branch::switch(&c, &s, gap / 50.0)?;
+        let local = Settings {
+            ds: set.ds.min(gap / 50.0),
+            ..*set
+        };
+        branches.push(branch::follow(&c, first, d, &local, true, tick));
+    }
+    let (ratios, p_inf, p_inf_feigenbaum) = cascade(&flips);
+    Ok(Diagram {
+        param,
+        branches,
+        flips,
+        ratios,
+        p_inf,
+        p_inf_feigenbaum,
+    })
+}
