@@ -4,7 +4,7 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use tilting::commands::{
-    animate, continuation, figures, identify, margins, plan, recording, simulate, topics,
+    animate, continuation, figures, identify, margins, plan, recording, shard, simulate, topics,
 };
 use tilting::live;
 
@@ -20,8 +20,9 @@ Run:
   simulate    The closed loop offline for one scenario (default: the paper's orbit)
 
 Plan:
-  plan        orbit | sinusoid | bifurcation | gains | margins | continuation: the paper's boundary value
-              problems, stability, sweeps, and what the orbit survives on a network
+  plan        orbit | sinusoid | bifurcation | gains | margins | continuation | merge: the
+              paper's boundary value problems, stability, sweeps (--shard I/N for job
+              arrays), and what the orbit survives on a network
 
 Look:
   figures     The paper's Figs. 4 to 8 as PNG files
@@ -109,6 +110,9 @@ enum Plan {
     /// Pseudo-arclength continuation of the orbit in k (or --param), its flips, the
     /// period-doubling cascade to period 16 and the largest Lyapunov exponent
     Continuation(continuation::ContinuationArgs),
+    /// Merge the shard files of a sweep run with --shard I/N into the whole sweep's JSON (what
+    /// the unsharded command prints with --json, bit for bit)
+    Merge(shard::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -123,6 +127,7 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Gains(args)) => plan::gains(args),
         Command::Plan(Plan::Margins(args)) => margins::margins(args),
         Command::Plan(Plan::Continuation(args)) => continuation::continuation(args),
+        Command::Plan(Plan::Merge(args)) => shard::merge(args),
         Command::Figures(args) => figures::figures(args),
         Command::Animate(args) => animate::run(args),
         Command::Echo(args) => topics::echo(args),

@@ -11,6 +11,8 @@
 //! - [`lyapunov`]: the largest Lyapunov exponent of the tilting loop (variational equations
 //!   through the landings);
 //! - [`margins`]: what the stabilised orbit survives: delay × loss, control rate;
+//! - [`jobs`]: the bifurcation sweep and the gains grid as jobs: checked, whole or sharded;
+//! - [`shard`]: splitting a sweep into shards (`--shard I/N`) and merging them back;
 //! - [`node`] (feature `node`): the planner node that publishes the controller's reference over
 //!   zenoh (the `tilting-planner` binary).
 //!
@@ -22,9 +24,11 @@ pub mod bifurcation;
 pub mod continuation;
 pub mod gains;
 pub mod identify;
+pub mod jobs;
 pub mod lyapunov;
 pub mod margins;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod orbit;
+pub mod shard;
 pub mod sinusoid;

@@ -19,7 +19,10 @@
 
 mod survey;
 
-pub use survey::{MarginsReport, RobotMargins, Survey, SurveyError};
+pub use survey::{
+    InvalidSurvey, MarginsReport, RobotMargins, Survey, SurveyError, SurveyShard, UnitResult,
+    MAX_POINTS,
+};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -381,31 +384,145 @@ pub fn imperfection_map(
     values
         .par_iter()
         .map(|&v| {
-            let robot = which.robot(v, seed);
-            let (tilts, last_peak, why) = if let Err(e) = robot.validate() {
-                (0, 0.0, e.to_string())
-            } else {
-                run(
-                    sc,
-                    rate,
-                    &Impairment::default(),
-                    &LoopOptions::default(),
-                    &robot,
-                    c,
-                )
-            };
-            let why = judge_peak(why, last_peak, nominal, c);
+            let p = imperfect_point(sc, rate, which, v, seed, c, nominal);
             tick();
-            ImperfectPoint {
-                imperfection: which,
-                value: v,
-                survived: why.is_empty(),
-                tilts,
-                last_peak,
-                why,
-            }
+            p
         })
         .collect()
+}
+
+/// One point of an imperfection map: the robot with `which` at `value`, at `rate` (Hz) over a
+/// perfect network.
+fn imperfect_point(
+    sc: &Scenario,
+    rate: f64,
+    which: Imperfection,
+    value: f64,
+    seed: u64,
+    c: &Criteria,
+    nominal: f64,
+) -> ImperfectPoint {
+    let robot = which.robot(value, seed);
+    let (tilts, last_peak, why) = if let Err(e) = robot.validate() {
+        (0, 0.0, e.to_string())
+    } else {
+        run(
+            sc,
+            rate,
+            &Impairment::default(),
+            &LoopOptions::default(),
+            &robot,
+            c,
+        )
+    };
+    let why = judge_peak(why, last_peak, nominal, c);
+    ImperfectPoint {
+        imperfection: which,
+        value,
+        survived: why.is_empty(),
+        tilts,
+        last_peak,
+        why,
+    }
+}
+
+/// One point of a Monte-Carlo study: every imperfection at once, at one seed. Its result
+/// depends on these values only (the link's random streams and the sensor noise are drawn from
+/// `seed`), never on which other points run or in what order.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// Total constant delay, state and torque together (s), in [0, 60].
+    pub delay: f64,
+    /// Loss probability of each direction, in [0, 1].
+    pub loss: f64,
+    /// Sensor noise of both angles: standard deviation (rad), in [0, 10].
+    pub angle_noise: f64,
+    /// Sensor noise of both rates: standard deviation (rad/s), in [0, 10].
+    pub rate_noise: f64,
+    /// Arm-mass error of the plant against the controller's model (relative), in (-1, 10].
+    pub mass_error: f64,
+    /// Control rate (Hz), in [1, 10000].
+    pub rate: f64,
+    /// The controller predicts over the delay it measures (`--predict auto`).
+    pub predict: bool,
+    /// Seed of the links' random streams and of the sensor noise.
+    pub seed: u64,
+}
+
+/// The verdict on one [`Sample`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SampleResult {
+    /// All criteria hold.
+    pub survived: bool,
+    /// Tilts completed.
+    pub tilts: u64,
+    /// Mean |peak| of the last 10 tilts (rad); 0 with fewer tilts.
+    pub last_peak: f64,
+    /// Why it did not survive (empty if it did).
+    pub why: String,
+}
+
+impl Sample {
+    /// Checks every value is finite and in its range; the message names the field.
+    pub fn check(&self) -> Result<(), String> {
+        for (name, v, lo, hi) in [
+            ("delay", self.delay, 0.0, 60.0),
+            ("loss", self.loss, 0.0, 1.0),
+            ("angle_noise", self.angle_noise, 0.0, 10.0),
+            ("rate_noise", self.rate_noise, 0.0, 10.0),
+            ("mass_error", self.mass_error, -1.0, 10.0),
+            ("rate", self.rate, 1.0, 10_000.0),
+        ] {
+            if !(v.is_finite() && (lo..=hi).contains(&v)) || (name == "mass_error" && v <= -1.0) {
+                return Err(format!("invalid `{name}` = {v}: allowed {lo} to {hi}"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs the point on the paper's loop against the `nominal` peak (rad, [`nominal_peak`]).
+    pub fn run(&self, sc: &Scenario, c: &Criteria, nominal: f64) -> SampleResult {
+        let imp = Impairment {
+            state: LinkSpec {
+                loss: self.loss,
+                ..LinkSpec::default()
+            },
+            torque: LinkSpec {
+                delay: self.delay,
+                loss: self.loss,
+                ..LinkSpec::default()
+            },
+            seed: self.seed,
+            max_age: u64::MAX,
+        };
+        let robot = Imperfections {
+            seed: self.seed,
+            noise: [
+                self.angle_noise,
+                self.angle_noise,
+                self.rate_noise,
+                self.rate_noise,
+            ],
+            mass_error: self.mass_error,
+            ..Imperfections::default()
+        };
+        let opts = LoopOptions {
+            predict: self.predict.then_some(tilting_sim::Predict::Estimated),
+            ..LoopOptions::default()
+        };
+        let (tilts, last_peak, why) = match (self.check(), robot.validate()) {
+            (Err(e), _) => (0, 0.0, e),
+            (_, Err(e)) => (0, 0.0, e.to_string()),
+            _ => run(sc, self.rate, &imp, &opts, &robot, c),
+        };
+        let why = judge_peak(why, last_peak, nominal, c);
+        SampleResult {
+            survived: why.is_empty(),
+            tilts,
+            last_peak,
+            why,
+        }
+    }
 }
 
 /// The surviving range around the perfect robot: the smallest and largest value of the map

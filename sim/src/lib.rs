@@ -27,6 +27,8 @@
 #![warn(missing_docs)]
 
 pub mod closed_loop;
+#[cfg(feature = "clap")]
+pub mod flags;
 pub mod network;
 pub mod recording;
 pub mod robustness;

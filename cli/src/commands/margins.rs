@@ -4,15 +4,13 @@
 //! [`tilting_planner::margins::Survey`]; this command checks the flags, draws the progress bar,
 //! the maps and the tables.
 
+use super::shard::{self, ShardArgs, ShardFile, Shards};
 use super::{bar, emit, usage};
 use crate::CommandError;
 use anyhow::Context as _;
 use clap::Args;
 use std::path::PathBuf;
-use tilting_planner::margins::{Criteria, MarginsReport, RobotMargins, Survey};
-
-/// Most points of one map.
-const MAX_POINTS: usize = 10_000;
+use tilting_planner::margins::{Criteria, MarginsReport, RobotMargins, Survey, SurveyShard};
 
 /// Flags of `tilting plan margins`.
 #[derive(Debug, Clone, Args)]
@@ -65,7 +63,13 @@ pub struct MarginsArgs {
     /// Print one JSON object instead of the tables
     #[arg(long)]
     pub json: bool,
+    /// Run one shard of the survey (`--shard I/N`).
+    #[command(flatten)]
+    pub sharding: ShardArgs,
 }
+
+/// The command name in shard files.
+pub const COMMAND: &str = "plan margins";
 
 /// The imperfection maps of `plan margins`: one imperfection at a time, at `--rate` over a
 /// perfect network, the noise seeded with `--seed`.
@@ -98,26 +102,6 @@ pub struct RobotMapArgs {
         allow_negative_numbers = true
     )]
     pub mass_errors: Vec<f64>,
-}
-
-impl RobotMapArgs {
-    fn check(&self) -> Result<(), CommandError> {
-        check_list("--angle-noises", &self.angle_noises, 0.0, 10.0)?;
-        check_list("--rate-noises", &self.rate_noises, 0.0, 10.0)?;
-        check_list("--mass-errors", &self.mass_errors, -1.0, 10.0)?;
-        if let Some(&e) = self.mass_errors.iter().find(|&&e| e <= -1.0) {
-            return Err(usage(format!(
-                "invalid `--mass-errors` value {e}: allowed (-1, 10]"
-            )));
-        }
-        let n = self.angle_noises.len() + self.rate_noises.len() + self.mass_errors.len();
-        if n > MAX_POINTS {
-            return Err(usage(format!(
-                "too many points: {n} imperfection values, at most {MAX_POINTS}"
-            )));
-        }
-        Ok(())
-    }
 }
 
 /// The imperfection maps as text.
@@ -164,52 +148,10 @@ pub fn robot_plot_path(plot: &std::path::Path) -> PathBuf {
     plot.with_file_name(format!("{stem}-robot.png"))
 }
 
-fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), CommandError> {
-    if v.is_empty() {
-        return Err(usage(format!("invalid `{flag}`: give at least one value")));
-    }
-    for &x in v {
-        if !(x.is_finite() && (lo..=hi).contains(&x)) {
-            return Err(usage(format!(
-                "invalid `{flag}` value {x}: allowed {lo} to {hi}"
-            )));
-        }
-    }
-    Ok(())
-}
-
-/// Checks the flags: every grid value in range, not too many points, a PNG for `--plot`.
+/// Checks the flags: every grid value in range, not too many points
+/// ([`Survey::check`]), a PNG for `--plot`.
 fn check_args(args: &MarginsArgs) -> Result<(), CommandError> {
-    check_list("--delays", &args.delays, 0.0, 60.0)?;
-    check_list("--losses", &args.losses, 0.0, 1.0)?;
-    check_list("--rates", &args.rates, 1.0, 10_000.0)?;
-    check_list("--rate", &[args.rate], 1.0, 10_000.0)?;
-    if !(10..=100_000).contains(&args.tilts) {
-        return Err(usage(format!(
-            "invalid `--tilts` = {}: allowed 10 to 100000",
-            args.tilts
-        )));
-    }
-    if !(args.tolerance.is_finite() && args.tolerance > 0.0 && args.tolerance <= 10.0) {
-        return Err(usage(format!(
-            "invalid `--tolerance` = {}: allowed (0, 10]",
-            args.tolerance
-        )));
-    }
-    if !(1..=1_000_000).contains(&args.watchdog) {
-        return Err(usage(format!(
-            "invalid `--watchdog` = {}: allowed 1 to 1000000 periods",
-            args.watchdog
-        )));
-    }
-    args.robot.check()?;
-    let n = args.delays.len() * args.losses.len();
-    if n > MAX_POINTS || args.rates.len() > MAX_POINTS {
-        return Err(usage(format!(
-            "too many points: {n} delay × loss and {} rates, at most {MAX_POINTS} each",
-            args.rates.len()
-        )));
-    }
+    survey(args).check().map_err(|e| usage(e.to_string()))?;
     if let Some(p) = &args.plot {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(usage(format!(
@@ -244,6 +186,19 @@ fn survey(args: &MarginsArgs) -> Survey {
 pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
     check_args(args)?;
     let survey = survey(args);
+    if let Some(s) = args.sharding.shard {
+        if args.plot.is_some() {
+            return Err(usage(
+                "`--plot` draws the whole survey: give it to no shard (merge the shards, \
+                 then plot)"
+                    .into(),
+            ));
+        }
+        let b = bar(s.len(survey.points()) as u64, "margins", true);
+        let part = survey.run_shard(s, &|| b.inc(1));
+        let part = part.map_err(|e| CommandError::Failed(e.into()))?;
+        return ShardFile::new(COMMAND, s, &survey, &part)?.emit();
+    }
     let b = bar(survey.units(), "margins", args.json);
     let report = survey.run(&|| b.inc(1));
     b.finish_and_clear();
@@ -252,6 +207,22 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         plot(p, &report)?;
     }
     emit(args.json, &report, || human(args, &report))
+}
+
+/// `tilting plan merge` of the shards of `plan margins`: the report `--json` prints.
+pub fn merge(shards: Shards) -> Result<(), CommandError> {
+    let survey: Survey = serde_json::from_value(shards.grid)
+        .map_err(|e| usage(format!("the shards' grid is not a margins survey: {e}")))?;
+    let parts: Vec<(_, SurveyShard)> = shard::parts(shards.parts)?;
+    if let Some((s, p)) = parts.iter().find(|(s, p)| *s != p.shard) {
+        return Err(usage(format!(
+            "the shard file of shard {s} holds the points of shard {}",
+            p.shard
+        )));
+    }
+    let parts = parts.into_iter().map(|(_, p)| p).collect();
+    let report = survey.merge(parts).map_err(shard::merge_error)?;
+    emit(true, &report, String::new)
 }
 
 /// Draws the maps into `p` and the imperfection maps beside it ([`robot_plot_path`]).

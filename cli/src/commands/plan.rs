@@ -2,17 +2,18 @@
 //! Sec. III. The computations live in `tilting_planner`'s [`orbit`], [`sinusoid`],
 //! [`bifurcation`] and [`gains`].
 
-use super::{bar, check, emit, usage, ModelArgs};
+use super::shard::{self, ShardArgs, ShardFile, Shards};
+use super::{bar, emit, usage, ModelArgs};
 use crate::CommandError;
-use anyhow::anyhow;
 use clap::Args;
-use serde::Serialize;
-use std::time::Instant;
+
 use tilting_controller::{LawArgs, LawSpec, Trajectory};
-use tilting_planner::bifurcation::{self, Sweep};
-use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
-use tilting_planner::{gains, sinusoid};
-use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
+use tilting_planner::jobs::{
+    self, BifurcationJob, BifurcationRange, BifurcationShard, GainsJob, GainsShard, JobError,
+};
+pub use tilting_planner::jobs::{BifurcationReport, GainsReport, OrbitReport};
+use tilting_planner::shard::Shard;
+use tilting_plant::paper::{ORBIT_KD, ORBIT_KP};
 
 /// `orbit`: the periodic orbits of approach 2 for one gain pair.
 #[derive(Debug, Clone, Args)]
@@ -52,65 +53,13 @@ impl OrbitArgs {
     }
 }
 
-/// The JSON of `orbit`.
-#[derive(Debug, Serialize)]
-pub struct OrbitReport {
-    /// K_P (1/s^2).
-    pub kp: f64,
-    /// K_D (1/s).
-    pub kd: f64,
-    /// k.
-    pub k: f64,
-    /// E_av used by the adaptation (J), if any.
-    pub energy_avg_adaptation: Option<f64>,
-    /// The orbits found, by increasing maximal tilt.
-    pub solutions: Vec<OrbitSolution>,
-}
-
 /// Runs `orbit`.
 pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
     let law = args.law()?;
-    check("kp", law.kp, law.kp > 0.0, "finite and > 0")?;
-    check("kd", law.kd, law.kd > 0.0, "finite and > 0")?;
-    check("k", law.k, law.k >= 0.0, "finite and >= 0")?;
-    let pb = OrbitProblem::new(params, args.model.impact, law.kp, law.kd);
-    let base = orbit::find_all(&pb);
-    let (solutions, e_av) = if law.k > 0.0 {
-        let e_av = match args.law.energy_avg {
-            Some(e) => check("energy-avg", e, e > 0.0, "finite and > 0 (J)")?,
-            None => base.first().map(|s| s.energy_avg).ok_or_else(|| {
-                usage("no k = 0 orbit to take E_av from: give --energy-avg".into())
-            })?,
-        };
-        let mut sols: Vec<OrbitSolution> = base
-            .iter()
-            .filter_map(|s| {
-                // Continue each branch from k = 0 in steps, the orbit moves with k.
-                let mut g = [s.beta0, s.beta_dot0, s.t_end];
-                let n = (law.k / 100.0).ceil().max(1.0) as usize;
-                let mut last = None;
-                for i in 1..=n {
-                    let kk = law.k * i as f64 / n as f64;
-                    let sol = orbit::solve(&pb.with_adaptation(kk, e_av), g).ok()?;
-                    g = [sol.beta0, sol.beta_dot0, sol.t_end];
-                    last = Some(sol);
-                }
-                last
-            })
-            .collect();
-        sols.sort_by(|a, b| a.max_tilt.total_cmp(&b.max_tilt));
-        (sols, Some(e_av))
-    } else {
-        (base, None)
-    };
-    let report = OrbitReport {
-        kp: law.kp,
-        kd: law.kd,
-        k: law.k,
-        energy_avg_adaptation: e_av,
-        solutions,
-    };
+    let energy_avg = args.law.energy_avg.filter(|_| law.k > 0.0);
+    let report = jobs::orbits(params, args.model.impact, law.kp, law.kd, law.k, energy_avg)
+        .map_err(job_error)?;
     emit(args.model.json, &report, || {
         let mut s = format!(
             "periodic orbits for K_P = {}, K_D = {}, k = {} ({} found)\n",
@@ -182,29 +131,8 @@ pub struct SinusoidArgs {
 /// Runs `sinusoid`.
 pub fn sinusoid(args: &SinusoidArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
-    let search = sinusoid::Search {
-        omega_min: args.omega_min,
-        omega_max: args.omega_max,
-        ..sinusoid::Search::default()
-    };
-    check(
-        "omega-min",
-        args.omega_min,
-        args.omega_min > 0.0,
-        "finite and > 0 (rad/s)",
-    )?;
-    check(
-        "omega-max",
-        args.omega_max,
-        args.omega_max > args.omega_min,
-        "finite and > --omega-min (rad/s)",
-    )?;
-    let sol = sinusoid::solve(&params, args.amplitude, args.landing_offset, &search).map_err(
-        |e| match e {
-            sinusoid::SinusoidError::Invalid { .. } => CommandError::Usage(e.into()),
-            other => CommandError::Failed(other.into()),
-        },
-    )?;
+    let (a, s) = (args.amplitude, args.landing_offset);
+    let sol = jobs::sinusoid(&params, a, s, args.omega_min, args.omega_max).map_err(job_error)?;
     emit(args.model.json, &sol, || {
         format!(
             "A = {} rad, t_l = T/2 + ({}) t_t: w = {:.9} rad/s (T = {:.6} s), tilt {} at t_t = {:.6} s, \
@@ -258,161 +186,120 @@ pub struct BifurcationArgs {
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
+    /// Run one shard of the sweep (`--shard I/N`); shard 0 also locates k*.
+    #[command(flatten)]
+    pub sharding: ShardArgs,
 }
 
-/// The JSON of `bifurcation`.
-#[derive(Debug, Serialize)]
-pub struct BifurcationReport {
-    /// E_av of the k = 0 orbit (J).
-    pub energy_avg: f64,
-    /// Where a multiplier of the adapted orbit crosses -1 (null if not in the range).
-    pub k_star: Option<f64>,
-    /// The first k of the sweep whose peaks are not period 1 (null if none).
-    pub k_onset_observed: Option<f64>,
-    /// One row per k.
-    pub rows: Vec<bifurcation::Row>,
-    /// Where the wall time went.
-    pub timing: BifurcationTiming,
-}
+/// The command name of `bifurcation` in shard files.
+pub const BIFURCATION: &str = "plan bifurcation";
+/// The command name of `gains` in shard files.
+pub const GAINS: &str = "plan gains";
 
-/// Wall times of one `bifurcation` command (s): a fixed set-up, the sweep (which grows with
-/// the number of values of k and of tilts) and `k*`.
-#[derive(Debug, Serialize)]
-pub struct BifurcationTiming {
-    /// Finding the `k = 0` base orbit the sweep starts from (s).
-    pub setup_s: f64,
-    /// The sweep over k on all cores (s).
-    pub sweep_s: f64,
-    /// Locating `k*` (s).
-    pub k_star_s: f64,
-}
-
-/// Most cells of a `gains` grid (each one is an orbit search of about 0.1 s: 100,000 cells are
-/// hours on 2 cores).
-pub const MAX_GAIN_CELLS: f64 = 100_000.0;
-/// Most values of `k` in one `bifurcation` sweep (each keeps `--keep` peaks in memory).
-pub const MAX_SWEEP_VALUES: f64 = 100_000.0;
-/// Most tilts simulated per `k`.
-pub const MAX_TILTS: usize = 1_000_000;
-
-/// The `k = 0` orbit the sweep starts from (the one with the smallest tilt).
-fn base_orbit(pb: &OrbitProblem) -> Result<OrbitSolution, CommandError> {
-    orbit::smallest(pb).ok_or_else(|| {
-        CommandError::Failed(anyhow!(
-            "no periodic orbit for K_P = {}, K_D = {}",
-            pb.control.law.kp,
-            pb.control.law.kd
-        ))
-    })
-}
-
-/// Runs `bifurcation`.
-pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
-    let params = args.model.params()?;
-    check("k-from", args.k_from, args.k_from >= 0.0, "finite and >= 0")?;
-    check(
-        "k-to",
-        args.k_to,
-        args.k_to >= args.k_from,
-        "finite and >= --k-from",
-    )?;
-    check("k-step", args.k_step, args.k_step > 0.0, "finite and > 0")?;
-    check(
-        "period-tol",
-        args.period_tol,
-        args.period_tol > 0.0,
-        "finite and > 0 (rad)",
-    )?;
-    if args.keep == 0 || args.keep > args.tilts {
-        return Err(usage(format!(
-            "invalid `--keep` = {}: must be in 1..=--tilts ({})",
-            args.keep, args.tilts
-        )));
-    }
-    let n = gains::range_len(args.k_from, args.k_to, args.k_step);
-    if n > MAX_SWEEP_VALUES {
-        return Err(usage(format!(
-            "invalid `--k-step` = {}: the sweep from --k-from {} to --k-to {} has {n:.0} values of \
-             k; allowed: at most {MAX_SWEEP_VALUES}",
-            args.k_step, args.k_from, args.k_to
-        )));
-    }
-    if args.tilts > MAX_TILTS {
-        return Err(usage(format!(
-            "invalid `--tilts` = {}: allowed 1..={MAX_TILTS}",
-            args.tilts
-        )));
-    }
-    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
-    let start = Instant::now();
-    let o = base_orbit(&pb)?;
-    let setup_s = start.elapsed().as_secs_f64();
-    let ks = gains::range(args.k_from, args.k_to, args.k_step);
-    let sw = Sweep {
-        problem: pb,
-        start_beta0: o.beta0,
-        start_beta_dot0: o.beta_dot0,
-        energy_avg: o.energy_avg,
+/// Checks the flags of `bifurcation` and returns its job.
+fn bifurcation_job(args: &BifurcationArgs) -> Result<BifurcationJob, CommandError> {
+    let range = BifurcationRange {
+        k_from: args.k_from,
+        k_to: args.k_to,
+        k_step: args.k_step,
         tilts: args.tilts,
         keep: args.keep,
+        kp: args.kp,
+        kd: args.kd,
         period_tol: args.period_tol,
     };
-    let b = bar(ks.len() as u64, "bifurcation", args.model.json);
-    let start = Instant::now();
-    let rows = bifurcation::sweep(&sw, &ks, &|| b.inc(1));
-    let sweep_s = start.elapsed().as_secs_f64();
+    BifurcationJob::new(args.model.params()?, args.model.impact, &range).map_err(job_error)
+}
+
+/// A job's error: a usage error for an invalid input, a failure otherwise.
+pub fn job_error(e: JobError) -> CommandError {
+    match e {
+        JobError::Invalid(_) => CommandError::Usage(e.into()),
+        JobError::Failed(_) | JobError::NoOrbit { .. } => CommandError::Failed(e.into()),
+    }
+}
+
+/// Runs `bifurcation` (or one shard of it with `--shard`).
+pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
+    let job = bifurcation_job(args)?;
+    if let Some(s) = args.sharding.shard {
+        let part = job.run_shard(s).map_err(job_error)?;
+        return ShardFile::new(BIFURCATION, s, &job, &part)?.emit();
+    }
+    let b = bar(job.ks.len() as u64, "bifurcation", args.model.json);
+    let report = job.run(&|| b.inc(1));
     b.finish_and_clear();
-    // The attracting adapted orbit is found by simulation at k = 500 (the paper's stabilised
-    // case), or at k_from if that is lower, and continued from there.
-    let start = Instant::now();
-    let k_star = bifurcation::k_star(&sw, ORBIT_K, args.k_from, args.k_to, 1e-3);
-    let k_star_s = start.elapsed().as_secs_f64();
-    let report = BifurcationReport {
-        energy_avg: o.energy_avg,
-        k_star,
-        k_onset_observed: rows.iter().find(|r| r.period != Some(1)).map(|r| r.k),
-        rows,
-        timing: BifurcationTiming {
-            setup_s,
-            sweep_s,
-            k_star_s,
-        },
-    };
-    emit(args.model.json, &report, || {
-        let mut s = format!(
-            "E_av = {:.9} J; k* (multiplier crosses -1) = {}; first k not period 1 in the sweep = {}\n",
-            report.energy_avg,
-            report.k_star.map_or("none in range".into(), |k| format!("{k:.3}")),
-            report.k_onset_observed.map_or("none".into(), |k| format!("{k}"))
-        );
-        let tm = &report.timing;
+    let report = report.map_err(job_error)?;
+    emit(args.model.json, &report, || bifurcation_text(&report))
+}
+
+/// `tilting plan merge` of the shards of `bifurcation`: the report `--json` prints, the
+/// timing summed over the shards.
+pub fn merge_bifurcation(shards: Shards) -> Result<(), CommandError> {
+    let job: BifurcationJob = serde_json::from_value(shards.grid)
+        .map_err(|e| usage(format!("the shards' grid is not a bifurcation sweep: {e}")))?;
+    let parts = own_parts::<BifurcationShard>(shards.parts, |p| p.shard)?;
+    let report = job.merge(parts).map_err(shard::merge_error)?;
+    emit(true, &report, String::new)
+}
+
+/// The parts of the shard files as `T`, each checked to be the shard its file says.
+pub fn own_parts<T: serde::de::DeserializeOwned>(
+    parts: Vec<(Shard, serde_json::Value)>,
+    shard_of: impl Fn(&T) -> Shard,
+) -> Result<Vec<T>, CommandError> {
+    let parts: Vec<(Shard, T)> = shard::parts(parts)?;
+    parts
+        .into_iter()
+        .map(|(s, p)| {
+            if shard_of(&p) == s {
+                Ok(p)
+            } else {
+                Err(usage(format!(
+                    "the shard file of shard {s} holds shard {}",
+                    shard_of(&p)
+                )))
+            }
+        })
+        .collect()
+}
+
+/// The report of `bifurcation` as text.
+fn bifurcation_text(report: &BifurcationReport) -> String {
+    let mut s =
+        format!(
+        "E_av = {:.9} J; k* (multiplier crosses -1) = {}; first k not period 1 in the sweep = {}\n",
+        report.energy_avg,
+        report.k_star.map_or("none in range".into(), |k| format!("{k:.3}")),
+        report.k_onset_observed.map_or("none".into(), |k| format!("{k}"))
+    );
+    let tm = &report.timing;
+    s += &format!(
+        "wall time: set-up (base orbit) {:.3} s, sweep of {} values of k {:.3} s, k* {:.3} s\n",
+        tm.setup_s,
+        report.rows.len(),
+        tm.sweep_s,
+        tm.k_star_s
+    );
+    for r in &report.rows {
+        let (lo, hi) = r
+            .peaks
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
         s += &format!(
-            "wall time: set-up (base orbit) {:.3} s, sweep of {} values of k {:.3} s, k* {:.3} s\n",
-            tm.setup_s,
-            report.rows.len(),
-            tm.sweep_s,
-            tm.k_star_s
+            "  k = {:>8.2}: period {:>9}  |alpha| peaks in [{:.6}, {:.6}] rad{}\n",
+            r.k,
+            r.period.map_or("irregular".to_string(), |p| p.to_string()),
+            lo,
+            hi,
+            r.fault
+                .as_ref()
+                .map_or(String::new(), |f| format!("  fault: {f}"))
         );
-        for r in &report.rows {
-            let (lo, hi) = r
-                .peaks
-                .iter()
-                .fold((f64::INFINITY, 0.0f64), |(lo, hi), &p| {
-                    (lo.min(p), hi.max(p))
-                });
-            s += &format!(
-                "  k = {:>8.2}: period {:>9}  |alpha| peaks in [{:.6}, {:.6}] rad{}\n",
-                r.k,
-                r.period.map_or("irregular".to_string(), |p| p.to_string()),
-                lo,
-                hi,
-                r.fault
-                    .as_ref()
-                    .map_or(String::new(), |f| format!("  fault: {f}"))
-            );
-        }
-        s
-    })
+    }
+    s
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -441,75 +328,40 @@ pub struct GainsArgs {
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
+    /// Run one shard of the grid (`--shard I/N`): its units are the rows of constant K_P.
+    #[command(flatten)]
+    pub sharding: ShardArgs,
 }
 
-/// The JSON of `gains`.
-#[derive(Debug, Serialize)]
-pub struct GainsReport {
-    /// One entry per (K_P, K_D).
-    pub cells: Vec<gains::Cell>,
+/// `tilting plan merge` of the shards of `gains`: the report `--json` prints.
+pub fn merge_gains(shards: Shards) -> Result<(), CommandError> {
+    let job: GainsJob = serde_json::from_value(shards.grid)
+        .map_err(|e| usage(format!("the shards' grid is not a gains grid: {e}")))?;
+    let parts = own_parts::<GainsShard>(shards.parts, |p| p.shard)?;
+    let report = job.merge(parts).map_err(shard::merge_error)?;
+    emit(true, &report, String::new)
 }
 
-/// Checks the grid flags and returns `(kps, kds)`.
-pub fn grid_axes(args: &GainsArgs) -> Result<(Vec<f64>, Vec<f64>), CommandError> {
-    check(
-        "kp-from",
-        args.kp_from,
-        args.kp_from > 0.0,
-        "finite and > 0",
-    )?;
-    check(
-        "kp-to",
-        args.kp_to,
-        args.kp_to >= args.kp_from,
-        "finite and >= --kp-from",
-    )?;
-    check(
-        "kp-step",
-        args.kp_step,
-        args.kp_step > 0.0,
-        "finite and > 0",
-    )?;
-    check(
-        "kd-from",
-        args.kd_from,
-        args.kd_from > 0.0,
-        "finite and > 0",
-    )?;
-    check(
-        "kd-to",
-        args.kd_to,
-        args.kd_to >= args.kd_from,
-        "finite and >= --kd-from",
-    )?;
-    check(
-        "kd-step",
-        args.kd_step,
-        args.kd_step > 0.0,
-        "finite and > 0",
-    )?;
-    // The grid is counted before it is allocated: a tiny step must be an error, not an abort.
-    let cells = gains::range_len(args.kp_from, args.kp_to, args.kp_step)
-        * gains::range_len(args.kd_from, args.kd_to, args.kd_step);
-    if cells > MAX_GAIN_CELLS {
-        return Err(usage(format!(
-            "the (--kp-from..--kp-to step --kp-step) x (--kd-from..--kd-to step --kd-step) grid \
-             has {cells:.0} cells; allowed: at most {MAX_GAIN_CELLS} (make a step larger)"
-        )));
-    }
-    let kps = gains::range(args.kp_from, args.kp_to, args.kp_step);
-    let kds = gains::range(args.kd_from, args.kd_to, args.kd_step);
-    Ok((kps, kds))
+/// Checks the grid flags and returns the job.
+pub fn gains_job(args: &GainsArgs) -> Result<GainsJob, CommandError> {
+    GainsJob::new(
+        args.model.params()?,
+        args.model.impact,
+        [args.kp_from, args.kp_to, args.kp_step],
+        [args.kd_from, args.kd_to, args.kd_step],
+    )
+    .map_err(job_error)
 }
 
 /// Runs `gains`.
 pub fn gains(args: &GainsArgs) -> Result<(), CommandError> {
-    let params = args.model.params()?;
-    let (kps, kds) = grid_axes(args)?;
-    let b = bar(kps.len() as u64, "gains", args.model.json);
-    let cells = gains::grid(params, args.model.impact, &kps, &kds, &|| b.inc(1));
+    let job = gains_job(args)?;
+    if let Some(s) = args.sharding.shard {
+        return ShardFile::new(GAINS, s, &job, &job.run_shard(s))?.emit();
+    }
+    let b = bar(job.kps.len() as u64, "gains", args.model.json);
+    let report = job.run(&|| b.inc(1));
     b.finish_and_clear();
-    let report = GainsReport { cells };
     emit(args.model.json, &report, || {
         let mut s = String::from("maximal tilt angle (rad) of the periodic orbits\n");
         for c in &report.cells {

@@ -5,34 +5,14 @@ use super::print_stdout;
 use crate::CommandError;
 use anyhow::Context as _;
 use std::path::PathBuf;
-use tilting_plant::imperfect::ImperfectArgs;
-use tilting_sim::{LoopArgs, NetworkArgs, ScenarioArgs, SimOptions};
 use tilting_viz::plot::plot_run;
 
 /// Flags of `tilting simulate`.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct SimulateArgs {
-    /// The scenario.
+    /// What to run: scenario, network, imperfections, loop options, safe mode.
     #[command(flatten)]
-    pub scenario: ScenarioArgs,
-    /// An impaired network between plant and controller (sampled loop only).
-    #[command(flatten)]
-    pub network: NetworkArgs,
-    /// The robot's imperfections (sensor noise, encoder, actuator saturation and lag, arm-mass
-    /// error); the noise draws from --seed (its own stream).
-    #[command(flatten)]
-    pub imperfect: ImperfectArgs,
-    /// With an impaired network: the oldest torque the plant applies (periods between the state
-    /// it answers and the current one), as the plant's --max-age
-    #[arg(long, default_value_t = 10, value_name = "PERIODS")]
-    pub max_age: u64,
-    /// Prediction and sampling on events (sampled loop only).
-    #[command(flatten)]
-    pub loop_args: LoopArgs,
-    /// The plant's watchdog and safe mode, modelled over an impaired network or with
-    /// prediction (a run in which no valid torque arrives ends in safe mode, as the plant's).
-    #[command(flatten)]
-    pub safe: tilting_plant::safe::SafeArgs,
+    pub run: tilting_sim::flags::SimulateArgs,
     /// Print one JSON object (events, tilt_peaks, final, fault, stats) to stdout instead of the
     /// summary
     #[arg(long)]
@@ -52,10 +32,6 @@ pub struct SimulateArgs {
 
 /// `tilting simulate`.
 pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
-    let sc = args
-        .scenario
-        .load()
-        .map_err(|e| CommandError::Usage(e.into()))?;
     if let Some(p) = &args.plot {
         let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
         if !png {
@@ -74,34 +50,10 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
             }
         }
     }
-    let mut network = args
-        .network
-        .impairment(args.max_age)
-        .map_err(|e| CommandError::Usage(e.into()))?;
-    let mut loop_options = args.loop_args.options();
-    if !loop_options.is_plain() && network.is_none() {
-        // Prediction or sampling on events over a perfect network: the plant's age rule is
-        // still --max-age.
-        network = Some(tilting_sim::Impairment {
-            max_age: args.max_age,
-            ..Default::default()
-        });
-    }
-    loop_options.safe = Some(
-        args.safe
-            .settings()
-            .map_err(|e| CommandError::Usage(e.into()))?,
-    );
-    let imperfect = args
-        .imperfect
-        .imperfections(args.network.seed)
-        .map_err(|e| CommandError::Usage(e.into()))?;
-    let opts = SimOptions {
-        record_samples: args.plot.is_some(),
-        network,
-        loop_options,
-        imperfect,
-    };
+    let (sc, opts) = args
+        .run
+        .prepare(args.plot.is_some())
+        .map_err(|e| CommandError::Usage(anyhow::anyhow!(e)))?;
     let report = match &args.record {
         None => super::simulate_with_bar(&sc, opts, args.json)
             .map_err(|e| CommandError::Usage(e.into()))?,

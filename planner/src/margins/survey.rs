@@ -3,15 +3,16 @@
 //! robot's imperfection maps, and the boundaries read off them ([`Survey::run`]).
 
 use super::{
-    boundaries, delay_loss_map, imperfection_map, imperfection_range, nominal_peak, rate_map,
-    Criteria, ImperfectPoint, Imperfection, Point,
+    boundaries, delay_loss_map, imperfect_point, imperfection_map, imperfection_range,
+    nominal_peak, point, rate_map, Criteria, ImperfectPoint, Imperfection, Point,
 };
+use crate::shard::{self, Shard, ShardError};
 use serde::{Deserialize, Serialize};
 use tilting_sim::{LoopOptions, Predict, Scenario};
 
 /// What a survey maps: the grids, the criteria and the seed. The loop is the paper's
-/// stabilised orbit ([`Scenario::default`]).
-#[derive(Debug, Clone, PartialEq)]
+/// stabilised orbit ([`Scenario::default`]). Its JSON identifies the grid of a shard.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Survey {
     /// Total constant delays, state and torque together (s).
     pub delays: Vec<f64>,
@@ -31,6 +32,31 @@ pub struct Survey {
     pub seed: u64,
     /// What a point must meet.
     pub criteria: Criteria,
+}
+
+/// Most points of one map.
+pub const MAX_POINTS: usize = 10_000;
+
+/// An invalid survey: the message names the flag of `tilting plan margins` (the keyword of
+/// the Python package's `margins` without the dashes) and the allowed range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidSurvey(pub String);
+
+fn check_list(flag: &str, v: &[f64], lo: f64, hi: f64) -> Result<(), InvalidSurvey> {
+    if v.is_empty() {
+        return Err(InvalidSurvey(format!(
+            "invalid `{flag}`: give at least one value"
+        )));
+    }
+    for &x in v {
+        if !(x.is_finite() && (lo..=hi).contains(&x)) {
+            return Err(InvalidSurvey(format!(
+                "invalid `{flag}` value {x}: allowed {lo} to {hi}"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Why a survey could not be made.
@@ -99,6 +125,56 @@ pub struct MarginsReport {
 }
 
 impl Survey {
+    /// Checks the survey: every grid value in range, not too many points.
+    pub fn check(&self) -> Result<(), InvalidSurvey> {
+        let bad = |m: String| Err(InvalidSurvey(m));
+        check_list("--delays", &self.delays, 0.0, 60.0)?;
+        check_list("--losses", &self.losses, 0.0, 1.0)?;
+        check_list("--rates", &self.rates, 1.0, 10_000.0)?;
+        check_list("--rate", &[self.rate], 1.0, 10_000.0)?;
+        let c = &self.criteria;
+        if !(10..=100_000).contains(&c.tilts) {
+            return bad(format!(
+                "invalid `--tilts` = {}: allowed 10 to 100000",
+                c.tilts
+            ));
+        }
+        if !(c.tolerance.is_finite() && c.tolerance > 0.0 && c.tolerance <= 10.0) {
+            return bad(format!(
+                "invalid `--tolerance` = {}: allowed (0, 10]",
+                c.tolerance
+            ));
+        }
+        if !(1..=1_000_000).contains(&c.watchdog) {
+            return bad(format!(
+                "invalid `--watchdog` = {}: allowed 1 to 1000000 periods",
+                c.watchdog
+            ));
+        }
+        check_list("--angle-noises", &self.angle_noises, 0.0, 10.0)?;
+        check_list("--rate-noises", &self.rate_noises, 0.0, 10.0)?;
+        check_list("--mass-errors", &self.mass_errors, -1.0, 10.0)?;
+        if let Some(&e) = self.mass_errors.iter().find(|&&e| e <= -1.0) {
+            return bad(format!(
+                "invalid `--mass-errors` value {e}: allowed (-1, 10]"
+            ));
+        }
+        let n = self.angle_noises.len() + self.rate_noises.len() + self.mass_errors.len();
+        if n > MAX_POINTS {
+            return bad(format!(
+                "too many points: {n} imperfection values, at most {MAX_POINTS}"
+            ));
+        }
+        let n = self.delays.len() * self.losses.len();
+        if n > MAX_POINTS || self.rates.len() > MAX_POINTS {
+            return bad(format!(
+                "too many points: {n} delay × loss and {} rates, at most {MAX_POINTS} each",
+                self.rates.len()
+            ));
+        }
+        Ok(())
+    }
+
     /// Points of the survey with the nominal run: the number of `tick`s [`Survey::run`] gives.
     pub fn units(&self) -> u64 {
         let network = self.delays.len() * self.losses.len() + self.rates.len();
@@ -132,48 +208,221 @@ impl Survey {
         let (delay_loss, delay_loss_predict) = (map(&plain), map(&predict));
         let rates = rate_map(&sc, &self.rates, &plain, &c, nominal, tick);
         let rates_events = rate_map(&sc, &self.rates, &events, &c, nominal, tick);
-        let robot = self.robot(&sc, nominal, tick);
-        let (largest_delay, largest_loss, lowest_rate) = boundaries(&delay_loss, &rates);
-        let (largest_delay_predict, largest_loss_predict, lowest_rate_events) =
-            boundaries(&delay_loss_predict, &rates_events);
-        Ok(MarginsReport {
-            criteria: c,
-            survives_means: survives_means(&c, nominal),
-            nominal_peak: nominal,
-            rate,
+        let (rate, seed, c) = (self.rate, self.seed, &self.criteria);
+        let robot = |which, values: &[f64]| {
+            imperfection_map(&sc, rate, which, values, seed, c, nominal, tick)
+        };
+        let maps = Maps {
+            angle_noise: robot(Imperfection::AngleNoise, &self.angle_noises),
+            rate_noise: robot(Imperfection::RateNoise, &self.rate_noises),
+            mass_error: robot(Imperfection::MassError, &self.mass_errors),
             delay_loss,
             delay_loss_predict,
             rates,
             rates_events,
+        };
+        Ok(self.assemble(nominal, maps))
+    }
+
+    /// The report of the maps: the boundaries read off them.
+    fn assemble(&self, nominal: f64, m: Maps) -> MarginsReport {
+        let (c, rate) = (self.criteria, self.rate);
+        let (largest_delay, largest_loss, lowest_rate) = boundaries(&m.delay_loss, &m.rates);
+        let (largest_delay_predict, largest_loss_predict, lowest_rate_events) =
+            boundaries(&m.delay_loss_predict, &m.rates_events);
+        MarginsReport {
+            criteria: c,
+            survives_means: survives_means(&c, nominal),
+            nominal_peak: nominal,
+            rate,
+            delay_loss: m.delay_loss,
+            delay_loss_predict: m.delay_loss_predict,
+            rates: m.rates,
+            rates_events: m.rates_events,
             largest_delay,
             largest_loss,
             largest_delay_predict,
             largest_loss_predict,
             lowest_rate,
             lowest_rate_events,
-            robot,
+            robot: RobotMargins {
+                rate,
+                largest_angle_noise: imperfection_range(&m.angle_noise).map(|r| r.1),
+                largest_rate_noise: imperfection_range(&m.rate_noise).map(|r| r.1),
+                mass_error_range: imperfection_range(&m.mass_error),
+                angle_noise: m.angle_noise,
+                rate_noise: m.rate_noise,
+                mass_error: m.mass_error,
+            },
+        }
+    }
+
+    /// The survey's points in the report's order (the units of [`Survey::run_shard`]): the
+    /// delay × loss map of the plain controller, of the predicting one, the rate maps without
+    /// and with samples on events, and the angle-noise, rate-noise and mass-error maps.
+    fn unit_list(&self) -> Vec<Unit> {
+        let pairs = || {
+            self.delays
+                .iter()
+                .flat_map(|&d| self.losses.iter().map(move |&l| (d, l)))
+        };
+        let mut u: Vec<Unit> = pairs().map(|(d, l)| Unit::DelayLoss(d, l, false)).collect();
+        u.extend(pairs().map(|(d, l)| Unit::DelayLoss(d, l, true)));
+        u.extend(self.rates.iter().map(|&r| Unit::Rate(r, false)));
+        u.extend(self.rates.iter().map(|&r| Unit::Rate(r, true)));
+        for (which, values) in [
+            (Imperfection::AngleNoise, &self.angle_noises),
+            (Imperfection::RateNoise, &self.rate_noises),
+            (Imperfection::MassError, &self.mass_errors),
+        ] {
+            u.extend(values.iter().map(|&v| Unit::Robot(which, v)));
+        }
+        u
+    }
+
+    /// How many points the survey has (the units a shard takes its share of).
+    pub fn points(&self) -> usize {
+        self.unit_list().len()
+    }
+
+    /// Runs the points of one shard of the survey (all cores), after the nominal run; `tick` is
+    /// called after each point. Each point is computed exactly as [`Survey::run`] computes it,
+    /// so [`Survey::merge`] of all shards equals `run` bit for bit.
+    pub fn run_shard(
+        &self,
+        shard: Shard,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<SurveyShard, SurveyError> {
+        let (sc, c) = (Scenario::default(), self.criteria);
+        let nominal = nominal_peak(&sc, &c);
+        if nominal <= 0.0 {
+            return Err(SurveyError::NoNominalOrbit(c.tilts));
+        }
+        let units = self.unit_list();
+        let (rate, seed) = (self.rate, self.seed);
+        let points = shard::run(shard, units.len(), |j| {
+            let r = match units[j] {
+                Unit::DelayLoss(d, l, predict) => {
+                    let opts = LoopOptions {
+                        predict: predict.then_some(Predict::Estimated),
+                        ..LoopOptions::default()
+                    };
+                    UnitResult::Network(point(&sc, rate, d, l, seed, &opts, &c, nominal))
+                }
+                Unit::Rate(r, events) => {
+                    let opts = LoopOptions {
+                        sample_on_event: events,
+                        ..LoopOptions::default()
+                    };
+                    UnitResult::Network(point(&sc, r, 0.0, 0.0, 0, &opts, &c, nominal))
+                }
+                Unit::Robot(which, v) => {
+                    UnitResult::Robot(imperfect_point(&sc, rate, which, v, seed, &c, nominal))
+                }
+            };
+            tick();
+            r
+        });
+        Ok(SurveyShard {
+            shard,
+            nominal_peak: nominal,
+            points,
         })
     }
 
-    /// The imperfection maps, one imperfection at a time at `rate` over a perfect network.
-    fn robot(&self, sc: &Scenario, nominal: f64, tick: &(dyn Fn() + Sync)) -> RobotMargins {
-        let (rate, seed, c) = (self.rate, self.seed, &self.criteria);
-        let map = |which, values: &[f64]| {
-            imperfection_map(sc, rate, which, values, seed, c, nominal, tick)
-        };
-        let angle_noise = map(Imperfection::AngleNoise, &self.angle_noises);
-        let rate_noise = map(Imperfection::RateNoise, &self.rate_noises);
-        let mass_error = map(Imperfection::MassError, &self.mass_errors);
-        RobotMargins {
-            rate,
-            largest_angle_noise: imperfection_range(&angle_noise).map(|r| r.1),
-            largest_rate_noise: imperfection_range(&rate_noise).map(|r| r.1),
-            mass_error_range: imperfection_range(&mass_error),
-            angle_noise,
-            rate_noise,
-            mass_error,
+    /// The report of the whole survey from all its shards (in any order). Refused unless every
+    /// shard of one split is there once, each with its own points of this survey, all with the
+    /// same nominal peak.
+    pub fn merge(&self, shards: Vec<SurveyShard>) -> Result<MarginsReport, ShardError> {
+        let nominal = shards.first().map_or(0.0, |s| s.nominal_peak);
+        if let Some(s) = shards
+            .iter()
+            .find(|s| s.nominal_peak.to_bits() != nominal.to_bits())
+        {
+            return Err(ShardError::Corrupt {
+                shard: s.shard,
+                why: format!(
+                    "its nominal peak {} rad is not the other shards' {nominal} rad (another                      build of the simulator?)",
+                    s.nominal_peak
+                ),
+            });
         }
+        let units = self.unit_list();
+        let count = shards.first().map_or(1, |s| s.shard.count);
+        let parts = shards.into_iter().map(|s| (s.shard, s.points)).collect();
+        let all = shard::gather(units.len(), parts)?;
+        let mut maps = Maps::default();
+        for (j, (&u, r)) in units.iter().zip(all).enumerate() {
+            let bad = |why: &str| ShardError::Corrupt {
+                shard: Shard {
+                    index: j % count,
+                    count,
+                },
+                why: format!("point {j}: {why}"),
+            };
+            match (u, r) {
+                (Unit::DelayLoss(_, _, false), UnitResult::Network(p)) => maps.delay_loss.push(p),
+                (Unit::DelayLoss(_, _, true), UnitResult::Network(p)) => {
+                    maps.delay_loss_predict.push(p)
+                }
+                (Unit::Rate(_, false), UnitResult::Network(p)) => maps.rates.push(p),
+                (Unit::Rate(_, true), UnitResult::Network(p)) => maps.rates_events.push(p),
+                (Unit::Robot(which, _), UnitResult::Robot(p)) if p.imperfection == which => {
+                    match which {
+                        Imperfection::AngleNoise => maps.angle_noise.push(p),
+                        Imperfection::RateNoise => maps.rate_noise.push(p),
+                        Imperfection::MassError => maps.mass_error.push(p),
+                    }
+                }
+                _ => return Err(bad("not a point of this map")),
+            }
+        }
+        Ok(self.assemble(nominal, maps))
     }
+}
+
+/// One point of a survey: which map, and where on it.
+#[derive(Debug, Clone, Copy)]
+enum Unit {
+    /// Delay (s), loss, predicting controller.
+    DelayLoss(f64, f64, bool),
+    /// Rate (Hz), samples on events.
+    Rate(f64, bool),
+    /// The robot with one imperfection at a value.
+    Robot(Imperfection, f64),
+}
+
+/// The maps of a survey, each in grid order.
+#[derive(Default)]
+struct Maps {
+    delay_loss: Vec<Point>,
+    delay_loss_predict: Vec<Point>,
+    rates: Vec<Point>,
+    rates_events: Vec<Point>,
+    angle_noise: Vec<ImperfectPoint>,
+    rate_noise: Vec<ImperfectPoint>,
+    mass_error: Vec<ImperfectPoint>,
+}
+
+/// The result of one point of a survey.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum UnitResult {
+    /// A point of a network map (delay × loss or rate).
+    Network(Point),
+    /// A point of an imperfection map.
+    Robot(ImperfectPoint),
+}
+
+/// One shard of a survey ([`Survey::run_shard`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurveyShard {
+    /// Which shard.
+    pub shard: Shard,
+    /// The nominal mean |peak| of the last 10 tilts (rad), which every shard computes.
+    pub nominal_peak: f64,
+    /// Its points: the number of the point in the survey, and its result.
+    pub points: Vec<(usize, UnitResult)>,
 }
 
 /// The survival criteria in words, with the nominal peak (rad).

@@ -1,0 +1,498 @@
+//! The sweeps of `tilting plan` as jobs: their inputs checked (an error names the flag and its
+//! range), run whole or one shard at a time ([`crate::shard`]), and merged back into the
+//! report the whole run gives. The front door and the Python package both run them, so they
+//! take the same inputs and give the same messages and results. The margins survey is
+//! [`crate::margins::Survey`], which works the same way.
+//!
+//! - [`BifurcationJob`]: the sweep of the adaptation gain `k` (Fig. 8) and `k*`; its units
+//!   are the values of `k`;
+//! - [`orbits`] and [`sinusoid`]: the two approaches of Sec. III for one set of inputs;
+//! - [`GainsJob`]: the orbits over a `(K_P, K_D)` grid (Fig. 6); its units are the rows of
+//!   constant `K_P` (each row is a continuation in `K_D`).
+
+use crate::bifurcation::{self, Row, Sweep};
+use crate::gains::{self, Cell};
+use crate::orbit::{self, OrbitProblem, OrbitSolution};
+use crate::shard::{self, Shard, ShardError};
+use crate::sinusoid::{self, SinusoidError, SinusoidSolution};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+use tilting_plant::paper::ORBIT_K;
+use tilting_plant::{ImpactLaw, Params};
+
+/// An invalid input of a sweep, or one that cannot run: the message names the flag of
+/// `tilting plan` (the Python keyword without the dashes) and its allowed range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JobError {
+    /// An input out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The computation failed (no solution where one was asked for).
+    #[error("{0}")]
+    Failed(String),
+    /// No `k = 0` orbit to start the bifurcation sweep from.
+    #[error("no periodic orbit for K_P = {kp}, K_D = {kd}")]
+    NoOrbit {
+        /// `K_P` (1/s^2).
+        kp: f64,
+        /// `K_D` (1/s).
+        kd: f64,
+    },
+}
+
+/// `v` if finite and `ok`, otherwise the error naming `--{field}` and `allowed`.
+fn check(field: &str, v: f64, ok: bool, allowed: &str) -> Result<f64, JobError> {
+    if v.is_finite() && ok {
+        Ok(v)
+    } else {
+        Err(JobError::Invalid(format!(
+            "invalid `--{field}` = {v}: must be {allowed}"
+        )))
+    }
+}
+
+/// Most cells of a `gains` grid (each one is an orbit search of about 0.1 s: 100,000 cells are
+/// hours on 2 cores).
+pub const MAX_GAIN_CELLS: f64 = 100_000.0;
+/// Most values of `k` in one `bifurcation` sweep (each keeps `keep` peaks in memory).
+pub const MAX_SWEEP_VALUES: f64 = 100_000.0;
+/// Most tilts simulated per `k`.
+pub const MAX_TILTS: usize = 1_000_000;
+
+/// The bifurcation sweep: everything its rows depend on (its JSON identifies the grid of a
+/// shard).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BifurcationJob {
+    /// The model.
+    pub params: Params,
+    /// The landing impact law.
+    pub impact: ImpactLaw,
+    /// The values of `k` (1/(J s^2)), in sweep order.
+    pub ks: Vec<f64>,
+    /// Tilts simulated for each `k`.
+    pub tilts: usize,
+    /// Tilts kept (the last ones) for each `k`.
+    pub keep: usize,
+    /// `K_P0` (1/s^2).
+    pub kp: f64,
+    /// `K_D` (1/s).
+    pub kd: f64,
+    /// Peaks closer than this (rad) count as equal when classifying the period.
+    pub period_tol: f64,
+}
+
+/// The flags of a bifurcation sweep, before they are checked ([`BifurcationJob::new`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BifurcationRange {
+    /// First `k` (1/(J s^2)).
+    pub k_from: f64,
+    /// Last `k`.
+    pub k_to: f64,
+    /// Step of `k`.
+    pub k_step: f64,
+    /// Tilts simulated for each `k`.
+    pub tilts: usize,
+    /// Tilts kept (the last ones) for each `k`.
+    pub keep: usize,
+    /// `K_P0` (1/s^2).
+    pub kp: f64,
+    /// `K_D` (1/s).
+    pub kd: f64,
+    /// Peak equality tolerance (rad).
+    pub period_tol: f64,
+}
+
+/// The report of a bifurcation sweep (the JSON of `tilting plan bifurcation`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BifurcationReport {
+    /// E_av of the k = 0 orbit (J).
+    pub energy_avg: f64,
+    /// Where a multiplier of the adapted orbit crosses -1 (null if not in the range).
+    pub k_star: Option<f64>,
+    /// The first k of the sweep whose peaks are not period 1 (null if none).
+    pub k_onset_observed: Option<f64>,
+    /// One row per k.
+    pub rows: Vec<Row>,
+    /// Where the wall time went.
+    pub timing: BifurcationTiming,
+}
+
+/// Wall times of one bifurcation sweep (s): a fixed set-up, the sweep (which grows with the
+/// number of values of k and of tilts) and `k*`. Merged from shards: the sums of the shards'
+/// set-ups and sweeps (the work done), and shard 0's `k*`.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+pub struct BifurcationTiming {
+    /// Finding the `k = 0` base orbit the sweep starts from (s).
+    pub setup_s: f64,
+    /// The sweep over k on all cores (s).
+    pub sweep_s: f64,
+    /// Locating `k*` (s).
+    pub k_star_s: f64,
+}
+
+/// One shard of a bifurcation sweep.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BifurcationShard {
+    /// Which shard.
+    pub shard: Shard,
+    /// E_av of the k = 0 orbit (J), which every shard finds.
+    pub energy_avg: f64,
+    /// Whether this shard located `k*` (shard 0 does).
+    pub k_star_located: bool,
+    /// `k*` if this shard located it and it is in the range.
+    pub k_star: Option<f64>,
+    /// The shard's wall times (s).
+    pub timing: BifurcationTiming,
+    /// Its rows: the number of the value of `k`, and the row.
+    pub rows: Vec<(usize, Row)>,
+}
+
+impl BifurcationJob {
+    /// The sweep the flags describe, checked.
+    pub fn new(params: Params, impact: ImpactLaw, r: &BifurcationRange) -> Result<Self, JobError> {
+        check("k-from", r.k_from, r.k_from >= 0.0, "finite and >= 0")?;
+        check("k-to", r.k_to, r.k_to >= r.k_from, "finite and >= --k-from")?;
+        check("k-step", r.k_step, r.k_step > 0.0, "finite and > 0")?;
+        check("kp", r.kp, r.kp > 0.0, "finite and > 0")?;
+        check("kd", r.kd, r.kd > 0.0, "finite and > 0")?;
+        let tol = r.period_tol;
+        check("period-tol", tol, tol > 0.0, "finite and > 0 (rad)")?;
+        if r.keep == 0 || r.keep > r.tilts {
+            return Err(JobError::Invalid(format!(
+                "invalid `--keep` = {}: must be in 1..=--tilts ({})",
+                r.keep, r.tilts
+            )));
+        }
+        let n = gains::range_len(r.k_from, r.k_to, r.k_step);
+        if n > MAX_SWEEP_VALUES {
+            return Err(JobError::Invalid(format!(
+                "invalid `--k-step` = {}: the sweep from --k-from {} to --k-to {} has {n:.0} \
+                 values of k; allowed: at most {MAX_SWEEP_VALUES}",
+                r.k_step, r.k_from, r.k_to
+            )));
+        }
+        if r.tilts > MAX_TILTS {
+            return Err(JobError::Invalid(format!(
+                "invalid `--tilts` = {}: allowed 1..={MAX_TILTS}",
+                r.tilts
+            )));
+        }
+        Ok(BifurcationJob {
+            params,
+            impact,
+            ks: gains::range(r.k_from, r.k_to, r.k_step),
+            tilts: r.tilts,
+            keep: r.keep,
+            kp: r.kp,
+            kd: r.kd,
+            period_tol: r.period_tol,
+        })
+    }
+
+    /// The sweep from the `k = 0` base orbit (the one with the smallest tilt), and the time its
+    /// search took (s).
+    pub fn sweep(&self) -> Result<(Sweep, f64), JobError> {
+        let pb = OrbitProblem::new(self.params, self.impact, self.kp, self.kd);
+        let start = Instant::now();
+        let o = orbit::smallest(&pb).ok_or(JobError::NoOrbit {
+            kp: self.kp,
+            kd: self.kd,
+        })?;
+        let sw = Sweep {
+            problem: pb,
+            start_beta0: o.beta0,
+            start_beta_dot0: o.beta_dot0,
+            energy_avg: o.energy_avg,
+            tilts: self.tilts,
+            keep: self.keep,
+            period_tol: self.period_tol,
+        };
+        Ok((sw, start.elapsed().as_secs_f64()))
+    }
+
+    /// `k*` over the range of the sweep, and the time it took (s). The attracting adapted
+    /// orbit is found by simulation at k = 500 (the paper's stabilised case), or at the first
+    /// k if that is lower, and continued from there.
+    fn k_star(&self, sw: &Sweep) -> (Option<f64>, f64) {
+        let start = Instant::now();
+        let (lo, hi) = (self.ks[0], self.ks[self.ks.len() - 1]);
+        let k = bifurcation::k_star(sw, ORBIT_K, lo, hi, 1e-3);
+        (k, start.elapsed().as_secs_f64())
+    }
+
+    /// The whole sweep on all cores, `tick` called after each `k`, then `k*`.
+    pub fn run(&self, tick: &(dyn Fn() + Sync)) -> Result<BifurcationReport, JobError> {
+        let (sw, setup_s) = self.sweep()?;
+        let start = Instant::now();
+        let rows = bifurcation::sweep(&sw, &self.ks, tick);
+        let sweep_s = start.elapsed().as_secs_f64();
+        let (k_star, k_star_s) = self.k_star(&sw);
+        let timing = BifurcationTiming {
+            setup_s,
+            sweep_s,
+            k_star_s,
+        };
+        Ok(report(sw.energy_avg, k_star, rows, timing))
+    }
+
+    /// The values of `k` of one shard, on all cores; shard 0 also locates `k*`.
+    pub fn run_shard(&self, shard: Shard) -> Result<BifurcationShard, JobError> {
+        let (sw, setup_s) = self.sweep()?;
+        let start = Instant::now();
+        let rows = shard::run(shard, self.ks.len(), |j| {
+            bifurcation::run_one(&sw, self.ks[j])
+        });
+        let sweep_s = start.elapsed().as_secs_f64();
+        let (k_star, k_star_s) = if shard.index == 0 {
+            self.k_star(&sw)
+        } else {
+            (None, 0.0)
+        };
+        Ok(BifurcationShard {
+            shard,
+            energy_avg: sw.energy_avg,
+            k_star_located: shard.index == 0,
+            k_star,
+            timing: BifurcationTiming {
+                setup_s,
+                sweep_s,
+                k_star_s,
+            },
+            rows,
+        })
+    }
+
+    /// The report of the whole sweep from all its shards (in any order); refused unless every
+    /// shard of one split is there once with its own rows, all from the same base orbit.
+    pub fn merge(&self, shards: Vec<BifurcationShard>) -> Result<BifurcationReport, ShardError> {
+        let energy_avg = shards.first().map_or(0.0, |s| s.energy_avg);
+        let mut k_star = None;
+        let mut timing = BifurcationTiming::default();
+        let mut parts = Vec::with_capacity(shards.len());
+        for s in shards {
+            if s.energy_avg.to_bits() != energy_avg.to_bits() {
+                return Err(ShardError::Corrupt {
+                    shard: s.shard,
+                    why: "its base orbit (E_av) is not the other shards' (another build?)".into(),
+                });
+            }
+            if s.shard.index == 0 && s.k_star_located {
+                k_star = Some(s.k_star);
+                timing.k_star_s = s.timing.k_star_s;
+            }
+            timing.setup_s += s.timing.setup_s;
+            timing.sweep_s += s.timing.sweep_s;
+            parts.push((s.shard, s.rows));
+        }
+        let count = parts.first().map_or(1, |p| p.0.count);
+        let rows = shard::gather(self.ks.len(), parts)?;
+        let k_star = k_star.ok_or(ShardError::Corrupt {
+            shard: Shard { index: 0, count },
+            why: "it carries no k*".into(),
+        })?;
+        Ok(report(energy_avg, k_star, rows, timing))
+    }
+}
+
+/// The report of the rows and `k*`.
+fn report(
+    energy_avg: f64,
+    k_star: Option<f64>,
+    rows: Vec<Row>,
+    timing: BifurcationTiming,
+) -> BifurcationReport {
+    BifurcationReport {
+        energy_avg,
+        k_star,
+        k_onset_observed: rows.iter().find(|r| r.period != Some(1)).map(|r| r.k),
+        rows,
+        timing,
+    }
+}
+
+/// The gains grid: everything its cells depend on (its JSON identifies the grid of a shard).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GainsJob {
+    /// The model.
+    pub params: Params,
+    /// The landing impact law.
+    pub impact: ImpactLaw,
+    /// The values of `K_P` (1/s^2): the rows.
+    pub kps: Vec<f64>,
+    /// The values of `K_D` (1/s) along each row.
+    pub kds: Vec<f64>,
+}
+
+/// The report of a gains grid (the JSON of `tilting plan gains`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct GainsReport {
+    /// One entry per (K_P, K_D), rows of constant K_P in order.
+    pub cells: Vec<Cell>,
+}
+
+/// One shard of a gains grid: the number of each of its rows, and the row.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct GainsShard {
+    /// Which shard.
+    pub shard: Shard,
+    /// Its rows.
+    pub rows: Vec<(usize, Vec<Cell>)>,
+}
+
+impl GainsJob {
+    /// The grid `kp_from..=kp_to` step `kp_step` × `kd_from..=kd_to` step `kd_step`, checked
+    /// (`[from, to, step]` each).
+    pub fn new(
+        params: Params,
+        impact: ImpactLaw,
+        kp: [f64; 3],
+        kd: [f64; 3],
+    ) -> Result<Self, JobError> {
+        let [kp_from, kp_to, kp_step] = kp;
+        let [kd_from, kd_to, kd_step] = kd;
+        check("kp-from", kp_from, kp_from > 0.0, "finite and > 0")?;
+        check("kp-to", kp_to, kp_to >= kp_from, "finite and >= --kp-from")?;
+        check("kp-step", kp_step, kp_step > 0.0, "finite and > 0")?;
+        check("kd-from", kd_from, kd_from > 0.0, "finite and > 0")?;
+        check("kd-to", kd_to, kd_to >= kd_from, "finite and >= --kd-from")?;
+        check("kd-step", kd_step, kd_step > 0.0, "finite and > 0")?;
+        // The grid is counted before it is allocated: a tiny step must be an error, not an
+        // abort.
+        let cells =
+            gains::range_len(kp_from, kp_to, kp_step) * gains::range_len(kd_from, kd_to, kd_step);
+        if cells > MAX_GAIN_CELLS {
+            return Err(JobError::Invalid(format!(
+                "the (--kp-from..--kp-to step --kp-step) x (--kd-from..--kd-to step --kd-step) \
+                 grid has {cells:.0} cells; allowed: at most {MAX_GAIN_CELLS} (make a step \
+                 larger)"
+            )));
+        }
+        Ok(GainsJob {
+            params,
+            impact,
+            kps: gains::range(kp_from, kp_to, kp_step),
+            kds: gains::range(kd_from, kd_to, kd_step),
+        })
+    }
+
+    /// The whole grid, rows in parallel; `tick` is called after each row.
+    pub fn run(&self, tick: &(dyn Fn() + Sync)) -> GainsReport {
+        GainsReport {
+            cells: gains::grid(self.params, self.impact, &self.kps, &self.kds, tick),
+        }
+    }
+
+    /// The rows of one shard, in parallel.
+    pub fn run_shard(&self, shard: Shard) -> GainsShard {
+        let rows = shard::run(shard, self.kps.len(), |j| {
+            gains::row(self.params, self.impact, self.kps[j], &self.kds)
+        });
+        GainsShard { shard, rows }
+    }
+
+    /// The whole grid from all its shards (in any order).
+    pub fn merge(&self, shards: Vec<GainsShard>) -> Result<GainsReport, ShardError> {
+        let parts = shards.into_iter().map(|s| (s.shard, s.rows)).collect();
+        let rows = shard::gather(self.kps.len(), parts)?;
+        Ok(GainsReport {
+            cells: rows.into_iter().flatten().collect(),
+        })
+    }
+}
+
+/// The orbits of approach 2 for one gain pair (the JSON of `tilting plan orbit`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct OrbitReport {
+    /// K_P (1/s^2).
+    pub kp: f64,
+    /// K_D (1/s).
+    pub kd: f64,
+    /// k.
+    pub k: f64,
+    /// E_av used by the adaptation (J), if any.
+    pub energy_avg_adaptation: Option<f64>,
+    /// The orbits found, by increasing maximal tilt.
+    pub solutions: Vec<OrbitSolution>,
+}
+
+/// The periodic orbits of the loop with gains `kp` (1/s^2), `kd` (1/s) and adaptation gain `k`
+/// (1/(J s^2)); with `k > 0` each `k = 0` orbit is continued to `k` in steps of at most 100,
+/// for the adapted loop with `E_av = energy_avg` (J), by default the `k = 0` orbit's.
+pub fn orbits(
+    params: Params,
+    impact: ImpactLaw,
+    kp: f64,
+    kd: f64,
+    k: f64,
+    energy_avg: Option<f64>,
+) -> Result<OrbitReport, JobError> {
+    check("kp", kp, kp > 0.0, "finite and > 0")?;
+    check("kd", kd, kd > 0.0, "finite and > 0")?;
+    check("k", k, k >= 0.0, "finite and >= 0")?;
+    let pb = OrbitProblem::new(params, impact, kp, kd);
+    let base = orbit::find_all(&pb);
+    let (solutions, e_av) = if k > 0.0 {
+        let e_av = match energy_avg {
+            Some(e) => check("energy-avg", e, e > 0.0, "finite and > 0 (J)")?,
+            None => base.first().map(|s| s.energy_avg).ok_or_else(|| {
+                JobError::Invalid("no k = 0 orbit to take E_av from: give --energy-avg".into())
+            })?,
+        };
+        let mut sols: Vec<OrbitSolution> = base
+            .iter()
+            .filter_map(|s| {
+                // Continue each branch from k = 0 in steps, the orbit moves with k.
+                let mut g = [s.beta0, s.beta_dot0, s.t_end];
+                let n = (k / 100.0).ceil().max(1.0) as usize;
+                let mut last = None;
+                for i in 1..=n {
+                    let kk = k * i as f64 / n as f64;
+                    let sol = orbit::solve(&pb.with_adaptation(kk, e_av), g).ok()?;
+                    g = [sol.beta0, sol.beta_dot0, sol.t_end];
+                    last = Some(sol);
+                }
+                last
+            })
+            .collect();
+        sols.sort_by(|a, b| a.max_tilt.total_cmp(&b.max_tilt));
+        (sols, Some(e_av))
+    } else {
+        (base, None)
+    };
+    Ok(OrbitReport {
+        kp,
+        kd,
+        k,
+        energy_avg_adaptation: e_av,
+        solutions,
+    })
+}
+
+/// Approach 1: the frequency of `beta_d = A sin(w t) + pi/2` (`amplitude` A in rad) whose
+/// ideal-tracking tilt lands at `t_l = T/2 + s t_t` (`landing_offset` s), searched in
+/// `[omega_min, omega_max]` (rad/s).
+pub fn sinusoid(
+    params: &Params,
+    amplitude: f64,
+    landing_offset: f64,
+    omega_min: f64,
+    omega_max: f64,
+) -> Result<SinusoidSolution, JobError> {
+    let search = sinusoid::Search {
+        omega_min,
+        omega_max,
+        ..sinusoid::Search::default()
+    };
+    check(
+        "omega-min",
+        omega_min,
+        omega_min > 0.0,
+        "finite and > 0 (rad/s)",
+    )?;
+    let allowed = "finite and > --omega-min (rad/s)";
+    check("omega-max", omega_max, omega_max > omega_min, allowed)?;
+    sinusoid::solve(params, amplitude, landing_offset, &search).map_err(|e| match e {
+        SinusoidError::Invalid { .. } => JobError::Invalid(e.to_string()),
+        other => JobError::Failed(other.to_string()),
+    })
+}
