@@ -4,7 +4,8 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use tilting::commands::{
-    animate, continuation, figures, identify, margins, plan, recording, shard, simulate, topics,
+    animate, continuation, figures, identify, margins, plan, recording, ros2, shard, simulate,
+    topics,
 };
 use tilting::live;
 
@@ -32,6 +33,10 @@ Look:
   record      Record a robot's topics into an MCAP file (opens in Foxglove, PlotJuggler)
   replay      Publish an MCAP recording back, byte for byte, at its pace or faster
   info        Summarise an MCAP recording: span, channels, counts, tilts, faults
+
+ROS 2:
+  ros2        bridge | urdf: any robot on the network as a ROS 2 node (rmw_zenoh's conventions:
+              joint_states, contact_mode, /rosout), and the robot's URDF (docs/ros2.md)
 
 Identify:
   identify    The robot's physical parameters from a recording (least squares on the
@@ -92,6 +97,10 @@ enum Command {
     /// A development certificate authority, one certificate per node (plant, controller,
     /// planner, logger, router) and the zenoh configurations with TLS and access control
     Certs(tilting::security::CertsArgs),
+    /// ROS 2 in rmw_zenoh's conventions: mirror a robot on the network as a ROS 2 node, and
+    /// the robot's URDF (docs/ros2.md)
+    #[command(subcommand)]
+    Ros2(ros2::Ros2Command),
 }
 
 #[derive(Debug, Subcommand)]
@@ -137,6 +146,8 @@ fn main() -> ExitCode {
         Command::Info(args) => recording::info(args),
         Command::Identify(args) => identify::run(args),
         Command::Certs(args) => tilting::security::certs(args),
+        Command::Ros2(ros2::Ros2Command::Bridge(args)) => ros2::bridge(args),
+        Command::Ros2(ros2::Ros2Command::Urdf(args)) => ros2::urdf(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -24,6 +24,9 @@
 //!    are the plant's (state published → its torque received) over its last 4096 periods; the
 //!    raw percentiles use the same window (the last 4096 round trips; whole-run figures are
 //!    printed too).
+//!    With `--ros2 1` each round also runs the real-time loop with the plant's `--ros2` mirror
+//!    on and a subscriber on `/<robot>/joint_states` (a raw zenoh subscriber in this process,
+//!    on the exact rmw_zenoh key), and prints its p99 and misses beside the plain run's.
 //! 3. **Memory**: the plant's resident set (VmRSS) sampled every 5 s of a long real-time run
 //!    (`--long-s`).
 //!
@@ -302,6 +305,8 @@ struct LoopRun {
     rate: Option<f64>,
     /// `(seconds since start, VmRSS kB)` samples of the plant.
     rss: Vec<(f64, u64)>,
+    /// `--ros2`: joint_states received by the subscriber.
+    received: u64,
 }
 
 fn vm_rss_kb(pid: i32) -> Option<u64> {
@@ -315,7 +320,8 @@ fn vm_rss_kb(pid: i32) -> Option<u64> {
 }
 
 /// Runs plant + controller; `lockstep_s` = Some(wall seconds) for a lockstep run, otherwise a
-/// real-time run of `duration` s sampling the plant's RSS every `rss_every` s.
+/// real-time run of `duration` s sampling the plant's RSS every `rss_every` s. `ros2`: the
+/// plant's `--ros2` mirror on, with a subscriber on its `joint_states` in this process.
 fn real_loop(
     bins: &(PathBuf, PathBuf),
     dir: &Path,
@@ -323,6 +329,7 @@ fn real_loop(
     duration: f64,
     lockstep_s: Option<f64>,
     rss_every: f64,
+    ros2: bool,
 ) -> anyhow::Result<LoopRun> {
     let rt = tilting_net::runtime()?;
     let port = free_port();
@@ -332,16 +339,37 @@ fn real_loop(
     if lockstep_s.is_some() {
         extra.extend(["--clock", "lockstep"]);
     }
+    if ros2 {
+        extra.push("--ros2");
+    }
     let mut plant = Proc::spawn(
         &format!("{tag}-plant"),
         &bins.0,
         &plant_args(&robot, port, &extra),
         dir,
     );
-    let (client, status) = rt.block_on(async {
+    let received = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let (client, status, _ros_sub) = rt.block_on(async {
         let client = Client::open(&robot, None, Some(port)).await;
         let status = StatusWatch::new(&client).await;
-        (client, status)
+        let mut sub = None;
+        if ros2 {
+            let key = tilting_ros2::names::topic_key(
+                0,
+                &format!("/{robot}/joint_states"),
+                &tilting_ros2::msgs::JOINT_STATE,
+            );
+            let n = received.clone();
+            sub = client
+                .session
+                .declare_subscriber(key)
+                .callback(move |_| {
+                    n.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                })
+                .await
+                .ok();
+        }
+        (client, status, sub)
     });
     let mut ctl = Proc::spawn(
         &format!("{tag}-controller"),
@@ -388,7 +416,16 @@ fn real_loop(
     rt.block_on(async {
         let _ = client.session.close().await;
     });
-    Ok(LoopRun { summary, rate, rss })
+    let received = received.load(std::sync::atomic::Ordering::Relaxed);
+    if ros2 {
+        eprintln!("{tag}: the subscriber received {received} joint_states");
+    }
+    Ok(LoopRun {
+        summary,
+        rate,
+        rss,
+        received,
+    })
 }
 
 fn lat(s: &PlantSummary) -> Pct {
@@ -411,6 +448,7 @@ struct Opts {
     rounds: usize,
     lockstep_s: f64,
     long_s: f64,
+    ros2: bool,
 }
 
 fn parse_opts() -> anyhow::Result<Opts> {
@@ -421,6 +459,7 @@ fn parse_opts() -> anyhow::Result<Opts> {
         rounds: 3,
         lockstep_s: 5.0,
         long_s: 30.0,
+        ros2: false,
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
@@ -436,9 +475,10 @@ fn parse_opts() -> anyhow::Result<Opts> {
             "--rounds" => o.rounds = (v as usize).max(1),
             "--lockstep-s" => o.lockstep_s = v,
             "--long-s" => o.long_s = v,
+            "--ros2" => o.ros2 = v != 0.0,
             _ => anyhow::bail!(
                 "unknown flag {flag}; flags (seconds unless said): --b2b-s --paced-s --realtime-s \
-                 --rounds N --lockstep-s --long-s (0 skips the memory run)"
+                 --rounds N --lockstep-s --long-s (0 skips the memory run) --ros2 0|1"
             ),
         }
     }
@@ -458,6 +498,8 @@ struct Round {
     late: u64,
     rt: LoopRun,
     ls: LoopRun,
+    /// `--ros2 1`: the real-time loop with the mirror and a subscriber.
+    ros: Option<LoopRun>,
 }
 
 fn row(name: &str, q: &Pct, rate: &str, note: &str) {
@@ -518,8 +560,36 @@ fn main() -> anyhow::Result<()> {
         );
         let (b2b, b2b_rate) = pp.back_to_back(o.b2b_s)?;
         let (paced, late) = pp.paced(o.paced_s);
-        let rt = real_loop(&bins, &dir, &format!("rt{r}"), o.realtime_s, None, 1e9)?;
-        let ls = real_loop(&bins, &dir, &format!("ls{r}"), 1e6, Some(o.lockstep_s), 1e9)?;
+        let rt = real_loop(
+            &bins,
+            &dir,
+            &format!("rt{r}"),
+            o.realtime_s,
+            None,
+            1e9,
+            false,
+        )?;
+        let ros = match o.ros2 {
+            true => Some(real_loop(
+                &bins,
+                &dir,
+                &format!("ros{r}"),
+                o.realtime_s,
+                None,
+                1e9,
+                true,
+            )?),
+            false => None,
+        };
+        let ls = real_loop(
+            &bins,
+            &dir,
+            &format!("ls{r}"),
+            1e6,
+            Some(o.lockstep_s),
+            1e9,
+            false,
+        )?;
         rounds.push(Round {
             b2b,
             b2b_rate,
@@ -527,12 +597,13 @@ fn main() -> anyhow::Result<()> {
             late,
             rt,
             ls,
+            ros,
         });
     }
     pp.stop();
     let long = if o.long_s > 0.0 {
         eprintln!("plant + controller in real time, {} s (memory)", o.long_s);
-        Some(real_loop(&bins, &dir, "long", o.long_s, None, 5.0)?)
+        Some(real_loop(&bins, &dir, "long", o.long_s, None, 5.0, false)?)
     } else {
         None
     };
@@ -547,7 +618,7 @@ fn main() -> anyhow::Result<()> {
         "|{:-<52}|{:-<8}|{:-<9}|{:-<9}|{:-<9}|{:-<9}|{:-<9}|------",
         "", "", "", "", "", "", ""
     );
-    let (mut rt_ratios, mut ls_ratios) = (Vec::new(), Vec::new());
+    let (mut rt_ratios, mut ls_ratios, mut ros_ratios) = (Vec::new(), Vec::new(), Vec::new());
     for (i, r) in rounds.iter().enumerate() {
         let i = i + 1;
         let b2b = pct(last_window(&r.b2b));
@@ -586,6 +657,26 @@ fn main() -> anyhow::Result<()> {
                 r.rt.summary.overruns,
             ),
         );
+        if let Some(ros) = &r.ros {
+            let q0 = lat(&r.rt.summary);
+            let q = lat(&ros.summary);
+            let x = q.p99 / q0.p99;
+            ros_ratios.push(x);
+            row(
+                &format!("{i}: same, --ros2 mirror + joint_states subscriber"),
+                &q,
+                "1000",
+                &format!(
+                    "p99 {x:.2}x the run without; misses {} (without: {}), overruns {}; {} \
+                     joint_states received, mirror queue drops {}",
+                    ros.summary.deadline_misses,
+                    r.rt.summary.deadline_misses,
+                    ros.summary.overruns,
+                    ros.received,
+                    ros.summary.ros2.as_ref().map_or(0, |s| s.mirror_dropped),
+                ),
+            );
+        }
         let q = lat(&r.ls.summary);
         let rate = r.ls.rate.unwrap_or(f64::NAN);
         let y = rate / r.b2b_rate;
@@ -634,6 +725,14 @@ fn main() -> anyhow::Result<()> {
         list(&rt_ratios),
         if r_rt <= 1.2 { "met" } else { "MISSED" }
     );
+    if !ros_ratios.is_empty() {
+        println!(
+            "--ros2 real-time loop p99 / the same loop without: median {:.2}x over {} rounds ({})",
+            median(ros_ratios.clone()),
+            ros_ratios.len(),
+            list(&ros_ratios)
+        );
+    }
     let r_ls = median(ls_ratios.clone());
     println!(
         "lockstep rate / raw back-to-back rate: median {r_ls:.2}x over {} rounds ({}); goal >= 0.8x: {}",

@@ -10,6 +10,7 @@ pub mod identify;
 pub mod margins;
 pub mod plan;
 pub mod recording;
+pub mod ros2;
 pub mod shard;
 pub mod simulate;
 pub mod topics;

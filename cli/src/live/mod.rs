@@ -43,6 +43,7 @@ mod monitor;
 mod nodes;
 mod orbit;
 mod report;
+pub mod ros2;
 mod shutdown;
 pub mod status;
 pub mod summary;
@@ -133,6 +134,9 @@ pub struct LiveArgs {
     /// [default: --params]
     #[arg(long, value_name = "FILE.toml")]
     pub plant_params: Option<PathBuf>,
+    /// `--ros2`: the plant as a ROS 2 node too.
+    #[command(flatten)]
+    pub ros2: ros2::LiveRos2Args,
 }
 
 impl LiveArgs {
@@ -238,6 +242,7 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
 fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
     let usage = CommandError::Usage;
     check_seconds("--duration", args.duration, false)?;
+    args.ros2.check(&args.robot, args.secure)?;
     let (lo, hi) = tilting_plant::node::PERIOD_RANGE;
     if !(args.rate.is_finite() && (1.0 / hi..=1.0 / lo).contains(&args.rate)) {
         return Err(usage(anyhow!(

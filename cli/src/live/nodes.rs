@@ -223,6 +223,7 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
         v.extend(args.network.to_args());
     }
     v.extend(imperfect);
+    v.extend(args.ros2.plant_args());
     v
 }
 

@@ -103,6 +103,19 @@ pub struct PlantArgs {
     /// Realtime clock: try SCHED_FIFO at this priority for the pacing thread (needs privileges)
     #[arg(long, value_name = "1-99")]
     pub rt_priority: Option<i32>,
+    /// Be a ROS 2 robot too, in rmw_zenoh's conventions (docs/ros2.md): the state on
+    /// /<robot>/joint_states, the mode on /<robot>/contact_mode, events, faults and the safe
+    /// mode on /rosout (from a thread of their own: the loop never waits for them), and the arm
+    /// torque accepted as std_msgs/msg/Float64MultiArray on /<robot>/effort_command
+    #[arg(long)]
+    pub ros2: bool,
+    /// ROS 2 domain id of --ros2 (ROS_DOMAIN_ID)
+    #[arg(long, default_value_t = 0, value_name = "0-232", requires = "ros2")]
+    pub ros_domain: u32,
+    /// With --ros2 and --zenoh-config (the secure deployment, where the router's ACL lets only
+    /// the controller's certificate publish torques): accept /<robot>/effort_command anyway
+    #[arg(long, requires = "ros2")]
+    pub ros2_allow_commands: bool,
 }
 
 /// Allowed control periods (s): 100 us (10 kHz; a faster loop spends its period in the
@@ -170,6 +183,21 @@ impl PlantArgs {
         }
         // Checked for both clocks: the same ranges and messages as `simulate`.
         self.network.impairment(self.max_age)?;
+        if self.ros2 {
+            anyhow::ensure!(
+                self.ros_domain <= 232,
+                "invalid --ros-domain = {}: allowed 0 to 232",
+                self.ros_domain
+            );
+            tilting_ros2::robot::Topics::new(&self.zenoh.robot).map_err(anyhow::Error::msg)?;
+            anyhow::ensure!(
+                self.zenoh.zenoh_config.is_none() || self.ros2_allow_commands,
+                "--ros2 with --zenoh-config (the secure deployment): /<robot>/effort_command \
+                 would accept torques from any ROS 2 node the router lets in, around the ACL \
+                 that admits only the controller's certificate; pass --ros2-allow-commands to \
+                 accept them anyway (and allow the ROS 2 keys in the router's ACL)"
+            );
+        }
         anyhow::ensure!(
             self.max_age <= 1000,
             "invalid --max-age = {}: allowed 0 to 1000 periods",

@@ -43,6 +43,8 @@ pub(super) struct Publishers {
     pub(super) state: TypedPublisher<PlantState>,
     pub(super) event: TypedPublisher<ModeEvent>,
     pub(super) status: TypedPublisher<Status>,
+    /// `--ros2`: the mirror's queue (never waited on).
+    pub(super) ros2: Option<tilting_ros2::node::MirrorTx>,
 }
 
 /// The pacing loop and everything it owns.
@@ -154,8 +156,16 @@ impl Loop {
             beta_dot: y.rates.map(|r| r[1]),
             mode: self.plant.mode().as_u8(),
         };
-        self.shared.current_seq.store(self.seq, Ordering::Release);
+        let previous = self.shared.current_seq.swap(self.seq, Ordering::AcqRel);
         self.t_pub = clock::now_ns();
+        if let Some(m) = &self.pubs.ros2 {
+            // When `seq` was first published (a lockstep re-publication keeps it).
+            let first = &self.shared.published_wall_ns;
+            if previous != self.seq || first.load(Ordering::Acquire) == 0 {
+                first.store(tilting_ros2::node::wall_ns(), Ordering::Release);
+            }
+            m.send(tilting_ros2::node::Input::State(msg, Some(self.tau)));
+        }
         if let Some(link) = &self.link {
             link.send_state(msg);
         } else if let Err(e) = self.pubs.state.put(&msg) {
@@ -223,6 +233,9 @@ impl Loop {
         let s = self.status();
         if let Err(e) = self.pubs.status.put(&s) {
             tracing::warn!("cannot publish the status: {e}");
+        }
+        if let Some(m) = &self.pubs.ros2 {
+            m.send(tilting_ros2::node::Input::Status(s.clone()));
         }
         self.rec(|r| r.status(&s));
         self.next_status = Instant::now() + self.status_interval;
@@ -515,6 +528,9 @@ impl Loop {
             if let Err(e) = self.pubs.event.put(&msg) {
                 tracing::warn!("cannot publish an event: {e}");
             }
+            if let Some(m) = &self.pubs.ros2 {
+                m.send(tilting_ros2::node::Input::Event(msg));
+            }
             if let Some(r) = &mut self.record {
                 if let Err(e) = r.event(&msg) {
                     tracing::warn!("--record: write failed, recording stops: {e:#}");
@@ -671,6 +687,7 @@ impl Loop {
         };
         let window = Some(Ring::CAPACITY as u64);
         PlantSummary {
+            ros2: None,
             result,
             fault,
             clock: self.args.clock,

@@ -13,6 +13,9 @@ pub(super) struct Shared {
     pub(super) cv: Condvar,
     /// `seq` of the last published state.
     pub(super) current_seq: AtomicU64,
+    /// When it was published, wall clock (ns since the Unix epoch): `--ros2` commands carry a
+    /// wall-clock source timestamp.
+    pub(super) published_wall_ns: std::sync::atomic::AtomicI64,
     pub(super) torques: DropCounter,
     pub(super) stale: AtomicU64,
     pub(super) controller_alive: AtomicBool,
@@ -32,6 +35,12 @@ impl Shared {
         let Some(cmd) = self.torques.decode::<TorqueCommand>(bytes) else {
             return;
         };
+        self.on_torque_command(cmd);
+    }
+
+    /// A decoded torque (the controller's, or a ROS 2 `effort_command`'s): the plausibility
+    /// rules, then the inbox.
+    pub(super) fn on_torque_command(&self, cmd: TorqueCommand) {
         // A torque that decodes can still be a lie: the plausibility rules of
         // `tilting_proto::plausible`, which the recorder of `tilting live` applies too. Beyond
         // the bound it is refused, counted with the malformed ones and logged at a bounded rate;

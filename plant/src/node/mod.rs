@@ -63,6 +63,7 @@ pub use tilting_record::csv;
 mod emulation;
 mod inbox;
 mod recording;
+mod ros2;
 pub mod stats;
 pub mod summary;
 
@@ -88,6 +89,7 @@ pub use args::{
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
 use recording::Recording;
+pub use ros2::Ros2Summary;
 use stats::Ring;
 pub use summary::{LinkEmulation, PlantSummary, RunResult, SafeModeEntry, Window};
 
@@ -126,6 +128,7 @@ async fn run_async(
         inbox: Mutex::new(None),
         cv: Condvar::new(),
         current_seq: AtomicU64::new(0),
+        published_wall_ns: std::sync::atomic::AtomicI64::new(0),
         torques: DropCounter::new(keys.controller_torque()),
         stale: AtomicU64::new(0),
         controller_alive: AtomicBool::new(false),
@@ -135,11 +138,17 @@ async fn run_async(
         max_torque: args.max_torque(),
         reordered: AtomicU64::new(0),
     });
+    let ros2 = match args.ros2 {
+        true => Some(ros2::Ros2::start(&session, &args, shared.clone()).await?),
+        false => None,
+    };
     let pubs = Arc::new(Publishers {
         state: TypedPublisher::declare(&session, keys.plant_state(), Qos::Control).await?,
         event: TypedPublisher::declare(&session, keys.plant_event(), Qos::Data).await?,
         status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Data).await?,
+        ros2: ros2.as_ref().map(|r| r.mirror.clone()),
     });
+    let ros_domain = args.ros_domain;
     // Real time over emulated links: states and torques cross them on the wall clock.
     let impairment = args.network.impairment(args.max_age)?;
     let link = match (impairment, args.clock) {
@@ -234,10 +243,11 @@ async fn run_async(
         }
         _ = done_rx => {}
     }
-    let (outcome, summary) = tokio::task::spawn_blocking(move || pacing.join())
+    let (outcome, mut summary) = tokio::task::spawn_blocking(move || pacing.join())
         .await
         .context("pacing thread join")?
         .map_err(|_| anyhow::anyhow!("the pacing thread panicked"))?;
+    summary.ros2 = ros2.as_ref().map(|r| r.summary(ros_domain));
     if let Some(l) = &link {
         l.stop();
     }
@@ -247,6 +257,7 @@ async fn run_async(
     // Let the last status and event leave before the session closes.
     tokio::time::sleep(Duration::from_millis(100)).await;
     drop(_token);
+    drop(ros2);
     let _ = session.close().await;
     Ok(match outcome {
         Outcome::Faulted(_) => ExitCode::from(EXIT_FAULT),

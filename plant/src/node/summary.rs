@@ -102,6 +102,9 @@ pub struct PlantSummary {
     pub tilts: u64,
     /// Mode transitions.
     pub transitions: u64,
+    /// `--ros2`: the mirror's and `effort_command`'s counts (absent without `--ros2`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ros2: Option<super::Ros2Summary>,
     /// Torque messages received, valid or not.
     pub torques_received: u64,
     /// Torque messages dropped as malformed or invalid.

@@ -1,0 +1,216 @@
+//! `tilting ros2 bridge` and `tilting ros2 urdf`: any robot on the network as a ROS 2 node in
+//! rmw_zenoh's conventions (`tilting_ros2`, docs/ros2.md), and the robot's URDF from the
+//! model's parameters.
+
+use super::topics::{check_seconds, session_args};
+use crate::CommandError;
+use anyhow::{anyhow, Context as _};
+use clap::{Args, Subcommand};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tilting_net::{DropCounter, Role, ZenohArgs};
+use tilting_plant::{Params, ParamsArgs};
+use tilting_proto::{ModeEvent, PlantState, Status, TorqueCommand};
+use tilting_ros2::node::{Input, Mirror, RosNode};
+use tilting_ros2::urdf::Geometry;
+
+/// `tilting ros2 ...`.
+#[derive(Debug, Subcommand)]
+pub enum Ros2Command {
+    /// Mirror a robot already on the network as ROS 2 topics (/<robot>/joint_states,
+    /// /<robot>/contact_mode, /rosout), like `record` does into a file, until Ctrl-C
+    Bridge(BridgeArgs),
+    /// The robot's URDF from the model's parameters (robot_state_publisher, rviz2, Foxglove)
+    Urdf(UrdfArgs),
+}
+
+/// Flags of `tilting ros2 bridge`.
+#[derive(Debug, Clone, Args)]
+pub struct BridgeArgs {
+    /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// ROS 2 domain id (ROS_DOMAIN_ID)
+    #[arg(long, default_value_t = 0, value_name = "0-232")]
+    pub ros_domain: u32,
+    /// Stop after this many seconds [default: until Ctrl-C]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+}
+
+/// What `tilting ros2 bridge` printed at its end (one JSON object on stdout).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BridgeSummary {
+    /// Messages received from the robot (state, event, status, torque) that decoded.
+    pub received: u64,
+    /// Inputs handed to the mirror.
+    pub mirrored: u64,
+    /// Inputs dropped because the mirror's queue was full.
+    pub dropped: u64,
+}
+
+/// `tilting ros2 bridge`.
+pub fn bridge(args: &BridgeArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    check_seconds("--seconds", args.seconds)?;
+    let keys = session_args(&args.zenoh)?;
+    if args.ros_domain > 232 {
+        return Err(CommandError::Usage(anyhow!(
+            "invalid --ros-domain = {}: allowed 0 to 232",
+            args.ros_domain
+        )));
+    }
+    tilting_ros2::robot::Topics::new(keys.robot()).map_err(|e| CommandError::Usage(anyhow!(e)))?;
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let summary = rt
+        .block_on(async {
+            let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+            let robot = keys.robot();
+            let node = RosNode::declare(
+                &session,
+                args.ros_domain,
+                &format!("/{robot}"),
+                "tilting_bridge",
+            )
+            .await?;
+            let tx = Mirror::declare(&node, robot).await?.spawn(256)?;
+            let received = Arc::new(AtomicU64::new(0));
+            // The newest torque of the controller, for the efforts of joint_states.
+            let tau = Arc::new(Mutex::new(None::<f64>));
+            let mut subs = Vec::new();
+            let (t, n) = (tx.clone(), received.clone());
+            let tau2 = tau.clone();
+            subs.push(
+                tilting_net::subscribe_decoded(
+                    &session,
+                    Arc::new(DropCounter::new(keys.plant_state())),
+                    move |s: PlantState| {
+                        n.fetch_add(1, Ordering::Relaxed);
+                        let tau = *tau2.lock().unwrap_or_else(|e| e.into_inner());
+                        t.send(Input::State(s, tau));
+                    },
+                )
+                .await?,
+            );
+            let (t, n) = (tx.clone(), received.clone());
+            subs.push(
+                tilting_net::subscribe_decoded(
+                    &session,
+                    Arc::new(DropCounter::new(keys.plant_event())),
+                    move |e: ModeEvent| {
+                        n.fetch_add(1, Ordering::Relaxed);
+                        t.send(Input::Event(e));
+                    },
+                )
+                .await?,
+            );
+            let (t, n) = (tx.clone(), received.clone());
+            subs.push(
+                tilting_net::subscribe_decoded(
+                    &session,
+                    Arc::new(DropCounter::new(keys.plant_status())),
+                    move |s: Status| {
+                        n.fetch_add(1, Ordering::Relaxed);
+                        t.send(Input::Status(s));
+                    },
+                )
+                .await?,
+            );
+            let n = received.clone();
+            subs.push(
+                tilting_net::subscribe_decoded(
+                    &session,
+                    Arc::new(DropCounter::new(keys.controller_torque())),
+                    move |c: TorqueCommand| {
+                        n.fetch_add(1, Ordering::Relaxed);
+                        *tau.lock().unwrap_or_else(|e| e.into_inner()) = Some(c.tau);
+                    },
+                )
+                .await?,
+            );
+            eprintln!(
+                "ros2 bridge: tilting/{robot}/** as /{robot}/joint_states, /{robot}/contact_mode \
+                 and /rosout in ROS domain {} (Ctrl-C stops)",
+                args.ros_domain
+            );
+            let end = args
+                .seconds
+                .map(|s| Instant::now() + Duration::from_secs_f64(s));
+            let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
+            while end.is_none_or(|e| Instant::now() < e) {
+                tokio::select! {
+                    _ = &mut stop => break,
+                    _ = tokio::time::sleep(Duration::from_millis(100)) => {}
+                }
+            }
+            drop(subs);
+            let c = tx.counts();
+            let summary = BridgeSummary {
+                received: received.load(Ordering::Relaxed),
+                mirrored: c.sent.load(Ordering::Relaxed),
+                dropped: c.dropped.load(Ordering::Relaxed),
+            };
+            drop(tx);
+            drop(node);
+            let _ = session.close().await;
+            anyhow::Ok(summary)
+        })
+        .map_err(CommandError::Failed)?;
+    super::print_stdout(
+        &(serde_json::to_string(&summary).map_err(|e| CommandError::Failed(anyhow!(e)))? + "\n"),
+    )
+}
+
+/// Flags of `tilting ros2 urdf`.
+#[derive(Debug, Clone, Args)]
+pub struct UrdfArgs {
+    /// The model's parameter file.
+    #[command(flatten)]
+    pub params: ParamsArgs,
+    /// The robot's name in the URDF
+    #[arg(long, default_value = tilting_proto::keys::DEFAULT_ROBOT)]
+    pub name: String,
+    /// The arm joint's effort limit (N m) [default: the plant's --max-torque default]
+    #[arg(long, value_name = "NM")]
+    pub max_torque: Option<f64>,
+    /// Write the URDF here [default: stdout]
+    #[arg(long, value_name = "FILE.urdf")]
+    pub out: Option<PathBuf>,
+}
+
+/// The URDF's geometry from the model's parameters (`l_c` resolved, the plant's torque bound).
+pub fn geometry(p: &Params, max_torque: f64) -> Geometry {
+    Geometry {
+        f: p.f,
+        l: p.l,
+        l_c: p.lc(),
+        m_f: p.m_f,
+        m_l: p.m_l,
+        i_l: p.i_l,
+        max_torque,
+    }
+}
+
+/// `tilting ros2 urdf`.
+pub fn urdf(args: &UrdfArgs) -> Result<(), CommandError> {
+    let p = args
+        .params
+        .params()
+        .map_err(|e| CommandError::Usage(e.into()))?;
+    let tau = args
+        .max_torque
+        .unwrap_or(tilting_plant::node::DEFAULT_MAX_TORQUE);
+    super::check("max-torque", tau, tau > 0.0, "a positive number of N m")?;
+    tilting_ros2::names::validate_ros_name(&args.name)
+        .map_err(|e| CommandError::Usage(anyhow!("--name: {e}")))?;
+    let text = tilting_ros2::urdf::urdf(&args.name, &geometry(&p, tau));
+    match &args.out {
+        Some(path) => std::fs::write(path, text)
+            .with_context(|| format!("cannot write --out {}", path.display()))
+            .map_err(CommandError::Failed),
+        None => super::print_stdout(&text),
+    }
+}

@@ -1,0 +1,65 @@
+//! `tilting live --ros2`: the flags handed to the plant, which then is a ROS 2 node as well
+//! (`tilting_plant::node` `--ros2`, docs/ros2.md).
+
+use crate::CommandError;
+use anyhow::anyhow;
+
+/// The ROS 2 flags of `tilting live`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct LiveRos2Args {
+    /// The plant is a ROS 2 node too, in rmw_zenoh's conventions (docs/ros2.md):
+    /// /<robot>/joint_states, /<robot>/contact_mode, /rosout, and the arm torque accepted on
+    /// /<robot>/effort_command (std_msgs/msg/Float64MultiArray)
+    #[arg(long)]
+    pub ros2: bool,
+    /// ROS 2 domain id of --ros2 (ROS_DOMAIN_ID)
+    #[arg(long, default_value_t = 0, value_name = "0-232", requires = "ros2")]
+    pub ros_domain: u32,
+    /// With --ros2 --secure: accept /<robot>/effort_command, which the router's ACL does not
+    /// restrict to the controller's certificate (refused without this flag)
+    #[arg(long, requires = "ros2")]
+    pub ros2_allow_commands: bool,
+}
+
+impl LiveRos2Args {
+    /// Usage errors: the domain's range, the robot name as a ROS 2 name, and `--secure`
+    /// without `--ros2-allow-commands`.
+    pub fn check(&self, robot: &str, secure: bool) -> Result<(), CommandError> {
+        if !self.ros2 {
+            return Ok(());
+        }
+        let usage = |m: String| CommandError::Usage(anyhow!(m));
+        if self.ros_domain > 232 {
+            return Err(usage(format!(
+                "invalid --ros-domain = {}: allowed 0 to 232",
+                self.ros_domain
+            )));
+        }
+        tilting_ros2::robot::Topics::new(robot).map_err(usage)?;
+        if secure && !self.ros2_allow_commands {
+            return Err(usage(
+                "--ros2 with --secure: /<robot>/effort_command would accept torques from any \
+                 ROS 2 node the router lets in, around the ACL that admits only the \
+                 controller's certificate; pass --ros2-allow-commands to accept them anyway"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The plant's flags.
+    pub fn plant_args(&self) -> Vec<String> {
+        if !self.ros2 {
+            return Vec::new();
+        }
+        let mut v = vec![
+            "--ros2".into(),
+            "--ros-domain".into(),
+            self.ros_domain.to_string(),
+        ];
+        if self.ros2_allow_commands {
+            v.push("--ros2-allow-commands".into());
+        }
+        v
+    }
+}
