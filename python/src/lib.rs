@@ -218,21 +218,49 @@ fn run_shard(
     count: usize,
 ) -> PyResult<String> {
     let shard = Shard::new(index, count).map_err(usage)?;
-    match kind {
+    let part = match kind {
         "bifurcation" => {
             let j: BifurcationJob = from_json("bifurcation job", job)?;
-            to_json(&py.detach(|| j.run_shard(shard)).map_err(job_err)?)
+            to_value(&py.detach(|| j.run_shard(shard)).map_err(job_err)?)
         }
         "gains" => {
             let j: GainsJob = from_json("gains job", job)?;
-            to_json(&py.detach(|| j.run_shard(shard)))
+            to_value(&py.detach(|| j.run_shard(shard)))
         }
         "margins" => {
             let j: Survey = from_json("margins survey", job)?;
-            to_json(&py.detach(|| j.run_shard(shard, &|| {})).map_err(failed)?)
+            to_value(&py.detach(|| j.run_shard(shard, &|| {})).map_err(failed)?)
         }
         other => Err(usage(format!("no sweep {other:?}"))),
-    }
+    }?;
+    let grid: serde_json::Value = from_json("job", job)?;
+    to_json(&serde_json::json!({ "grid": grid, "part": part }))
+}
+
+fn to_value<T: serde::Serialize>(v: &T) -> PyResult<serde_json::Value> {
+    serde_json::to_value(v).map_err(failed)
+}
+
+/// The parts of shards (`{"grid", "part"}`) of the sweep `job`, each checked to be of its
+/// grid (the message names the first field that differs).
+fn parts<T: serde::de::DeserializeOwned>(job: &str, shards: &[String]) -> PyResult<Vec<T>> {
+    let grid: serde_json::Value = from_json("job", job)?;
+    shards
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let v: serde_json::Value = from_json("shard", s)?;
+            let g = v.get("grid").ok_or_else(|| usage("not a shard: no grid"))?;
+            if let Some(field) = tilting_planner::shard::first_difference(&grid, g) {
+                return Err(usage(format!(
+                    "shard {i} of those given is of a different grid (`{field}` differs): \
+                     merge only the shards of one sweep"
+                )));
+            }
+            let part = v.get("part").cloned().unwrap_or_default();
+            serde_json::from_value(part).map_err(|e| usage(format!("not a shard: {e}")))
+        })
+        .collect()
 }
 
 /// Runs a whole sweep (`kind` as [`run_shard`]) on all cores: the report's JSON, as the CLI's
@@ -263,27 +291,16 @@ fn merge(kind: &str, job: &str, shards: Vec<String>) -> PyResult<String> {
     match kind {
         "bifurcation" => {
             let j: BifurcationJob = from_json("bifurcation job", job)?;
-            let parts = shards
-                .iter()
-                .map(|s| from_json("bifurcation shard", s))
-                .collect::<PyResult<_>>()?;
-            to_json(&j.merge(parts).map_err(usage)?)
+            to_json(&j.merge(parts(job, &shards)?).map_err(usage)?)
         }
         "gains" => {
             let j: GainsJob = from_json("gains job", job)?;
-            let parts = shards
-                .iter()
-                .map(|s| from_json("gains shard", s))
-                .collect::<PyResult<_>>()?;
-            to_json(&j.merge(parts).map_err(usage)?)
+            to_json(&j.merge(parts(job, &shards)?).map_err(usage)?)
         }
         "margins" => {
             let j: Survey = from_json("margins survey", job)?;
-            let parts: Vec<SurveyShard> = shards
-                .iter()
-                .map(|s| from_json("margins shard", s))
-                .collect::<PyResult<_>>()?;
-            to_json(&j.merge(parts).map_err(usage)?)
+            let p: Vec<SurveyShard> = parts(job, &shards)?;
+            to_json(&j.merge(p).map_err(usage)?)
         }
         other => Err(usage(format!("no sweep {other:?}"))),
     }

@@ -19,7 +19,7 @@ WALL = "stats.wall_time_s"
     [
         dict(duration=3.0),
         dict(duration=2.0, control_period=0.001, delay=0.004, loss=0.1, seed=3),
-        dict(duration=2.0, k=0, kp=90.0, x0=[0.0, 1.4, 0.0, 1.0]),
+        dict(duration=2.0, k=0, kp=90.0, x0=[0.0, 1.4, 0.0, 1.0], mode="flat"),
     ],
 )
 def test_simulate_equals_the_cli(cli, opts):
@@ -96,7 +96,9 @@ def test_bifurcation_equals_the_cli(cli):
 
 def test_read_mcap_reads_what_simulate_records(cli, tmp_path):
     path = tmp_path / "run.mcap"
-    summary = json.loads(cli("simulate", "--json", "--duration", "1", "--record", path))
+    summary = json.loads(
+        cli("simulate", "--json", "--duration", "1", "--control-period", "0.001", "--record", path)
+    )
     rec = tilting.read_mcap(path)
     # The logged loop samples every 1 ms and answers every state.
     assert len(rec.t) == pytest.approx(1000, abs=2)
@@ -136,10 +138,10 @@ def test_bad_input_is_refused_with_the_cli_messages():
 def test_shards_of_two_grids_do_not_merge():
     from tilting import _core
     a = _core.gains_job([80, 100, 20], [10, 11, 1], "paper", None)
-    b = _core.gains_job([80, 120, 20], [10, 11, 1], "paper", None)
+    b = _core.gains_job([80, 100, 20], [10, 12, 1], "paper", None)
     shards = [_core.run_shard("gains", a, 0, 2), _core.run_shard("gains", b, 1, 2)]
-    # Shard 1 of the other grid carries a row this grid does not have: refused, not merged.
-    with pytest.raises(tilting.UsageError, match="corrupt"):
+    # Shard 1 of the other grid (one more K_D per row): refused, naming the field.
+    with pytest.raises(tilting.UsageError, match=r"different grid \(`kds\[2\]`|different grid \(`kds`"):
         _core.merge("gains", a, shards)
     with pytest.raises(tilting.UsageError, match="missing"):
         _core.merge("gains", a, shards[:1])

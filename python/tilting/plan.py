@@ -39,8 +39,8 @@ __all__ = [
     "MarginsPoint",
 ]
 
-# The paper's gains (Sec. III-B): K_P = 100 1/s^2, K_D = 15 1/s, k = 500 1/(J s^2).
-_KP, _KD = 100.0, 15.0
+# The paper's gains (Sec. III-B, the CLI's defaults): K_P = 100 1/s^2, K_D = 14.14 1/s.
+_KP, _KD = 100.0, 14.14
 
 
 def _path(name: str, p: Any) -> Optional[str]:
