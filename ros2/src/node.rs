@@ -306,11 +306,29 @@ impl Mirror {
         std::thread::Builder::new()
             .name("ros2-mirror".into())
             .spawn(move || {
+                lower_priority();
                 while let Ok(i) = rx.recv() {
                     self.publish(&i);
                 }
             })?;
         Ok(MirrorTx { tx, counts })
+    }
+}
+
+/// Nice value of the mirror's thread: under CPU contention the plant's pacing thread (nice 0)
+/// runs first, and the mirror catches up from its queue.
+pub const MIRROR_NICE: i32 = 10;
+
+/// Lowers the calling thread's scheduling priority to [`MIRROR_NICE`] (Linux: a thread is a
+/// task with its own nice value); best effort, elsewhere nothing.
+fn lower_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: plain system calls on the calling thread's own id; no memory is passed.
+    unsafe {
+        let tid = libc::gettid();
+        if libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, MIRROR_NICE) != 0 {
+            tracing::debug!("ROS 2 mirror: cannot lower the thread's priority");
+        }
     }
 }
 
