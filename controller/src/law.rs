@@ -45,7 +45,7 @@ impl LawKind {
     pub const ALL: [LawKind; 1] = [LawKind::ComputedTorque];
 
     /// The law's tag on the wire: the `kind` byte of [`tilting_proto::Reference`] is
-    /// `2 * tag + trajectory` (0 for the paper's law, so its messages are those of before).
+    /// `4 * tag + trajectory` (0 for the paper's law, so its messages are those of before).
     pub fn wire_tag(self) -> u8 {
         match self {
             LawKind::ComputedTorque => 0,
@@ -200,7 +200,7 @@ impl LawSpec {
         non_negative("kd", self.kd)?;
         non_negative("k", self.k)?;
         finite("energy_avg", self.energy_avg)?;
-        if self.k > 0.0 && self.energy_avg <= 0.0 {
+        if self.k > 0.0 && self.energy_avg <= 0.0 && self.reference.adapts() {
             // The adaptation needs the orbit's average energy; 0 (the default) would make
             // K_P = K_P0 - k E, a large negative stiffness.
             return Err(ConfigError::OutOfRange {
@@ -209,7 +209,9 @@ impl LawSpec {
                 allowed: "> 0 (the orbit's average energy in J) when k > 0",
             });
         }
-        if let Trajectory::Sinusoid { amplitude, omega } = self.reference {
+        if let Trajectory::Sinusoid { amplitude, omega }
+        | Trajectory::Excitation { amplitude, omega } = self.reference
+        {
             finite("amplitude", amplitude)?;
             tilting_plant::params::positive("omega", omega)?;
         }

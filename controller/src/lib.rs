@@ -62,6 +62,18 @@ impl ControlConfig {
     }
 }
 
+/// Share of the torque that lifts the plate which the excitation may use
+/// ([`excitation_torque_limit`]).
+pub const EXCITATION_TORQUE_SHARE: f64 = 0.7;
+
+/// The excitation's torque limit (N m): [`EXCITATION_TORQUE_SHARE`] of `f (m_f + m_l) g`, the
+/// torque that moves the zero moment point of the model at rest to the plate's edge (docs/
+/// model.md, flat: `r_z = f + tau / F_y`). Below it the plate stays flat however far the
+/// model is off by up to 30 % in its masses: the excitation cannot tip the robot.
+pub fn excitation_torque_limit(p: &tilting_plant::Params) -> f64 {
+    EXCITATION_TORQUE_SHARE * p.f * (p.m_f + p.m_l) * p.g
+}
+
 /// The computed-torque PD law with energy adaptation. A pure function of `(t, q, x)`, so it
 /// serves both inside the integrator (continuous coupling) and once per sample (zero-order
 /// hold over the network).
@@ -90,7 +102,7 @@ impl ComputedTorque {
 
     #[inline(always)]
     fn stiffness_t(&self, mode: Mode, x: &State, tr: &Terms) -> f64 {
-        if self.cfg.law.k == 0.0 {
+        if self.cfg.law.k == 0.0 || !self.cfg.law.reference.adapts() {
             self.cfg.law.kp
         } else {
             self.cfg.law.kp
@@ -133,9 +145,15 @@ impl ComputedTorque {
     #[inline(always)]
     fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
         let tau = self.unclipped_t(t, mode, x, tr);
-        match self.cfg.law.torque_limit {
+        let tau = match self.cfg.law.torque_limit {
             Some(l) => tau.clamp(-l, l),
             None => tau,
+        };
+        if self.cfg.law.reference.adapts() {
+            tau
+        } else {
+            let l = excitation_torque_limit(&self.cfg.params);
+            tau.clamp(-l, l)
         }
     }
 }

@@ -11,16 +11,15 @@ use tilting_plant::{ConfigError, Params};
 use tilting_proto::Reference;
 
 impl From<&Reference> for Trajectory {
-    /// The trajectory of a message: bit 0 of `kind` ([`Reference::SINUSOID`]) gives the
-    /// sinusoid, else the arm holds upright (the other bits name the law, [`LawKind::wire_tag`]).
+    /// The trajectory of a message: bits 0-1 of `kind` give the sinusoid
+    /// ([`Reference::SINUSOID`]) or the excitation ([`Reference::EXCITATION`]), else the arm
+    /// holds upright (the other bits name the law, [`LawKind::wire_tag`]).
     fn from(r: &Reference) -> Self {
-        if r.kind & 1 == Reference::SINUSOID {
-            Trajectory::Sinusoid {
-                amplitude: r.amplitude,
-                omega: r.omega,
-            }
-        } else {
-            Trajectory::Hold
+        let (amplitude, omega) = (r.amplitude, r.omega);
+        match r.kind & 3 {
+            Reference::SINUSOID => Trajectory::Sinusoid { amplitude, omega },
+            Reference::EXCITATION => Trajectory::Excitation { amplitude, omega },
+            _ => Trajectory::Hold,
         }
     }
 }
@@ -69,7 +68,9 @@ pub fn check_bounds(law: &LawSpec) -> Result<(), ConfigError> {
     if law.energy_avg.abs() > ENERGY_AVG_MAX {
         return out("energy_avg", law.energy_avg, "in [-1e3, 1e3] J");
     }
-    if let Trajectory::Sinusoid { amplitude, omega } = law.reference {
+    if let Trajectory::Sinusoid { amplitude, omega } | Trajectory::Excitation { amplitude, omega } =
+        law.reference
+    {
         if amplitude.abs() > AMPLITUDE_MAX {
             return out("amplitude", amplitude, "in [-1.5, 1.5] rad");
         }
@@ -90,7 +91,7 @@ impl From<&Reference> for LawSpec {
     /// unknown law tag reads as the paper's law).
     fn from(r: &Reference) -> Self {
         LawSpec {
-            law: LawKind::from_wire_tag(r.kind >> 1).unwrap_or_default(),
+            law: LawKind::from_wire_tag(r.kind >> 2).unwrap_or_default(),
             kp: r.kp,
             kd: r.kd,
             k: r.k,
@@ -107,11 +108,11 @@ impl LawSpec {
     /// The law of a planner's message, checked by [`LawSpec::validate`] and [`check_bounds`]
     /// (the error names the field and its range).
     pub fn from_wire(r: &Reference) -> Result<Self, ConfigError> {
-        if LawKind::from_wire_tag(r.kind >> 1).is_none() {
+        if LawKind::from_wire_tag(r.kind >> 2).is_none() {
             return Err(ConfigError::OutOfRange {
                 field: "kind",
                 value: r.kind.to_string(),
-                allowed: "2 * law + trajectory, with a law this controller knows",
+                allowed: "4 * law + trajectory, with a law this controller knows",
             });
         }
         let law = LawSpec::from(r);
@@ -125,8 +126,9 @@ impl LawSpec {
         let trajectory = match self.reference {
             Trajectory::Hold => Reference::HOLD,
             Trajectory::Sinusoid { .. } => Reference::SINUSOID,
+            Trajectory::Excitation { .. } => Reference::EXCITATION,
         };
-        let kind = 2 * self.law.wire_tag() + trajectory;
+        let kind = 4 * self.law.wire_tag() + trajectory;
         let (amplitude, omega) = self.reference.sinusoid();
         Reference {
             kind,
@@ -166,6 +168,10 @@ mod tests {
             Trajectory::Sinusoid {
                 amplitude: 0.33,
                 omega: 1.8,
+            },
+            Trajectory::Excitation {
+                amplitude: 0.4,
+                omega: 1.2,
             },
         ] {
             for torque_limit in [None, Some(40.0)] {

@@ -196,6 +196,10 @@ pub trait Observer {
     /// for the state an `advance_*` call starts from: an observer that integrates over time
     /// (a time average, say) must take the starting state itself.
     fn sample(&mut self, _t: f64, _mode: Mode, _x: &State) {}
+    /// What the sensors gave the controller at a sample `t` (s), in `mode`: noise, encoder and
+    /// missing rates included (a sampled loop with [`crate::imperfect::Hardware`]; the plain
+    /// loops' controller reads the exact state).
+    fn measured(&mut self, _t: f64, _mode: Mode, _y: &crate::imperfect::Measurement) {}
 }
 
 impl Observer for () {}

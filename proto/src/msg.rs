@@ -560,17 +560,20 @@ impl Status {
 /// Reference trajectory and controller gains, published by the planner; 57 bytes.
 ///
 /// The controller tracks `beta_d(t) = pi/2 + amplitude sin(omega t)` (sinusoid) or
-/// `beta_d = pi/2` (hold) with `v = beta_d_ddot + kd (beta_d_dot - beta_dot) + K_P (beta_d - beta)`,
+/// `beta_d = pi/2` (hold), or the identification's excitation (a finite Fourier series of
+/// amplitude bound `amplitude` and base frequency `omega`, docs/protocol.md), with `v = beta_d_ddot + kd (beta_d_dot - beta_dot) + K_P (beta_d - beta)`,
 /// `K_P = kp + k (energy_avg - E(t))`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "schema", schemars(deny_unknown_fields))]
 pub struct Reference {
-    /// 0 hold `beta_d = pi/2`, 1 sinusoid ([`Reference::HOLD`], [`Reference::SINUSOID`]).
+    /// 0 hold `beta_d = pi/2`, 1 sinusoid, 2 excitation ([`Reference::HOLD`],
+    /// [`Reference::SINUSOID`], [`Reference::EXCITATION`]).
     pub kind: u8,
-    /// Sinusoid amplitude `A`, rad (ignored for hold).
+    /// Sinusoid amplitude `A` (the excitation's bound), rad (ignored for hold).
     pub amplitude: f64,
-    /// Sinusoid angular frequency `w`, rad/s; `> 0` for a sinusoid.
+    /// Sinusoid angular frequency `w` (the excitation's base), rad/s; `> 0` for a sinusoid
+    /// or an excitation.
     pub omega: f64,
     /// Nominal proportional gain `K_P0`, 1/s²; `>= 0`.
     pub kp: f64,
@@ -589,19 +592,21 @@ impl Reference {
     pub const HOLD: u8 = 0;
     /// `kind`: `beta_d = pi/2 + amplitude sin(omega t)`.
     pub const SINUSOID: u8 = 1;
+    /// `kind`: the identification's excitation (`amplitude` bound, base frequency `omega`).
+    pub const EXCITATION: u8 = 2;
     /// Exact wire size in bytes.
     pub const SIZE: usize = 57;
 
-    /// Checks `kind` in `0..=1`, every float finite, `kp, kd, k, torque_limit >= 0`, and
-    /// `omega > 0` for a sinusoid.
+    /// Checks `kind` in `0..=2`, every float finite, `kp, kd, k, torque_limit >= 0`, and
+    /// `omega > 0` for a sinusoid or an excitation.
     pub fn validate(&self) -> Result<(), ValidationError> {
         const M: &str = "Reference";
         at_most(
             M,
             "kind",
             self.kind,
-            Self::SINUSOID,
-            "0..=1 (0 hold, 1 sinusoid)",
+            Self::EXCITATION,
+            "0..=2 (0 hold, 1 sinusoid, 2 excitation)",
         )?;
         finite(M, "amplitude", self.amplitude)?;
         finite(M, "omega", self.omega)?;
@@ -610,13 +615,13 @@ impl Reference {
         finite(M, "k", self.k)?;
         finite(M, "energy_avg", self.energy_avg)?;
         finite(M, "torque_limit", self.torque_limit)?;
-        if self.kind == Self::SINUSOID {
+        if self.kind == Self::SINUSOID || self.kind == Self::EXCITATION {
             range(
                 M,
                 "omega",
                 self.omega,
                 self.omega > 0.0,
-                "> 0 rad/s for a sinusoid",
+                "> 0 rad/s for a sinusoid or an excitation",
             )?;
         }
         range(M, "kp", self.kp, self.kp >= 0.0, ">= 0 1/s^2")?;
@@ -709,7 +714,7 @@ mod tests {
                 },
                 "torque_limit",
             ),
-            (Reference { kind: 2, ..ok }, "kind"),
+            (Reference { kind: 3, ..ok }, "kind"),
         ];
         for (r, field) in cases {
             match r.validate() {

@@ -717,7 +717,7 @@ fn out_of_range_enums_are_named_with_allowed_range() {
     };
     expect_err::<Reference>(
         &codec::encode(&r),
-        &["Reference.kind = 7", "out of range", "0..=1"],
+        &["Reference.kind = 7", "out of range", "0..=2"],
     );
     let r = Reference {
         omega: 0.0,

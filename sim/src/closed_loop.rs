@@ -37,6 +37,9 @@ pub struct SimOptions {
     /// actuator saturation and lag (these need a control period) and the arm-mass error of the
     /// plant against the controller's model.
     pub imperfect: Option<Imperfections>,
+    /// Keep what the sensors gave the controller at each sample
+    /// ([`SimulationReport::measured`]; a run with hardware imperfections only).
+    pub log_measurements: bool,
 }
 
 /// The extreme tilt angle of one tilt: every completed tilt, and the last tilt of the run if
@@ -128,6 +131,10 @@ pub struct SimulationReport {
     /// The trajectory, if recorded (not serialised).
     #[serde(skip)]
     pub samples: Vec<Sample>,
+    /// What the sensors gave the controller at each sample, if kept
+    /// ([`SimOptions::log_measurements`]; absent rates as NaN; not serialised).
+    #[serde(skip)]
+    pub measured: Vec<Sample>,
 }
 
 impl SimulationReport {
@@ -151,6 +158,8 @@ struct Collector {
     events: Vec<EventRecord>,
     peaks: Vec<PeakRecord>,
     samples: Option<Vec<Sample>>,
+    /// What the sensors measured at each sample, if kept (absent rates as NaN).
+    measured: Option<Vec<Sample>>,
     /// Smallest spacing of recorded samples between events (s).
     min_dt: f64,
 }
@@ -170,6 +179,17 @@ impl Collector {
 }
 
 impl Observer for Collector {
+    fn measured(&mut self, t: f64, mode: Mode, y: &tilting_plant::imperfect::Measurement) {
+        if let Some(m) = &mut self.measured {
+            let [ad, bd] = y.rates.unwrap_or([f64::NAN; 2]);
+            m.push(Sample {
+                t,
+                mode,
+                x: [y.angles[0], y.angles[1], ad, bd],
+            });
+        }
+    }
+
     fn transition(&mut self, ev: &Transition) {
         self.events.push(EventRecord {
             t: ev.t,
@@ -334,6 +354,7 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
         events: Vec::new(),
         peaks: Vec::new(),
         samples: opts.record_samples.then(Vec::new),
+        measured: opts.log_measurements.then(Vec::new),
         min_dt: sc.duration / PLOT_SAMPLES,
     };
     rec.push(0.0, plant.mode(), &plant.state(), true);
@@ -449,6 +470,7 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
     rec.push(plant.time(), plant.mode(), &plant.state(), true);
     let st = plant.stats();
     Ok(SimulationReport {
+        measured: rec.measured.unwrap_or_default(),
         events: rec.events,
         tilt_peaks: rec.peaks,
         final_state: FinalRecord {

@@ -59,6 +59,7 @@ impl SimulateArgs {
             network,
             loop_options,
             imperfect,
+            log_measurements: false,
         };
         Ok((sc, opts))
     }

@@ -250,6 +250,7 @@ impl<L: TorqueLaw, O: Observer> Transport for OverLinks<'_, L, O> {
             }
         }
         let (mode, y) = (self.plant.mode(), self.hw.measure(self.plant));
+        self.obs.measured(t_k, mode, &y);
         let (predictor, est, law) = (&mut self.predictor, &mut self.estimation, self.law);
         let taken = self.hold.stats().torques_applied;
         let tau = self

@@ -53,8 +53,9 @@ impl<L> Logging<'_, L> {
 }
 
 /// Runs the scenario as [`crate::simulate_with_progress`] does, keeping every state the
-/// controller read (the *measured* state, with the robot's sensor noise and encoder, as a
-/// plant publishes it) and every torque it answered: the report and the recording of one run.
+/// plant measured for the controller (with the robot's sensor noise and encoder, the rates
+/// NaN with `--measure angles`, as a plant publishes it; not the estimate the law reads) and
+/// every torque it answered: the report and the recording of one run.
 ///
 /// Refused (naming the flag): a continuous scenario (`control_period` = 0: there are no
 /// samples to keep), and a run over impaired links or with prediction or sampling on events
@@ -105,8 +106,26 @@ pub fn simulate_logged(
         law: &ctrl,
         log: RefCell::new((Vec::new(), Vec::new())),
     };
-    let report = crate::closed_loop::simulate_law(sc, opts, &law, progress)?;
-    let (samples, tau) = law.log.into_inner();
+    let opts = SimOptions {
+        log_measurements: true,
+        ..opts
+    };
+    let mut report = crate::closed_loop::simulate_law(sc, opts, &law, progress)?;
+    let (read, tau) = law.log.into_inner();
+    // The state a recording holds is the one the plant publishes: what its sensors measured
+    // (noise, encoder, absent rates), not what the controller's estimator made of it (the
+    // law reads the estimate). Without hardware the law reads the measured (exact) state.
+    let measured = std::mem::take(&mut report.measured);
+    let samples = if measured.is_empty() {
+        read
+    } else {
+        assert_eq!(
+            measured.len(),
+            read.len(),
+            "one measurement per answered sample"
+        );
+        measured
+    };
     let logged = Logged {
         trace: Trace {
             samples,

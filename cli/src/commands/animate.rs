@@ -155,6 +155,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
                     network: None,
                     loop_options: Default::default(),
                     imperfect: None,
+                    log_measurements: false,
                 },
                 args.json,
             )

@@ -13,9 +13,10 @@ use tilting_plant::Params;
 #[derive(Debug, Clone, Args)]
 pub struct IdentifyArgs {
     /// The recording: an MCAP file (`tilting record`, `live`, `simulate --record`) or a live
-    /// run's directory holding run.mcap
-    #[arg(value_name = "FILE.mcap|RUN_DIR")]
-    pub file: PathBuf,
+    /// run's directory holding run.mcap; several recordings of one robot (an excitation run
+    /// and an orbit run, say) enter one fit
+    #[arg(value_name = "FILE.mcap|RUN_DIR", required = true, num_args = 1..)]
+    pub file: Vec<PathBuf>,
     /// The robot to identify; refused if the file holds another
     #[arg(long, value_name = "NAME")]
     pub robot: Option<String>,
@@ -37,12 +38,12 @@ pub struct IdentifyArgs {
     #[arg(long, value_name = "SECONDS", default_value_t = identify::HALF_WINDOW)]
     pub half_window: f64,
     /// Length of the weak form's windows (s), in [0.01, 2]: each equation is integrated
-    /// against a smooth bump this long; longer averages more noise, but a torque equation
-    /// needs the arm sliding one way over the whole window
+    /// against a smooth bump this long; longer averages more noise (2 s for 1 mrad of angle
+    /// noise on the excitation), a tilt shorter than it gives one window of its length
     #[arg(long, value_name = "SECONDS", default_value_t = identify::WINDOW)]
     pub window: f64,
-    /// Slowest joint speed (rad/s), in [0, 10]: a window where the arm reverses or is slower
-    /// gives no torque equation (the joint may stick there)
+    /// Slowest joint speed (rad/s), in [0, 10]: a window where the arm is slower at more than
+    /// 1 sample in 50 gives no torque equation (the joint may stick there)
     #[arg(long, value_name = "RAD/S", default_value_t = Options::default().v_min, allow_negative_numbers = true)]
     pub min_speed: f64,
     /// Draw the fit check into this PNG: the recorded angles beside their re-simulation with
@@ -105,7 +106,16 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
             )));
         }
     }
-    let rec = identify::load(&args.file, args.robot.as_deref()).map_err(refused)?;
+    let mut rec = identify::load(&args.file[0], args.robot.as_deref()).map_err(refused)?;
+    for f in &args.file[1..] {
+        rec.append(identify::load(f, args.robot.as_deref()).map_err(refused)?);
+    }
+    let source = args
+        .file
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect::<Vec<_>>()
+        .join(" + ");
     let mut id = identify::identify(
         &rec.trace,
         &rec.tau,
@@ -144,7 +154,7 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
     let text = if args.json {
         serde_json::to_string_pretty(&id).map_err(|e| CommandError::Failed(e.into()))? + "\n"
     } else {
-        human(&id, &rec.source.display().to_string(), args.out.as_ref())
+        human(&id, &source, args.out.as_ref())
     };
     print_stdout(&text)
 }

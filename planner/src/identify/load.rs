@@ -25,6 +25,41 @@ pub struct Recorded {
     pub source: PathBuf,
 }
 
+/// The pause (s) put between two recordings joined by [`Recorded::append`]: longer than any
+/// sample gap, so no equation spans the join.
+pub const JOIN_GAP: f64 = 1.0;
+
+impl Recorded {
+    /// Appends `other` after this recording, its times shifted to start [`JOIN_GAP`] after
+    /// this one's end: the rows of both enter one fit (several experiments on one robot, e.g.
+    /// an excitation run and an orbit run, as MATLAB's `merge` of data sets).
+    pub fn append(&mut self, other: Recorded) {
+        let start = other.trace.samples.first().map_or(0.0, |s| s.t);
+        let end = self
+            .trace
+            .samples
+            .last()
+            .map_or(0.0, |s| s.t)
+            .max(self.trace.end);
+        let shift = end + JOIN_GAP - start;
+        self.trace
+            .samples
+            .extend(other.trace.samples.into_iter().map(|mut s| {
+                s.t += shift;
+                s
+            }));
+        self.trace
+            .events
+            .extend(other.trace.events.into_iter().map(|mut e| {
+                e.t += shift;
+                e
+            }));
+        self.trace.end = other.trace.end + shift;
+        self.trace.stopped_early |= other.trace.stopped_early;
+        self.tau.extend(other.tau);
+    }
+}
+
 /// Loads an MCAP recording (or a live run's directory holding [`RUN_MCAP`]); with `robot`,
 /// refuses a file of another robot, naming the one it holds.
 pub fn load(path: &Path, robot: Option<&str>) -> Result<Recorded, IdentifyError> {

@@ -252,11 +252,7 @@ pub fn identify(
             let h = sample_spacing(trace);
             let m = (opts.half_window / h).round().max(1.0) as usize;
             let sg = smooth::Savgol::new(m);
-            let win = std::env::var("WIN")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(opts.window);
-            let w = (win / h).round().max(1.0) as usize + 1;
+            let w = (opts.window / h).round().max(1.0) as usize + 1;
             let (r, st) = rows::build_from_angles(trace, tau, p.f, p.g, &sg, w, opts.v_min);
             // Overlapping windows share their noise: four windows cover each sample, so the
             // independent-row standard errors are scaled up by 2 (conservative).
@@ -310,17 +306,31 @@ pub fn identify(
         }
     }
     // Active columns: a merged pi3 + pi5 is column 2 (the flat rows have equal columns).
-    let cols: Vec<usize> = (0..N_BASE)
-        .filter(|&i| out[i].is_none() || (merge35 && i == 2))
-        .collect();
-    let names: Vec<String> = cols
-        .iter()
-        .map(|&c| match (merge35, c) {
-            (true, 2) => "pi3+pi5 (m_l l_c^2 + i_l + n_g^2 j_m)".into(),
-            _ => format!("{} ({})", BASE[c].0, BASE[c].1),
-        })
-        .collect();
-    let fit = solve(&r, &cols, &names)?;
+    let active = |out: &[Option<String>]| -> (Vec<usize>, Vec<String>) {
+        let cols: Vec<usize> = (0..N_BASE)
+            .filter(|&i| out[i].is_none() || (merge35 && i == 2))
+            .collect();
+        let names = cols
+            .iter()
+            .map(|&c| match (merge35, c) {
+                (true, 2) => "pi3+pi5 (m_l l_c^2 + i_l + n_g^2 j_m)".into(),
+                _ => format!("{} ({})", BASE[c].0, BASE[c].1),
+            })
+            .collect();
+        (cols, names)
+    };
+    let (mut cols, names) = active(&out);
+    let mut fit = solve(&r, &cols, &names)?;
+    // The rotor's share (pi4, pi5) is a fraction of a percent of the arm's inertia: under
+    // sensor noise it may not be told from zero. Then it is left out (lumped into pi3, as for
+    // a direct drive) rather than let its noise spill into pi1 and pi3.
+    if let Some(why) = rotor_unseen(&fit, &cols, corr) {
+        out[3] = Some(why.clone());
+        out[4] = Some(why);
+        let (c, n) = active(&out);
+        fit = solve(&r, &c, &n)?;
+        cols = c;
+    }
     let mut value = [None; N_BASE];
     let mut se = [None; N_BASE];
     for (j, &c) in cols.iter().enumerate() {
@@ -405,6 +415,29 @@ impl Identification {
         });
         id
     }
+}
+
+/// Smallest ratio of an estimate of the rotor's share (`pi4`, `pi5`) to its standard error
+/// for the share to count as seen.
+pub const ROTOR_T_MIN: f64 = 3.0;
+
+/// Why the rotor's share is not seen, if the fit cannot tell `pi4` or `pi5` from zero
+/// (within [`ROTOR_T_MIN`] standard errors).
+fn rotor_unseen(fit: &Fit, cols: &[usize], corr: f64) -> Option<String> {
+    let at = |c: usize| cols.iter().position(|&k| k == c);
+    let (i4, i5) = (at(3)?, at(4)?);
+    let t = |i: usize| fit.x[i].abs() / (fit.se[i] * corr);
+    (t(i4) < ROTOR_T_MIN || t(i5) < ROTOR_T_MIN).then(|| {
+        format!(
+            "the rotor's share is below this recording's noise (pi4 = {:.2e} +- {:.1e}, pi5 = \
+             {:.2e} +- {:.1e} kg m^2): left out, its inertia lumped into pi3 (and i_l); \
+             record larger tilts, or less noise, to see it",
+            fit.x[i4],
+            fit.se[i4] * corr,
+            fit.x[i5],
+            fit.se[i5] * corr
+        )
+    })
 }
 
 /// The median spacing of the samples (s); 1 ms for fewer than two.

@@ -121,7 +121,7 @@ pub fn build_from_angles(
     let mut states = vec![None; s.len()];
     for (a, b) in segments(trace, tau) {
         let n = b - a;
-        if n < sg.len() || 2 * n < window {
+        if n < sg.len().max(MIN_WINDOW) {
             r.skipped += n;
             continue;
         }
@@ -150,19 +150,27 @@ pub fn build_from_angles(
                 c * (n - len) / (count - 1)
             };
             let win = lo..lo + len;
-            // The joint slides one way through the whole window, never slower than v_min:
-            // where it reverses it may stick, and Coulomb friction is not tau_c
-            // sign(beta_dot) there.
+            // The joint slides through the window: slower than v_min at no more than one
+            // sample in SLOW_SHARE (a reversal passed at speed, where the sign of the
+            // estimated beta_dot is wrong for a moment at most). Where the joint lingers it
+            // may stick, and Coulomb friction is not tau_c sign(beta_dot) there.
             let sign = x[lo + len / 2][3].signum();
-            let sliding = x[win.clone()]
-                .iter()
-                .all(|v| v[3].abs() >= v_min && v[3].signum() == sign);
+            let slow = x[win.clone()].iter().filter(|v| v[3].abs() < v_min).count();
+            let sliding = slow * SLOW_SHARE <= len;
             let tq: Vec<f64> = tau[a + lo..a + lo + len - 1]
                 .iter()
                 .map(|t| t.unwrap_or(0.0))
                 .collect();
             let mode = s[a].mode;
-            let rows = weak_rows(&x[win.clone()], &tq, h, mode, f, g);
+            let mut rows = weak_rows(&x[win.clone()], &tq, h, mode, f, g);
+            // A row's noise grows as its window shrinks (the phi'' F(q) term: about
+            // (W / len)^2.5 for white angle noise): a window cut short by its segment counts
+            // for less, so that the few long windows are not drowned.
+            let weight = (len as f64 / window as f64).min(1.0).powf(2.5);
+            for (row, rhs) in rows.iter_mut() {
+                row.iter_mut().for_each(|v| *v *= weight);
+                *rhs *= weight;
+            }
             match (mode, rows) {
                 (Mode::Flat, [_, (arm, rhs)]) => {
                     if !sliding {
@@ -202,6 +210,13 @@ pub fn build_from_angles(
     }
     (r, states)
 }
+
+/// Shortest window (samples) of a segment: a segment shorter than this gives no row.
+const MIN_WINDOW: usize = 50;
+
+/// A window's torque row is used when at most one of this many samples is slower than
+/// `v_min` (a reversal passed at speed).
+const SLOW_SHARE: usize = 50;
 
 /// The test function's power: `phi` and its first `PHI_POWER - 1` derivatives vanish at the
 /// window's ends, so the trapezoid sums over the samples are exact to about

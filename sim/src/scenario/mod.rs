@@ -112,9 +112,14 @@ impl Scenario {
     /// unless some layer gives `energy_avg` explicitly, or the params, `kp`, `kd`, `k`, impact
     /// law and reference are the built-in ones ([`Scenario::builtin_differences`]), whether
     /// given or not.
+    ///
+    /// The excitation (`reference = "excitation"`) starts from the arm at rest upright on the
+    /// flat plate (`x0 = [0, pi/2, 0, 0]`, `mode = "flat"`), where its ramp starts, unless a
+    /// layer gives `x0` or `mode`.
     pub fn resolve(layers: &[&ScenarioFile]) -> Self {
         let mut s = Self::default();
         let mut e_given = false;
+        let mut start_given = false;
         for l in layers {
             if let Some(v) = l.params {
                 s.params = v;
@@ -128,6 +133,7 @@ impl Scenario {
             if let Some(v) = l.mode {
                 s.mode = v;
             }
+            start_given |= l.x0.is_some() || l.mode.is_some();
             s.law = l.law.over(s.law);
             e_given |= l.law.energy_avg.is_some();
             if let Some(v) = l.impact {
@@ -145,6 +151,10 @@ impl Scenario {
         }
         if !e_given && !s.builtin_differences().is_empty() {
             s.law.energy_avg = 0.0;
+        }
+        if !start_given && !s.law.reference.adapts() {
+            s.x0 = [0.0, std::f64::consts::FRAC_PI_2, 0.0, 0.0];
+            s.mode = Mode::Flat;
         }
         s
     }
