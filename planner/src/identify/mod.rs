@@ -242,23 +242,7 @@ pub fn identify(
             torques: tau.len(),
         });
     }
-    let (r, states, corr) = match opts.velocities {
-        Velocities::Recorded => {
-            let r = rows::build(trace, tau, p.f, p.g);
-            let states = trace.samples.iter().map(|s| Some(s.x)).collect();
-            (r, states, 1.0)
-        }
-        Velocities::Angles => {
-            let h = sample_spacing(trace);
-            let m = (opts.half_window / h).round().max(1.0) as usize;
-            let sg = smooth::Savgol::new(m);
-            let w = (opts.window / h).round().max(1.0) as usize + 1;
-            let (r, st) = rows::build_from_angles(trace, tau, p.f, p.g, &sg, w, opts.v_min);
-            // Overlapping windows share their noise: four windows cover each sample, so the
-            // independent-row standard errors are scaled up by 2 (conservative).
-            (r, st, 2.0)
-        }
-    };
+    let (r, states, corr) = build_rows(trace, tau, opts);
     let used = r.flat + r.tilted;
     let intervals = used + r.skipped;
     let span =
@@ -414,6 +398,33 @@ impl Identification {
             prior: pr.check,
         });
         id
+    }
+}
+
+/// The rows of `trace` by the velocities `opts` asks for, the state of each sample as the fit
+/// saw it, and the standard errors' correction for overlapping windows.
+fn build_rows(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    opts: &Options,
+) -> (rows::Rows, Vec<Option<[f64; 4]>>, f64) {
+    let p = &opts.base;
+    match opts.velocities {
+        Velocities::Recorded => {
+            let r = rows::build(trace, tau, p.f, p.g);
+            let states = trace.samples.iter().map(|s| Some(s.x)).collect();
+            (r, states, 1.0)
+        }
+        Velocities::Angles => {
+            let h = sample_spacing(trace);
+            let m = (opts.half_window / h).round().max(1.0) as usize;
+            let sg = smooth::Savgol::new(m);
+            let w = (opts.window / h).round().max(1.0) as usize + 1;
+            let (r, st) = rows::build_from_angles(trace, tau, p.f, p.g, &sg, w, opts.v_min);
+            // Overlapping windows share their noise: four windows cover each sample, so the
+            // independent-row standard errors are scaled up by 2 (conservative).
+            (r, st, 2.0)
+        }
     }
 }
 
