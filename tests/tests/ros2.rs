@@ -548,3 +548,36 @@ fn a_ros2_controller_in_python_keeps_the_orbit_through_effort_command() {
     eprintln!("over ROS 2 vs offline: state {worst_x:e}, torque {worst_tau:e}");
     assert!(worst_x <= TOLERANCE && worst_tau <= TOLERANCE);
 }
+
+#[test]
+fn ros2_commands_are_refused_in_the_secure_deployment_and_names_must_be_ros_names() {
+    let dir = Scratch::new("ros2-refusals");
+    // `live --secure --ros2` without --ros2-allow-commands: a usage error (exit 2) naming why.
+    let out = Command::new(bin("tilting"))
+        .args(["live", "--ros2", "--secure", "--duration", "1", "--out"])
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--ros2-allow-commands"), "{err}");
+    // The plant with a zenoh configuration file (how the secure deployment sets it up).
+    let cfg = dir.path().join("z.json5");
+    std::fs::write(&cfg, "{}").unwrap();
+    let out = Command::new(bin("tilting-plant"))
+        .args(["--ros2", "--duration", "1", "--zenoh-config"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("--ros2-allow-commands"), "{err}");
+    // A robot name that is no ROS 2 name: the offending character named.
+    let out = Command::new(bin("tilting-plant"))
+        .args(["--ros2", "--robot", "my-robot", "--duration", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("'-'") && err.contains("my-robot"), "{err}");
+}
