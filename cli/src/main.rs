@@ -24,6 +24,8 @@ Plan:
   plan        orbit | sinusoid | bifurcation | gains | margins | continuation | merge: the
               paper's boundary value problems, stability, sweeps (--shard I/N for job
               arrays), and what the orbit survives on a network
+  plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability: the paper's boundary value
+              problems, stability, sweeps, and what the orbit survives on a network
 
 Look:
   figures     The paper's Figs. 4 to 8 as PNG files
@@ -122,6 +124,9 @@ enum Plan {
     /// Merge the shard files of a sweep run with --shard I/N into the whole sweep's JSON (what
     /// the unsharded command prints with --json, bit for bit)
     Merge(shard::MergeArgs),
+    /// The stability region of the period-1 orbit: its flip and fold continued in (k, K_D) or
+    /// (k, the arm mass), drawn as a chart with --plot
+    Stability(continuation::StabilityArgs),
 }
 
 fn main() -> ExitCode {
@@ -137,6 +142,7 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Margins(args)) => margins::margins(args),
         Command::Plan(Plan::Continuation(args)) => continuation::continuation(args),
         Command::Plan(Plan::Merge(args)) => shard::merge(args),
+        Command::Plan(Plan::Stability(args)) => continuation::stability(args),
         Command::Figures(args) => figures::figures(args),
         Command::Animate(args) => animate::run(args),
         Command::Echo(args) => topics::echo(args),

@@ -61,3 +61,35 @@ fn bad_input_names_the_flag_and_the_range() {
         assert!(err.contains(want), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn the_flip_continued_in_k_and_kd_passes_through_k_star() {
+    let o = Command::new(BIN)
+        .args([
+            "plan",
+            "stability",
+            "--from2",
+            "13.5",
+            "--to2",
+            "14.8",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let flip: Vec<[f64; 2]> =
+        serde_json::from_value(v["region"]["flip"]["points"].clone()).unwrap();
+    // The curve starts from the one-parameter flip at the paper's K_D = 14.14: k* = 1923.99.
+    let at = flip.iter().find(|p| p[1] == 14.14).expect("the base point");
+    assert!((at[0] - 1923.99).abs() < 0.01, "{at:?}");
+    // It reaches both ends of the K_D range, and more damping tolerates more adaptation.
+    assert!(
+        flip.first().unwrap()[1] < 13.5 && flip.last().unwrap()[1] > 14.8,
+        "{flip:?}"
+    );
+    assert!(flip.windows(2).all(|w| w[1][0] > w[0][0]), "{flip:?}");
+    let fold: Vec<[f64; 2]> =
+        serde_json::from_value(v["region"]["fold"]["points"].clone()).unwrap();
+    assert!(fold.iter().all(|p| p[0] > 0.0 && p[0] < 500.0), "{fold:?}");
+}

@@ -42,6 +42,7 @@ fn main() {
         max_steps: 2000,
         locate_tol: 1e-7,
         max_period: 16,
+        stop_at_first_event: false,
     };
     let t = Instant::now();
     let d = continuation::diagram(&base, Param::K, paper::ORBIT_K, guess, &set, &|_, _| {})

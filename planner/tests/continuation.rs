@@ -41,6 +41,7 @@ fn settings(p_max: f64, max_period: usize) -> Settings {
         max_steps: 500,
         locate_tol: 1e-7,
         max_period,
+        stop_at_first_event: false,
     }
 }
 

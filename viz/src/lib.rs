@@ -4,6 +4,8 @@
 //! - [`plot`]: the small plotting toolkit (font registration, padded ranges) and the plot of an
 //!   offline run (`simulate --plot`) and of a live recording (`run.png`);
 //! - [`animate`]: the plate and the arm of a run, moving, as an animated GIF or PNG frames;
+//! - [`continuation`]: Fig. 8b (the continued orbits over the sweep, the Lyapunov exponent)
+//!   and Fig. 8c (the stability region in two parameters);
 //! - [`figures`]: the paper's Figs. 4 to 8, computed with `tilting-planner` and `tilting-sim`.
 //!
 //! This crate computes nothing of its own beyond what a figure needs to lay itself out: the
@@ -12,6 +14,7 @@
 #![warn(missing_docs)]
 
 pub mod animate;
+pub mod continuation;
 pub mod figures;
 pub mod margins;
 pub mod plot;

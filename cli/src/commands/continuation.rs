@@ -10,6 +10,7 @@ use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 use tilting_planner::bifurcation::{self, Sweep};
+use tilting_planner::continuation::twopar::{self, Region};
 use tilting_planner::continuation::{self, Diagram, EventKind, Param, Settings};
 use tilting_planner::lyapunov::{self, Exponent};
 use tilting_planner::orbit::{self, OrbitProblem};
@@ -172,6 +173,7 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
         max_steps: 2000,
         locate_tol: 1e-7,
         max_period: args.max_period,
+        stop_at_first_event: false,
     };
     let b = bar(1000, "continuation", args.model.json);
     let at = AtomicU64::new(0);
@@ -319,4 +321,143 @@ fn human(r: &ContinuationReport) -> String {
         tm.setup_s, tm.continuation_s, tm.per_step_ms, tm.lyapunov_s
     );
     s
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// `stability`: the flip and the fold of the period-1 orbit continued in two parameters,
+/// `(k, --param2)`: the stability region of the orbit.
+#[derive(Debug, Clone, Args)]
+pub struct StabilityArgs {
+    /// The second parameter: kd, kp, m_l, m_l_plant (the robot's arm mass, the model's kept:
+    /// the model error), m_f
+    #[arg(long, default_value = "kd", value_parser = parse_param)]
+    pub param2: Param,
+    /// Lowest value of the second parameter [default: kd 8, m_l_plant 0.7; required otherwise]
+    #[arg(long, allow_negative_numbers = true)]
+    pub from2: Option<f64>,
+    /// Highest value of the second parameter [default: kd 18, m_l_plant 1.4; required otherwise]
+    #[arg(long, allow_negative_numbers = true)]
+    pub to2: Option<f64>,
+    /// Highest k (1/(J s^2)) searched for the flip (the lowest, for the fold, is 0)
+    #[arg(long, default_value_t = 4000.0)]
+    pub k_max: f64,
+    /// K_P0 (1/s^2)
+    #[arg(long, default_value_t = ORBIT_KP, allow_negative_numbers = true)]
+    pub kp: f64,
+    /// K_D (1/s)
+    #[arg(long, default_value_t = ORBIT_KD, allow_negative_numbers = true)]
+    pub kd: f64,
+    /// Draw the chart into this PNG file
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
+    /// The model, impact law and output format.
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// The JSON of `stability`.
+#[derive(Debug, Serialize)]
+pub struct StabilityReport {
+    /// The region: the flip and fold curves.
+    pub region: Region,
+    /// Wall time (s).
+    pub seconds: f64,
+}
+
+/// Runs `stability`.
+pub fn stability(args: &StabilityArgs) -> Result<(), CommandError> {
+    let params = args.model.params()?;
+    check("kp", args.kp, args.kp > 0.0, "finite and > 0")?;
+    check("kd", args.kd, args.kd > 0.0, "finite and > 0")?;
+    check(
+        "k-max",
+        args.k_max,
+        args.k_max > ORBIT_K,
+        &format!("finite and > {ORBIT_K}"),
+    )?;
+    let p2 = args.param2;
+    if p2 == Param::K {
+        return Err(usage("invalid `--param2` = k: the first parameter is k; choose kd, kp, m_l, m_l_plant or m_f".into()));
+    }
+    let (lo, hi) = match (args.from2, args.to2, p2) {
+        (Some(a), Some(b), _) => (a, b),
+        (a, b, Param::Kd) => (a.unwrap_or(8.0), b.unwrap_or(18.0)),
+        (a, b, Param::MlPlant) => (a.unwrap_or(0.7), b.unwrap_or(1.4)),
+        _ => {
+            return Err(usage(format!(
+                "`--param2 {p2}` needs `--from2` and `--to2`"
+            )))
+        }
+    };
+    let (ok, range) = p2.allows(lo);
+    check("from2", lo, ok, range)?;
+    check("to2", hi, hi > lo, "finite and > --from2")?;
+    let start = Instant::now();
+    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let o = orbit::smallest(&pb).ok_or_else(|| {
+        CommandError::Failed(anyhow!(
+            "no periodic orbit for K_P = {}, K_D = {}",
+            args.kp,
+            args.kd
+        ))
+    })?;
+    let base = pb.with_adaptation(ORBIT_K, o.energy_avg);
+    let base_p2 = p2.get(&base);
+    if !(lo..=hi).contains(&base_p2) {
+        return Err(usage(format!(
+            "invalid range [--from2 {lo}, --to2 {hi}]: it must contain the base value {p2} = {base_p2}"
+        )));
+    }
+    let sw = Sweep {
+        problem: pb,
+        start_beta0: o.beta0,
+        start_beta_dot0: o.beta_dot0,
+        energy_avg: o.energy_avg,
+        tilts: 0,
+        keep: 1,
+        period_tol: 1e-5,
+    };
+    let guess = bifurcation::attracting_orbit_guess(&sw, ORBIT_K, 200).ok_or_else(|| {
+        CommandError::Failed(anyhow!("the adapted loop at k = {ORBIT_K} does not settle"))
+    })?;
+    let b = bar(400, "stability", args.model.json);
+    let region = twopar::stability_region(
+        &base,
+        ORBIT_K,
+        guess,
+        (0.0, args.k_max),
+        (p2, (lo, hi)),
+        (hi - lo) / 60.0,
+        &|| b.inc(1),
+    )
+    .map_err(|e| CommandError::Failed(anyhow!("two-parameter continuation failed: {e}")))?;
+    b.finish_and_clear();
+    if let Some(path) = &args.plot {
+        tilting_viz::continuation::draw_stability(path, &region)
+            .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))?;
+    }
+    let report = StabilityReport {
+        region,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    emit(args.model.json, &report, || {
+        let r = &report.region;
+        let mut s = format!(
+            "stability region of the period-1 orbit in (k, {p2}) ({:.2} s); base {p2} = {}\n",
+            report.seconds, r.p2_base
+        );
+        for (name, c) in [("flip (upper k)", &r.flip), ("fold (lower k)", &r.fold)] {
+            let Some(c) = c else { continue };
+            s += &format!("  {name}: {} points, ends {:?}\n", c.points.len(), c.ends);
+            let step = (c.points.len() / 12).max(1);
+            for p in c.points.iter().step_by(step) {
+                s += &format!("    {p2} = {:>9.4}  k = {:>10.3}\n", p[1], p[0]);
+            }
+        }
+        for n in &r.notes {
+            s += &format!("  note: {n}\n");
+        }
+        s
+    })
 }

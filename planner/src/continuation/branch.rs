@@ -52,8 +52,11 @@ fn locate(
     let (mut p_lo, mut p_hi) = (c.p(&a.y), c.p(&b.y));
     let mut best = None;
     let mut side = 0i8;
+    // The bracket along the chord, in parameter units (at a fold the parameter itself is
+    // stationary, so its own bracket would close long before the point is found).
+    let width = d.norm() * c.scale;
     for _ in 0..60 {
-        if (p_hi - p_lo).abs() < tol {
+        if (t_hi - t_lo) * width < tol || (p_hi - p_lo).abs() < 1e-3 * tol {
             break;
         }
         let mut th = (t_lo * f_hi - t_hi * f_lo) / (f_hi - f_lo);
@@ -199,6 +202,10 @@ pub(crate) fn follow(
         };
         let p = pt.p;
         br.points.push(pt);
+        if set.stop_at_first_event && !br.events.is_empty() {
+            br.end = EndReason::Event;
+            return br;
+        }
         tick(tilts, p);
         if p > set.p_max || p < set.p_min {
             br.end = EndReason::Range;

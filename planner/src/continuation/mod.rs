@@ -23,6 +23,7 @@ pub(crate) mod arclength;
 mod branch;
 pub(crate) mod cycle;
 pub mod param;
+pub mod twopar;
 
 pub use param::Param;
 
@@ -54,6 +55,8 @@ pub struct Settings {
     /// Switch at flips until the branches reach this period (in tilts): 16 follows the
     /// period-1, 2, 4, 8 and 16 orbits and locates the flip of the last one too.
     pub max_period: usize,
+    /// End each branch at its first located bifurcation.
+    pub stop_at_first_event: bool,
 }
 
 /// One point of a branch: a solved period-`n` cycle.
@@ -111,6 +114,8 @@ pub enum EndReason {
     Range,
     /// It took the most steps allowed.
     Steps,
+    /// It stopped at its first bifurcation, as asked.
+    Event,
     /// The corrector failed at the smallest step (the message says why).
     Failed(String),
 }
@@ -170,6 +175,26 @@ fn first_point(
     let mut t = DVector::zeros(4);
     t[3] = 1.0;
     c.correct(&y, &t)
+}
+
+/// The period-1 branch alone from `p0`, increasing the parameter (decreasing with `down`).
+pub fn one_branch(
+    base: &OrbitProblem,
+    param: Param,
+    p0: f64,
+    guess: [f64; 3],
+    set: &Settings,
+    down: bool,
+) -> Result<Branch, OrbitError> {
+    let c = Continuation {
+        base: *base,
+        param,
+        scale: p0.abs().max(1.0),
+    };
+    let first = first_point(&c, p0, guess)?;
+    let mut dir = DVector::zeros(4);
+    dir[3] = if down { -1.0 } else { 1.0 };
+    Ok(branch::follow(&c, first, dir, set, false, &|_, _| {}))
 }
 
 /// The flip sequence's ratios and accumulation estimates.

@@ -1,0 +1,354 @@
+//! The drawings of issue 19: Fig. 8b (the sweep's tilt peaks overlaid with the continued
+//! branches, stable solid and unstable dashed, flips marked, and the largest Lyapunov exponent
+//! below on the same `k` axis) and Fig. 8c (the stability region of the period-1 orbit in
+//! `(k, p2)` between its fold and flip curves).
+
+use anyhow::Result;
+use plotters::prelude::*;
+use std::path::Path;
+use tilting_planner::bifurcation::Row;
+use tilting_planner::continuation::twopar::Region;
+use tilting_planner::continuation::{Diagram, EventKind};
+use tilting_planner::lyapunov::Exponent;
+
+const FONT: &str = "sans-serif";
+
+/// A colour per period 1, 2, 4, 8, 16, 32.
+const PERIOD_COLOURS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+    RGBColor(140, 86, 75),
+];
+
+fn colour(tilts: usize) -> RGBColor {
+    PERIOD_COLOURS[(tilts.trailing_zeros() as usize).min(PERIOD_COLOURS.len() - 1)]
+}
+
+/// Draws Fig. 8b into `path` (PNG) over `k` in `[k0, k1]`: the sweep's peaks (`rows`, grey
+/// dots), each branch's tilt peaks (one curve per tilt of the cycle; solid where the orbit is
+/// stable, dashed where not), the flips (black diamonds), and below the largest Lyapunov
+/// exponent (1/s) with its zero line.
+pub fn draw_cascade(
+    path: &Path,
+    (k0, k1): (f64, f64),
+    rows: &[Row],
+    d: &Diagram,
+    lyap: &[Exponent],
+) -> Result<()> {
+    crate::plot::register_fonts()?;
+    let root = BitMapBackend::new(path, (1600, 1250)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        "Fig. 8b: the continued orbits over the sweep, and the largest Lyapunov exponent",
+        (FONT, 25),
+    )?;
+    let (top, bottom) = root.split_vertically(800);
+    let inside = |k: f64| k >= k0 && k <= k1;
+    let peaks = rows
+        .iter()
+        .filter(|r| inside(r.k))
+        .flat_map(|r| r.peaks.iter().copied())
+        .chain(d.branches.iter().flat_map(|b| {
+            b.points
+                .iter()
+                .filter(|p| inside(p.p))
+                .flat_map(|p| p.peaks.iter().copied())
+        }));
+    let (lo, hi) = crate::plot::padded_range(peaks, 0.05);
+    let mut chart = ChartBuilder::on(&top)
+        .caption(
+            "tilt peaks |α|max: sweep (grey), period-1/2/4/8/16 orbits as BVPs (solid stable, dashed unstable), flips ◆",
+            (FONT, 20),
+        )
+        .margin(14)
+        .margin_right(40)
+        .x_label_area_size(50)
+        .y_label_area_size(90)
+        .build_cartesian_2d(k0..k1, lo..hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("adaptation gain k [1/(J s²)]")
+        .y_desc("tilt peak |α|max [rad]")
+        .axis_desc_style((FONT, 20))
+        .label_style((FONT, 16))
+        .light_line_style(WHITE.mix(0.0))
+        .bold_line_style(BLACK.mix(0.08))
+        .draw()?;
+    chart.draw_series(rows.iter().filter(|r| inside(r.k)).flat_map(|r| {
+        r.peaks
+            .iter()
+            .map(move |&p| Circle::new((r.k, p), 1, BLACK.mix(0.35).filled()))
+    }))?;
+    for br in &d.branches {
+        let c = colour(br.tilts);
+        // One curve per tilt of the cycle, split where the stability changes.
+        for i in 0..br.tilts {
+            let mut run: Vec<(f64, f64)> = Vec::new();
+            let mut stable = None;
+            let flush = |run: &mut Vec<(f64, f64)>,
+                         stable: Option<bool>,
+                         chart: &mut ChartContext<_, _>|
+             -> Result<()> {
+                if run.len() >= 2 {
+                    if stable == Some(true) {
+                        chart.draw_series(LineSeries::new(run.clone(), c.stroke_width(3)))?;
+                    } else {
+                        chart.draw_series(DashedLineSeries::new(
+                            run.clone(),
+                            6,
+                            5,
+                            c.stroke_width(2),
+                        ))?;
+                    }
+                }
+                run.clear();
+                Ok(())
+            };
+            for p in br.points.iter().filter(|p| inside(p.p)) {
+                if stable.is_some_and(|s| s != p.stable) {
+                    let last = run.last().copied();
+                    flush(&mut run, stable, &mut chart)?;
+                    run.extend(last);
+                }
+                stable = Some(p.stable);
+                run.push((p.p, p.peaks.get(i).copied().unwrap_or(f64::NAN)));
+            }
+            flush(&mut run, stable, &mut chart)?;
+        }
+        let label = format!("period {}", br.tilts);
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+        for ev in br
+            .events
+            .iter()
+            .filter(|e| e.kind == EventKind::Flip && inside(e.p))
+        {
+            chart.draw_series(ev.point.peaks.iter().map(|&a| {
+                Polygon::new(
+                    vec![
+                        (ev.p - 3.0, a),
+                        (ev.p, a * 1.004),
+                        (ev.p + 3.0, a),
+                        (ev.p, a * 0.996),
+                    ],
+                    BLACK.filled(),
+                )
+            }))?;
+        }
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font((FONT, 17))
+        .draw()?;
+    draw_lyapunov(&bottom, (k0, k1), d, lyap)?;
+    root.present()?;
+    Ok(())
+}
+
+/// The bottom panel of Fig. 8b.
+fn draw_lyapunov(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    (k0, k1): (f64, f64),
+    d: &Diagram,
+    lyap: &[Exponent],
+) -> Result<()> {
+    let pts: Vec<(f64, f64)> = lyap
+        .iter()
+        .filter_map(|e| e.lambda.map(|l| (e.p, l)))
+        .filter(|(k, _)| *k >= k0 && *k <= k1)
+        .collect();
+    let (lo, hi) = crate::plot::padded_range(pts.iter().map(|p| p.1).chain([0.0]), 0.08);
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            "largest Lyapunov exponent λ (variational equations through the landings)",
+            (FONT, 20),
+        )
+        .margin(14)
+        .margin_right(40)
+        .x_label_area_size(55)
+        .y_label_area_size(90)
+        .build_cartesian_2d(k0..k1, lo..hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("adaptation gain k [1/(J s²)]")
+        .y_desc("λ [1/s]")
+        .axis_desc_style((FONT, 20))
+        .label_style((FONT, 16))
+        .light_line_style(WHITE.mix(0.0))
+        .bold_line_style(BLACK.mix(0.08))
+        .draw()?;
+    chart.draw_series(LineSeries::new(
+        vec![(k0, 0.0), (k1, 0.0)],
+        BLACK.stroke_width(1),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        pts.clone(),
+        RGBColor(31, 119, 180).stroke_width(2),
+    ))?;
+    chart.draw_series(
+        pts.iter()
+            .map(|&p| Circle::new(p, 2, RGBColor(31, 119, 180).filled())),
+    )?;
+    for &k in d.flips.iter().filter(|&&k| k >= k0 && k <= k1) {
+        chart.draw_series(DashedLineSeries::new(
+            vec![(k, lo), (k, hi)],
+            4,
+            4,
+            BLACK.mix(0.4).stroke_width(1),
+        ))?;
+    }
+    if let Some(ki) = d.p_inf.filter(|&k| k >= k0 && k <= k1) {
+        chart
+            .draw_series(LineSeries::new(
+                vec![(ki, lo), (ki, hi)],
+                RGBColor(214, 39, 40).stroke_width(2),
+            ))?
+            .label(format!("accumulation point k∞ = {ki:.2}"))
+            .legend(|(x, y)| {
+                PathElement::new(
+                    vec![(x, y), (x + 24, y)],
+                    RGBColor(214, 39, 40).stroke_width(2),
+                )
+            });
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.3))
+            .label_font((FONT, 17))
+            .draw()?;
+    }
+    Ok(())
+}
+
+/// Draws Fig. 8c into `path` (PNG): the stability region of the period-1 orbit in the plane
+/// (second parameter, `k`), shaded between the fold curve (below) and the flip curve (above).
+pub fn draw_stability(path: &Path, r: &Region) -> Result<()> {
+    crate::plot::register_fonts()?;
+    let root = BitMapBackend::new(path, (1300, 950)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let curves: Vec<&tilting_planner::continuation::twopar::Curve> =
+        r.flip.iter().chain(r.fold.iter()).collect();
+    let xs = curves.iter().flat_map(|c| c.points.iter().map(|p| p[1]));
+    let ys = curves
+        .iter()
+        .flat_map(|c| c.points.iter().map(|p| p[0]))
+        .chain([0.0]);
+    let (x0, x1) = crate::plot::padded_range(xs, 0.03);
+    let (_, y1) = crate::plot::padded_range(ys, 0.05);
+    let name = r.p2.name();
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("Fig. 8c: where the adapted period-1 orbit is stable, in (k, {name})"),
+            (FONT, 24),
+        )
+        .margin(18)
+        .margin_right(40)
+        .x_label_area_size(55)
+        .y_label_area_size(90)
+        .build_cartesian_2d(x0..x1, 0.0..y1)?;
+    let xdesc = match r.p2.name() {
+        "kd" => "damping gain K_D [1/s]".to_string(),
+        "kp" => "stiffness gain K_P0 [1/s²]".to_string(),
+        "m_l_plant" => "the robot's arm mass m_l [kg] (the model keeps 1 kg)".to_string(),
+        other => other.to_string(),
+    };
+    chart
+        .configure_mesh()
+        .x_desc(xdesc)
+        .y_desc("adaptation gain k [1/(J s²)]")
+        .axis_desc_style((FONT, 20))
+        .label_style((FONT, 16))
+        .light_line_style(WHITE.mix(0.0))
+        .bold_line_style(BLACK.mix(0.08))
+        .draw()?;
+    // Shade between the curves where both are defined (linear interpolation in p2).
+    if let (Some(fl), Some(fo)) = (&r.flip, &r.fold) {
+        let interp = |c: &[[f64; 2]], x: f64| -> Option<f64> {
+            c.windows(2).find_map(|w| {
+                let (a, b) = (w[0], w[1]);
+                let (lo, hi) = (a[1].min(b[1]), a[1].max(b[1]));
+                (x >= lo && x <= hi && hi > lo)
+                    .then(|| a[0] + (b[0] - a[0]) * (x - a[1]) / (b[1] - a[1]))
+            })
+        };
+        let n = 200;
+        let mut upper = Vec::new();
+        let mut lower = Vec::new();
+        for i in 0..=n {
+            let x = x0 + (x1 - x0) * i as f64 / n as f64;
+            if let (Some(u), Some(l)) = (interp(&fl.points, x), interp(&fo.points, x)) {
+                if u > l {
+                    upper.push((x, u));
+                    lower.push((x, l));
+                }
+            }
+        }
+        if !upper.is_empty() {
+            let poly: Vec<(f64, f64)> = upper
+                .iter()
+                .copied()
+                .chain(lower.iter().rev().copied())
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    poly,
+                    RGBColor(44, 160, 44).mix(0.25).filled(),
+                )))?
+                .label("period-1 orbit stable")
+                .legend(|(x, y)| {
+                    Rectangle::new(
+                        [(x, y - 6), (x + 24, y + 6)],
+                        RGBColor(44, 160, 44).mix(0.25).filled(),
+                    )
+                });
+        }
+    }
+    for (c, col, label) in [
+        (
+            &r.flip,
+            RGBColor(214, 39, 40),
+            "flip: a multiplier at −1 (period doubling above)",
+        ),
+        (
+            &r.fold,
+            RGBColor(31, 119, 180),
+            "fold: a multiplier at +1 (the orbit ends below)",
+        ),
+    ] {
+        if let Some(c) = c {
+            let pts: Vec<(f64, f64)> = c.points.iter().map(|p| (p[1], p[0])).collect();
+            chart
+                .draw_series(LineSeries::new(pts, col.stroke_width(3)))?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], col.stroke_width(3))
+                });
+        }
+    }
+    chart
+        .draw_series(std::iter::once(Cross::new(
+            (r.p2_base, 500.0),
+            8,
+            BLACK.stroke_width(2),
+        )))?
+        .label("the paper's loop (k = 500)")
+        .legend(|(x, y)| Cross::new((x + 12, y), 6, BLACK.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font((FONT, 17))
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
