@@ -21,7 +21,8 @@ Run:
   simulate    The closed loop offline for one scenario (default: the paper's orbit)
 
 Plan:
-  plan        orbit | sinusoid | bifurcation | gains | margins | continuation | merge: the
+  plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability |
+              merge: the
               paper's boundary value problems, stability, sweeps (--shard I/N for job
               arrays), and what the orbit survives on a network
   plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability: the paper's boundary value
