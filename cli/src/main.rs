@@ -22,9 +22,8 @@ Run:
 
 Plan:
   plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability |
-              merge: the
-              paper's boundary value problems, stability, sweeps (--shard I/N for job
-              arrays), and what the orbit survives on a network
+              merge: the paper's boundary value problems, stability, sweeps (--shard I/N
+              for job arrays), continuation, and what the orbit survives on a network
   plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability: the paper's boundary value
               problems, stability, sweeps, and what the orbit survives on a network
 
