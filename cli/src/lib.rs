@@ -3,6 +3,7 @@
 //! - [`error`]: [`CommandError`], the exit codes (the libraries return their own errors);
 //! - [`commands`]: the subcommands, grouped by what a person wants (run: `live`, `simulate`;
 //!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`, `animate`);
+//! - [`foxglove`]: the Foxglove flags, `tilting view`, and the server of `live --foxglove`;
 //! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
 //!   and a report;
 //! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);
@@ -19,6 +20,7 @@
 
 pub mod commands;
 pub mod error;
+pub mod foxglove;
 pub mod live;
 pub mod record;
 pub mod security;

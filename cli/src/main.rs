@@ -33,7 +33,9 @@ Look:
   echo        Print a robot's topic live, decoded (one line or one JSON object per message)
   hz          Rate, largest gap and message size of a robot's topics
   record      Record a robot's topics into an MCAP file (opens in Foxglove, PlotJuggler)
-  replay      Publish an MCAP recording back, byte for byte, at its pace or faster
+  replay      Publish an MCAP recording back, byte for byte, at its pace or faster (or
+              into Foxglove's 3D scene with --foxglove)
+  view        Serve a robot on the network to Foxglove: its topics, a 3D scene, log entries
   info        Summarise an MCAP recording: span, channels, counts, tilts, faults
 
 ROS 2:
@@ -91,6 +93,9 @@ enum Command {
     /// Publish an MCAP recording back over zenoh, byte for byte: at its pace, N times faster or
     /// as fast as possible; all topics or some (e.g. states into a controller under test)
     Replay(recording::ReplayArgs),
+    /// Serve any robot on the network to Foxglove (WebSocket protocol): its five topics, a 3D
+    /// scene of the plate and the arm, and log entries; until Ctrl-C
+    View(Box<tilting::foxglove::ViewArgs>),
     /// Summarise an MCAP recording: plant-time span, channels, counts, tilts, faults
     Info(recording::InfoArgs),
     /// The robot's physical parameters from a recording: least squares on the dynamics'
@@ -150,6 +155,7 @@ fn main() -> ExitCode {
         Command::Record(args) => recording::record(args),
         Command::Replay(args) => recording::replay(args),
         Command::Info(args) => recording::info(args),
+        Command::View(args) => tilting::foxglove::view(args),
         Command::Identify(args) => identify::run(args),
         Command::Certs(args) => tilting::security::certs(args),
         Command::Ros2(ros2::Ros2Command::Bridge(args)) => ros2::bridge(args),

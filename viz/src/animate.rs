@@ -57,6 +57,9 @@ pub struct Options {
     pub start: Option<f64>,
     /// Last plant time shown (s); `None`: the trace's end.
     pub end: Option<f64>,
+    /// The tilt drawn this many times larger (display only, stated in the frame; `1` is to
+    /// scale, the default; the pivot stays on the ground).
+    pub tilt_exaggeration: f64,
 }
 
 impl Default for Options {
@@ -67,6 +70,7 @@ impl Default for Options {
             size: (640, 480),
             start: None,
             end: None,
+            tilt_exaggeration: 1.0,
         }
     }
 }
@@ -104,6 +108,10 @@ impl Timeline {
 pub fn timeline(trace: &Trace, opts: &Options) -> Result<Timeline> {
     if !(opts.fps.is_finite() && opts.fps > 0.0 && opts.fps <= MAX_FPS) {
         bail!("invalid fps = {}: must be in (0, {MAX_FPS}]", opts.fps);
+    }
+    let k = opts.tilt_exaggeration;
+    if !(k.is_finite() && (1.0..=100.0).contains(&k)) {
+        bail!("invalid tilt exaggeration = {k}: must be from 1 (to scale) to 100");
     }
     if !(opts.speed.is_finite() && opts.speed > 0.0) {
         bail!("invalid speed = {}: must be a positive number", opts.speed);
@@ -381,6 +389,8 @@ struct Scene<'a> {
     size: (u32, u32),
     tl: Timeline,
     speed: f64,
+    /// The tilt's exaggeration.
+    k: f64,
 }
 
 impl<'a> Scene<'a> {
@@ -400,7 +410,7 @@ impl<'a> Scene<'a> {
             .iter()
             .filter(|s| s.t >= tl.t0 - tl.dt && s.t <= tl.t1 + tl.dt)
         {
-            let q = pose(&p, s.mode, s.x[0], s.x[1]);
+            let q = pose(&p, s.mode, opts.tilt_exaggeration * s.x[0], s.x[1]);
             for v in [q.left, q.right, q.tip] {
                 grow(v);
             }
@@ -438,6 +448,7 @@ impl<'a> Scene<'a> {
             size: opts.size,
             tl: *tl,
             speed: opts.speed,
+            k: opts.tilt_exaggeration,
         }
     }
 
@@ -461,7 +472,9 @@ impl<'a> Scene<'a> {
         let (mode, alpha, beta) =
             state_at(&self.trace.samples, t).ok_or_else(|| anyhow!("no samples"))?;
         let p = &self.params;
-        let q = pose(p, mode, alpha, beta);
+        // The plate as drawn: its tilt times the exaggeration.
+        let shown = self.k * alpha;
+        let q = pose(p, mode, shown, beta);
         let flash = self.flash_at(t);
         let (w, h) = (self.size.0 as i32, self.size.1 as i32);
         root.fill(&WHITE)?;
@@ -500,7 +513,7 @@ impl<'a> Scene<'a> {
 
         // The plate: a slab of thickness 0.1 f above its contact line.
         let th = 0.1 * p.f;
-        let n = [-alpha.sin() * th, alpha.cos() * th];
+        let n = [-shown.sin() * th, shown.cos() * th];
         let slab = vec![
             self.px(q.left),
             self.px(q.right),
@@ -559,6 +572,13 @@ impl<'a> Scene<'a> {
                 "the run stopped early here",
                 (w / 2 - 90, TOP - 4),
                 small.clone().color(&FLASHED),
+            ))?;
+        }
+        if self.k != 1.0 {
+            root.draw(&Text::new(
+                format!("tilt drawn ×{}", self.k),
+                (w - 240, 36),
+                small.clone().color(&PIVOT),
             ))?;
         }
         if self.speed != 1.0 {
@@ -723,6 +743,10 @@ mod tests {
             },
             Options {
                 speed: -1.0,
+                ..Options::default()
+            },
+            Options {
+                tilt_exaggeration: 0.5,
                 ..Options::default()
             },
             Options {

@@ -49,6 +49,15 @@ pub struct AnimateArgs {
     /// Last plant time shown (s) [default: the end of the run]
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub end: Option<f64>,
+    /// The tilt drawn this many times larger (display only, stated in each frame; 1 is to
+    /// scale, as in the Foxglove scene's default)
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "K",
+        allow_negative_numbers = true
+    )]
+    pub tilt_exaggeration: f64,
     /// Print one JSON object (out, frames, fps, window, landings flashed, seconds) instead of a
     /// line of text
     #[arg(long)]
@@ -132,6 +141,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
         size: args.size,
         start: args.start,
         end: args.end,
+        tilt_exaggeration: args.tilt_exaggeration,
     };
     let sc = args
         .scenario

@@ -163,7 +163,15 @@ pub struct ReplayArgs {
     /// As fast as possible (ignores --speed)
     #[arg(long)]
     pub fast: bool,
-    /// Seconds to wait for a subscriber on every replayed topic before starting
+    /// Play into a Foxglove server (with the 3D scene) instead of zenoh.
+    #[command(flatten)]
+    pub fox: crate::foxglove::FoxgloveArgs,
+    /// With --foxglove: the robot's geometry for the scene (TOML, the keys of docs/model.md)
+    /// [default: the paper's]
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// Seconds to wait for a subscriber on every replayed topic (with --foxglove: for a first
+    /// client) before starting
     #[arg(
         long,
         default_value_t = 10.0,
@@ -223,6 +231,10 @@ pub fn replay(args: &ReplayArgs) -> Result<(), CommandError> {
             args.file.display()
         );
     }
+    if args.fox.foxglove.is_some() {
+        return crate::foxglove::replay(args, &keys, &run, &topics);
+    }
+    args.fox.check()?;
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     rt.block_on(replay_async(args, &keys, &run, &topics))
         .map_err(CommandError::Failed)

@@ -137,6 +137,9 @@ pub struct LiveArgs {
     /// `--ros2`: the plant as a ROS 2 node too.
     #[command(flatten)]
     pub ros2: ros2::LiveRos2Args,
+    /// Serve the run to Foxglove (`crate::foxglove`).
+    #[command(flatten)]
+    pub foxglove: crate::foxglove::FoxgloveArgs,
 }
 
 impl LiveArgs {
@@ -198,6 +201,14 @@ impl Job<'_> {
             fall_angle: tilting_plant::SimConfig::default().fall_angle,
             from_start: true,
         }
+    }
+
+    /// The robot the plant simulates (checked by `check`; the paper's without a file).
+    fn plant_params(&self) -> tilting_plant::Params {
+        let (plant, _) = self.args.params_files();
+        plant
+            .and_then(|f| tilting_plant::Params::from_toml_file(&f).ok())
+            .unwrap_or_default()
     }
 }
 
@@ -287,6 +298,7 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
         }
     }
     let reference = args.law.resolve()?;
+    args.foxglove.check()?;
     args.imperfect
         .imperfections(args.network.seed)
         .map_err(|e| usage(e.into()))?;
@@ -347,9 +359,12 @@ async fn live(
     if job.args.secure {
         topo.start_router(job, bins).await?;
     }
+    let mut fox =
+        crate::foxglove::LiveServer::start(&job.args.foxglove, &job.keys, job.plant_params()).await;
     let mut plant = nodes::spawn_plant(job, &topo, bins)?;
     let zargs = topo.planner_session(job.keys.robot());
     let tap = Tap::open(&zargs, &job.keys, &recorder, job.reference.to_wire()).await?;
+    fox.attach(tap.session(), &job.keys).await?;
     let early_end = monitor::wait_for_first_state(&recorder, &mut plant, &signals).await;
     let mut controller = match early_end {
         None => Some(nodes::spawn_controller(job, &topo, bins)?),
@@ -387,6 +402,7 @@ async fn live(
         &mut problems,
     );
     tokio::time::sleep(Duration::from_millis(150)).await;
+    fox.close().await;
     let closed = tap.close().await;
     problems.extend(topo.stop_router(&force));
     let dropped = recorder.dropped();

@@ -114,6 +114,11 @@ impl Tap {
         })
     }
 
+    /// The session (for the Foxglove server's subscribers).
+    pub(super) fn session(&self) -> &Session {
+        &self.session
+    }
+
     /// Puts the reference again (once a second while the run goes).
     pub(super) fn repeat(&self) {
         if let Err(e) = self.publisher.repeat() {

@@ -1,0 +1,382 @@
+//! Foxglove at the front door: the flags (`--foxglove [ADDR]`, `--foxglove-any`,
+//! `--tilt-exaggeration`), the subscription that feeds a [`Server`] from a robot on the
+//! network (as `tilting record` subscribes), `tilting view`, and the piece of `tilting live`
+//! that serves its robot. The server itself is `tilting_foxglove`'s.
+
+use crate::CommandError;
+use anyhow::anyhow;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tilting_foxglove::{Feed, Options, Server, StartError, DEFAULT_ADDR};
+use tilting_net::{Role, ZenohArgs};
+use tilting_proto::{Keys, Topic};
+use zenoh::pubsub::Subscriber;
+use zenoh::Session;
+
+/// The Foxglove flags of `live` and `replay`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FoxgloveArgs {
+    /// Serve the robot over the Foxglove WebSocket protocol (open Foxglove, "Open connection",
+    /// Foxglove WebSocket, ws://ADDR) [default ADDR: 127.0.0.1:8765]
+    #[arg(
+        long,
+        value_name = "ADDR",
+        num_args = 0..=1,
+        default_missing_value = DEFAULT_ADDR,
+        value_parser = parse_addr
+    )]
+    pub foxglove: Option<SocketAddr>,
+    /// Allow --foxglove on an address that is not loopback (serves the robot to the network)
+    #[arg(long)]
+    pub foxglove_any: bool,
+    /// The tilt drawn this many times larger in the 3D scene (display only; stated in the
+    /// scene's title; 1 is to scale)
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "K",
+        allow_negative_numbers = true
+    )]
+    pub tilt_exaggeration: f64,
+}
+
+/// `HOST:PORT` with a numeric host (`127.0.0.1:8765`, `[::1]:8765`), or `localhost:PORT`.
+fn parse_addr(s: &str) -> Result<SocketAddr, String> {
+    let s2 = s.replace("localhost:", "127.0.0.1:");
+    s2.parse().map_err(|_| {
+        format!(
+            "`{s}` is not an address: expected IP:PORT, e.g. {DEFAULT_ADDR} (port 0: a free one)"
+        )
+    })
+}
+
+impl FoxgloveArgs {
+    /// Checks the flags without binding: usage errors naming the flag.
+    pub fn check(&self) -> Result<(), CommandError> {
+        let usage = |e: String| CommandError::Usage(anyhow!(e));
+        tilting_foxglove::scene::check_exaggeration(self.tilt_exaggeration).map_err(usage)?;
+        match self.foxglove {
+            Some(addr) => tilting_foxglove::check_addr(addr, self.foxglove_any)
+                .map_err(|e| usage(e.to_string())),
+            None if self.foxglove_any => Err(usage("--foxglove-any needs --foxglove".into())),
+            None => Ok(()),
+        }
+    }
+
+    /// The server's options for robot `keys` with geometry `params`, if --foxglove.
+    pub fn options(&self, keys: &Keys, params: tilting_plant::Params) -> Option<Options> {
+        Some(Options {
+            addr: self.foxglove?,
+            any: self.foxglove_any,
+            keys: keys.clone(),
+            params,
+            exaggeration: self.tilt_exaggeration,
+        })
+    }
+}
+
+/// The robot's geometry from `--params` (the paper's without it); the error names the flag.
+pub fn scene_params(file: Option<&PathBuf>) -> Result<tilting_plant::Params, CommandError> {
+    match file {
+        None => Ok(tilting_plant::Params::default()),
+        Some(f) => tilting_plant::Params::from_toml_file(f)
+            .map_err(|e| CommandError::Usage(anyhow!("invalid `--params` = {}: {e}", f.display()))),
+    }
+}
+
+/// Starts the server and says where it serves.
+pub async fn start(opts: &Options, who: &str) -> Result<Server, StartError> {
+    let server = Server::start(opts).await?;
+    eprintln!(
+        "{who}: Foxglove serves robot {} at ws://{} (Foxglove: Open connection, Foxglove \
+         WebSocket; layout: docs/foxglove-layout.json)",
+        opts.keys.robot(),
+        server.addr()
+    );
+    Ok(server)
+}
+
+/// Subscribes to the five topics of `keys` on `session` and hands every payload to `feed`
+/// (never blocking: the feed drops its oldest message when full), counting them in
+/// `received`.
+pub async fn subscribe(
+    session: &Session,
+    keys: &Keys,
+    feed: &Feed,
+    received: &Arc<AtomicU64>,
+) -> anyhow::Result<Vec<Subscriber<()>>> {
+    let mut subs = Vec::new();
+    for topic in Topic::ALL {
+        let feed = feed.clone();
+        let n = received.clone();
+        subs.push(
+            tilting_net::subscribe_bytes(session, topic.key(keys), move |bytes| {
+                n.fetch_add(1, Ordering::Relaxed);
+                feed.send_wire(topic, bytes.to_vec())
+            })
+            .await?,
+        );
+    }
+    Ok(subs)
+}
+
+/// Prints what a server did, once closed.
+pub fn report(who: &str, c: &tilting_foxglove::Counts) {
+    eprintln!(
+        "{who}: Foxglove: {} messages published, {} scene updates, {} log entries, {} invalid, \
+         {} dropped (publisher behind), {} clients",
+        c.published, c.scenes, c.logs, c.invalid, c.dropped, c.clients
+    );
+}
+
+/// The Foxglove server of a `tilting live` run (if `--foxglove`).
+pub struct LiveServer {
+    server: Option<Server>,
+    subscribers: Vec<Subscriber<()>>,
+}
+
+impl LiveServer {
+    /// Starts the server before the run; a server that cannot start (a port in use) is
+    /// reported, and the run goes on without it.
+    pub async fn start(
+        args: &FoxgloveArgs,
+        keys: &Keys,
+        params: tilting_plant::Params,
+    ) -> LiveServer {
+        let server = match args.options(keys, params) {
+            None => None,
+            Some(opts) => match start(&opts, "live").await {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    eprintln!("live: {e}; the run goes on without Foxglove");
+                    None
+                }
+            },
+        };
+        LiveServer {
+            server,
+            subscribers: Vec::new(),
+        }
+    }
+
+    /// Feeds the server from the run's session (the planner's).
+    pub async fn attach(&mut self, session: &Session, keys: &Keys) -> anyhow::Result<()> {
+        if let Some(s) = &self.server {
+            let n = Arc::default();
+            self.subscribers = subscribe(session, keys, &s.feed(), &n).await?;
+        }
+        Ok(())
+    }
+
+    /// Stops the server once the run is over.
+    pub async fn close(self) {
+        drop(self.subscribers);
+        if let Some(s) = self.server {
+            report("live", &s.close().await);
+        }
+    }
+}
+
+/// Flags of `tilting view`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ViewArgs {
+    /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// The address to serve Foxglove on
+    #[arg(long = "foxglove", value_name = "ADDR", default_value = DEFAULT_ADDR, value_parser = parse_addr)]
+    pub addr: SocketAddr,
+    /// Allow --foxglove on an address that is not loopback (serves the robot to the network)
+    #[arg(long)]
+    pub foxglove_any: bool,
+    /// The tilt drawn this many times larger in the 3D scene (display only; 1 is to scale)
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "K",
+        allow_negative_numbers = true
+    )]
+    pub tilt_exaggeration: f64,
+    /// The robot's geometry for the scene (TOML, the keys of docs/model.md) [default: the
+    /// paper's]
+    #[arg(long, value_name = "FILE.toml")]
+    pub params: Option<PathBuf>,
+    /// Stop after this many seconds [default: until Ctrl-C]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+    /// Say so if no message arrives within this many seconds (the server keeps serving)
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
+    pub wait: f64,
+}
+
+/// `tilting view`: serves any robot on the network (ours, a Python plant, a real one) to
+/// Foxglove, subscribing to its five topics as `tilting record` does, until Ctrl-C or
+/// `--seconds`.
+pub fn view(args: &ViewArgs) -> Result<(), CommandError> {
+    tilting_net::init_tracing("warn");
+    crate::commands::topics::check_seconds("--seconds", args.seconds)?;
+    crate::commands::topics::check_seconds("--wait", Some(args.wait))?;
+    let keys = crate::commands::topics::session_args(&args.zenoh)?;
+    let flags = FoxgloveArgs {
+        foxglove: Some(args.addr),
+        foxglove_any: args.foxglove_any,
+        tilt_exaggeration: args.tilt_exaggeration,
+    };
+    flags.check()?;
+    let params = scene_params(args.params.as_ref())?;
+    let opts = flags.options(&keys, params).expect("--foxglove is set");
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(async {
+        let server = start(&opts, "view")
+            .await
+            .map_err(|e| CommandError::Failed(e.into()))?;
+        let run = async {
+            let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+            let received = Arc::default();
+            let subs = subscribe(&session, &keys, &server.feed(), &received).await?;
+            watch(args, &keys, &received).await;
+            drop(subs);
+            let _ = session.close().await;
+            anyhow::Ok(())
+        };
+        let result = run.await;
+        report("view", &server.close().await);
+        result.map_err(CommandError::Failed)
+    })
+}
+
+/// Waits for Ctrl-C or `--seconds`, saying once if nothing arrived within `--wait`.
+async fn watch(args: &ViewArgs, keys: &Keys, received: &AtomicU64) {
+    let start = Instant::now();
+    let end = args.seconds.map(|s| start + Duration::from_secs_f64(s));
+    let mut stop = std::pin::pin!(tilting_net::shutdown_signal());
+    let mut warned = false;
+    while end.is_none_or(|e| Instant::now() < e) {
+        if !warned
+            && start.elapsed().as_secs_f64() >= args.wait
+            && received.load(Ordering::Relaxed) == 0
+        {
+            warned = true;
+            eprintln!(
+                "view: no message from robot `{}` within {} s (is it running, and reachable at \
+                 {}?); still serving",
+                keys.robot(),
+                args.wait,
+                if args.zenoh.connect.is_empty() {
+                    "tcp/127.0.0.1:7447".to_owned()
+                } else {
+                    args.zenoh.connect.join(", ")
+                }
+            );
+        }
+        tokio::select! {
+            _ = &mut stop => break,
+            _ = tokio::time::sleep(Duration::from_millis(50)) => {}
+        }
+    }
+}
+
+/// `tilting replay FILE --foxglove`: plays the recording's `topics` into a Foxglove server with
+/// the scene, at the recording's pace times `--speed` (or, with `--fast`, as fast as the
+/// publisher takes them, nothing dropped). It waits up to `--wait` s for a first client, then
+/// plays, and stops serving at the end (or at Ctrl-C).
+pub fn replay(
+    args: &crate::commands::recording::ReplayArgs,
+    keys: &Keys,
+    run: &tilting_record::Recording,
+    topics: &[Topic],
+) -> Result<(), CommandError> {
+    args.fox.check()?;
+    let params = scene_params(args.params.as_ref())?;
+    let opts = args.fox.options(keys, params).expect("--foxglove is set");
+    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    rt.block_on(async {
+        let server = start(&opts, "replay")
+            .await
+            .map_err(|e| CommandError::Failed(e.into()))?;
+        let deadline = Instant::now() + Duration::from_secs_f64(args.wait);
+        while server.clients() == 0 && Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        if server.clients() == 0 {
+            eprintln!(
+                "replay: no Foxglove client within {} s: playing anyway",
+                args.wait
+            );
+        } else {
+            // Give the client a moment to subscribe to the channels it was offered.
+            tokio::time::sleep(Duration::from_millis(500)).await;
+        }
+        let feed = server.feed();
+        let sent = tokio::task::block_in_place(|| play(args, run, topics, &feed));
+        // Let the publisher send what is queued before the server stops.
+        while feed.queued() > 0 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let counts = server.close().await;
+        report("replay", &counts);
+        eprintln!(
+            "replay: {sent} messages of {} played into Foxglove",
+            run.path().display()
+        );
+        Ok(())
+    })
+}
+
+/// Feeds the recording to `feed`, paced; the number of messages fed.
+fn play(
+    args: &crate::commands::recording::ReplayArgs,
+    run: &tilting_record::Recording,
+    topics: &[Topic],
+    feed: &Feed,
+) -> u64 {
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        tokio::spawn(async move {
+            tilting_net::shutdown_signal().await;
+            stop.store(true, Ordering::Relaxed);
+        });
+    }
+    let started = Instant::now();
+    let mut first = None;
+    let mut sent = 0;
+    for e in run.messages() {
+        if !topics.contains(&e.topic) {
+            continue;
+        }
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        if args.fast {
+            // As fast as the publisher takes them: never fill the drop-oldest queue.
+            while feed.queued() > tilting_foxglove::server::QUEUE / 2 {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        } else {
+            let t0 = *first.get_or_insert(e.log_time);
+            let due = started
+                + Duration::from_secs_f64(e.log_time.saturating_sub(t0) as f64 / 1e9 / args.speed);
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        feed.send(tilting_foxglove::Item {
+            topic: e.topic,
+            wire: e.wire,
+            log_time: Some(e.log_time),
+        });
+        sent += 1;
+    }
+    sent
+}

@@ -1,0 +1,411 @@
+//! `tilting live --foxglove` against an independent client: `tests/python/foxglove_client.py`
+//! speaks the documented Foxglove WebSocket protocol with the Python `websockets` package and
+//! decodes every message against the schema its channel advertised (`jsonschema` for our JSON
+//! channels, `protobuf` classes built from the advertised descriptors for SceneUpdate,
+//! FrameTransforms and Log). Without python3 or those packages (`.ci/run` installs them) the
+//! tests print SKIP and pass.
+//!
+//! - a 3 s run with one client subscribed to the state, the scene, the frames and the log: the
+//!   client gets >= 90 % of the recorded states and scene updates, all valid; the plate's edges
+//!   and the arm's tip composed from the served frames equal the model's kinematics
+//!   (`tilting_plant::kinematics::point_masses` on the recorded state) to 1e-9 m at three
+//!   instants, one per mode; a second client subscribes to an unknown channel and is told so,
+//!   and leaves mid-run; the run completes and `live` says the client left;
+//! - `replay run.mcap --foxglove` plays that recording into the same scene (>= 90 % of the
+//!   states, with their plant-time log times);
+//! - bad input: a port in use (live goes on without Foxglove, `view` refuses), an address that
+//!   is not loopback without --foxglove-any (refused before anything starts).
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+use tilting_plant::kinematics::point_masses;
+use tilting_plant::{Params, State};
+use tilting_proto::{PlantState, Topic};
+use tilting_tests::*;
+
+const PY_PACKAGES: &str = "import websockets, jsonschema, google.protobuf";
+
+fn client_ready(test: &str) -> bool {
+    if python_runs(PY_PACKAGES) {
+        return true;
+    }
+    eprintln!(
+        "SKIP {test}: `{} -c \"{PY_PACKAGES}\"` failed; install them with `python3 -m pip \
+         install websockets jsonschema protobuf`",
+        python()
+    );
+    false
+}
+
+fn script() -> std::path::PathBuf {
+    workspace_root().join("tests/python/foxglove_client.py")
+}
+
+/// Starts the client and waits until it says it is ready (its imports take a while: the run
+/// must not start before it can connect).
+fn client(url: &str, robot: &str, seconds: f64, out: &Path, extra: &[&str]) -> std::process::Child {
+    let mut child = Command::new(python())
+        .arg(script())
+        .args(["--url", url, "--robot", robot, "--seconds"])
+        .arg(seconds.to_string())
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("run foxglove_client.py");
+    let mut line = String::new();
+    let stdout = child.stdout.take().expect("piped");
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).unwrap();
+    assert_eq!(line.trim(), "ready", "foxglove_client.py did not start");
+    child
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "status {}\n--- stdout ---\n{}\n--- stderr ---\n{}",
+        o.status,
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Rotates `v` by the unit quaternion `[x, y, z, w]` (written out: `v + 2w (u x v) + 2 u x (u x
+/// v)`).
+fn rotate(q: &[f64], v: [f64; 3]) -> [f64; 3] {
+    let u = [q[0], q[1], q[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let t = cross(u, v).map(|c| 2.0 * c);
+    let ut = cross(u, t);
+    [0, 1, 2].map(|i| v[i] + q[3] * t[i] + ut[i])
+}
+
+/// A served transform `[translation, rotation]` applied to `v` (child frame to parent).
+fn apply(tf: &serde_json::Value, v: [f64; 3]) -> [f64; 3] {
+    let f = |x: &serde_json::Value| -> Vec<f64> {
+        x.as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_f64().unwrap())
+            .collect()
+    };
+    let (o, q) = (f(&tf[0]), f(&tf[1]));
+    let r = rotate(&q, v);
+    [r[0] + o[0], r[1] + o[1], r[2] + o[2]]
+}
+
+#[test]
+fn a_foxglove_client_sees_the_live_robot() {
+    if !client_ready("a_foxglove_client_sees_the_live_robot") {
+        return;
+    }
+    let _turn = realtime_turn();
+    let dir = Scratch::new("foxglove");
+    let out = dir.path().join("out");
+    let robot = robot("fox");
+    let port = free_port();
+    let url = format!("ws://127.0.0.1:{port}");
+    let addr = format!("127.0.0.1:{port}");
+    // The first client stays for the whole run (started first, it retries until the server is up; the run
+    // takes 3 s after a start-up of a few seconds, so 60 s is ample on a slow machine).
+    let main_json = dir.path().join("main.json");
+    let mut main = client(&url, &robot, 60.0, &main_json, &[]);
+    // The second subscribes to an unknown channel as well, and leaves after 1.5 s.
+    let rude_json = dir.path().join("rude.json");
+    let mut rude = client(
+        &url,
+        &robot,
+        60.0,
+        &rude_json,
+        &["--unknown-channel", "--disconnect-after", "1.5"],
+    );
+    let live = Command::new(bin("tilting"))
+        .args([
+            "live",
+            "--duration",
+            "3",
+            "--robot",
+            &robot,
+            "--foxglove",
+            &addr,
+            "--out",
+        ])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("cannot run tilting live");
+    let o = live.wait_with_output().expect("live");
+    assert!(main.wait().unwrap().success(), "client 1\n{}", text(&o));
+    assert!(rude.wait().unwrap().success(), "client 2\n{}", text(&o));
+    assert!(o.status.success(), "live failed\n{}", text(&o));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("Foxglove serves robot"), "{}", text(&o));
+    assert!(stderr.contains("a client disconnected"), "{}", text(&o));
+
+    let got: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&main_json).unwrap()).unwrap();
+    assert_eq!(got["subprotocol"], "foxglove.sdk.v1");
+    assert_eq!(
+        got["invalid"].as_array().unwrap().len(),
+        0,
+        "{}",
+        got["invalid"]
+    );
+    let adv = got["advertised"].as_object().unwrap();
+    for t in [
+        "plant/state",
+        "controller/torque",
+        "plant/event",
+        "plant/status",
+        "planner/reference",
+    ] {
+        let ch = &adv[&format!("/tilting/{robot}/{t}")];
+        assert_eq!(ch["encoding"], "json", "{t}: {ch}");
+        assert_eq!(ch["schemaEncoding"], "jsonschema", "{t}: {ch}");
+    }
+    assert_eq!(
+        adv[&format!("/tilting/{robot}/scene")]["schemaName"],
+        "foxglove.SceneUpdate"
+    );
+    assert_eq!(
+        adv[&format!("/tilting/{robot}/tf")]["schemaName"],
+        "foxglove.FrameTransforms"
+    );
+    assert_eq!(
+        adv[&format!("/tilting/{robot}/log")]["schemaName"],
+        "foxglove.Log"
+    );
+
+    // >= 90 % of the recorded states, each equal to the recording's.
+    let run = tilting_record::read(&out.join("run.mcap")).expect("run.mcap");
+    let recorded: HashMap<u64, PlantState> = run
+        .messages()
+        .filter(|e| e.topic == Topic::State)
+        .map(|e| {
+            let s: PlantState = tilting_proto::decode(&e.wire).unwrap();
+            (s.seq, s)
+        })
+        .collect();
+    let states = got["states"].as_array().unwrap();
+    assert!(
+        states.len() as f64 >= 0.9 * recorded.len() as f64 && recorded.len() > 2500,
+        "{} of {} states",
+        states.len(),
+        recorded.len()
+    );
+    for s in states {
+        let r = &recorded[&s["seq"].as_u64().unwrap()];
+        assert_eq!(
+            (s["alpha"].as_f64(), s["time"].as_f64()),
+            (Some(r.alpha), Some(r.time))
+        );
+    }
+    // Scene updates: 20 a second at least, with the robot's entities.
+    let scenes = got["scene_updates"].as_u64().unwrap();
+    assert!(scenes >= 50, "{scenes} scene updates");
+    let ids: Vec<&str> = got["scene_entity_ids"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    for id in ["plate", "arm", "pivot", "title"] {
+        assert!(ids.contains(&id), "{ids:?}");
+    }
+    assert!(
+        got["logs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|l| { l["message"].as_str().unwrap().contains("(tilt)") }),
+        "no tilt in the log: {}",
+        got["logs"]
+    );
+
+    // Geometry at three instants, one per mode: the served frames against the kinematics.
+    let by_time: HashMap<u64, &PlantState> = recorded
+        .values()
+        .map(|s| (tilting_foxglove::scene::nanos(s.time), s))
+        .collect();
+    let p = Params::default();
+    let mut checked = HashMap::new();
+    for tf in got["tf"].as_array().unwrap() {
+        assert_eq!(
+            (tf["plate_parent"].as_str(), tf["arm_parent"].as_str()),
+            (Some("world"), Some("plate"))
+        );
+        let Some(s) = by_time.get(&tf["log_time"].as_u64().unwrap()) else {
+            continue;
+        };
+        let mode = s.mode().unwrap();
+        if checked.contains_key(&mode) || (mode.is_tilted() && s.alpha.abs() < 0.01) {
+            continue;
+        }
+        let q = point_masses(&p, mode, &State::new(s.alpha, s.beta, 0.0, 0.0));
+        let tip = apply(&tf["plate"], apply(&tf["arm"], [p.l, 0.0, 0.0]));
+        let edge = |sign: f64| apply(&tf["plate"], [sign * p.f, 0.0, 0.0]);
+        let (ca, sa) = (s.alpha.cos(), s.alpha.sin());
+        // Model (x, y) is Foxglove (x, 0, y); the edges are the centre -/+ f (cos, sin) alpha.
+        let want = [
+            ([q.tip.x, q.tip.y], tip),
+            ([q.foot.x - p.f * ca, q.foot.y - p.f * sa], edge(-1.0)),
+            ([q.foot.x + p.f * ca, q.foot.y + p.f * sa], edge(1.0)),
+        ];
+        for (w, g) in want {
+            let err = (w[0] - g[0]).abs().max(g[1].abs()).max((w[1] - g[2]).abs());
+            assert!(
+                err < 1e-9,
+                "{mode} at t = {}: served {g:?}, model {w:?}",
+                s.time
+            );
+        }
+        checked.insert(mode, s.time);
+    }
+    assert_eq!(checked.len(), 3, "one instant per mode: {checked:?}");
+    eprintln!("checked the geometry at {checked:?}");
+
+    // The rude client was told the channel is unknown, and the others went on.
+    let rude: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rude_json).unwrap()).unwrap();
+    let told = rude["statuses"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|s| s["level"] == 2 && s["message"].as_str().unwrap().contains("Unknown channel"));
+    assert!(told, "{}", rude["statuses"]);
+
+    // The recording played into the same scene (`replay --foxglove`, twice the pace).
+    let port = free_port();
+    let replay_json = dir.path().join("replay.json");
+    let mut viewer = client(
+        &format!("ws://127.0.0.1:{port}"),
+        &robot,
+        60.0,
+        &replay_json,
+        &[],
+    );
+    let o = Command::new(bin("tilting"))
+        .arg("replay")
+        .arg(out.join("run.mcap"))
+        .args([
+            "--robot",
+            &robot,
+            "--speed",
+            "2",
+            "--wait",
+            "30",
+            "--foxglove",
+        ])
+        .arg(format!("127.0.0.1:{port}"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "replay --foxglove\n{}", text(&o));
+    assert!(viewer.wait().unwrap().success());
+    let got: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&replay_json).unwrap()).unwrap();
+    let states = got["states"].as_array().unwrap();
+    assert!(
+        states.len() as f64 >= 0.9 * recorded.len() as f64,
+        "replayed {} of {} states\n{}",
+        states.len(),
+        recorded.len(),
+        text(&o)
+    );
+    assert!(got["scene_updates"].as_u64().unwrap() >= 50, "{}", text(&o));
+    for s in states {
+        // Log times are the recording's (plant time).
+        let r = &recorded[&s["seq"].as_u64().unwrap()];
+        assert_eq!(
+            s["log_time"].as_u64(),
+            Some(tilting_foxglove::scene::nanos(r.time))
+        );
+    }
+}
+
+#[test]
+fn foxglove_bad_addresses_are_refused_clearly() {
+    let tilting = bin("tilting");
+    // Not loopback, without --foxglove-any: a usage error before anything starts.
+    let o = Command::new(&tilting)
+        .args(["live", "--duration", "1", "--foxglove", "0.0.0.0:0"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--foxglove") && err.contains("--foxglove-any"),
+        "{err}"
+    );
+    let o = Command::new(&tilting)
+        .args(["live", "--foxglove", "nowhere"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("IP:PORT"),
+        "{}",
+        text(&o)
+    );
+
+    // A port in use: `view` (whose whole job it is) refuses, naming the address.
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let o = Command::new(&tilting)
+        .args([
+            "view",
+            "--robot",
+            "nobody",
+            "--seconds",
+            "1",
+            "--foxglove",
+            &addr,
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!("cannot serve Foxglove on {addr}")),
+        "{err}"
+    );
+}
+
+#[test]
+fn live_goes_on_without_foxglove_when_its_port_is_taken() {
+    let _turn = realtime_turn();
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let dir = Scratch::new("foxglove-taken");
+    let o = Command::new(bin("tilting"))
+        .args([
+            "live",
+            "--duration",
+            "1",
+            "--robot",
+            &robot("fox_taken"),
+            "--foxglove",
+            &addr,
+            "--out",
+        ])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!("cannot serve Foxglove on {addr}"))
+            && err.contains("the run goes on without Foxglove"),
+        "{err}"
+    );
+    let _ = Duration::ZERO;
+}
