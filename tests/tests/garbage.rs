@@ -109,8 +109,9 @@ async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
         bad_torque.push(codec::encode(&TorqueCommand { seq: 1, tau }));
     }
     let mut bad_reference = garbage(&mut rng, Reference::SIZE, &reference, 17);
+    // Reference: the first kind past the known ones (hold, sinusoid, excitation).
     let mut k2 = reference.clone();
-    k2[0] = 2;
+    k2[0] = Reference::EXCITATION + 1;
     bad_reference.push(k2);
     // Repeat the lot to make a flood (all invalid).
     for v in [&mut bad_torque, &mut bad_state, &mut bad_reference] {
