@@ -56,6 +56,11 @@ pub struct ContinuationArgs {
     /// Lyapunov: tilts averaged
     #[arg(long, default_value_t = 400)]
     pub tilts: usize,
+    /// Draw Fig. 8b into this PNG file: the branches over a sweep of the loop (k from the
+    /// Lyapunov curve's first value to --to, step 5, 600 tilts, 150 kept) with the exponent
+    /// below (--param k only)
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
@@ -213,6 +218,16 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     );
     let lyapunov_s = start.elapsed().as_secs_f64();
     b.finish_and_clear();
+    if let Some(path) = &args.plot {
+        plot_cascade(
+            path,
+            args,
+            &sw,
+            (ps.first().copied().unwrap_or(p0), to),
+            &diagram,
+            &lyap,
+        )?;
+    }
     let steps = diagram.steps();
     let report = ContinuationReport {
         energy_avg: o.energy_avg,
@@ -228,6 +243,39 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
         lyapunov: lyap,
     };
     emit(args.model.json, &report, || human(&report))
+}
+
+/// Draws Fig. 8b for `continuation --plot`: a sweep of the loop over `[max(k_lo, 1500), to]`
+/// (step 5, 600 tilts, 150 kept) under the branches, the exponent below.
+fn plot_cascade(
+    path: &std::path::Path,
+    args: &ContinuationArgs,
+    sw: &Sweep,
+    (k_lo, to): (f64, f64),
+    diagram: &Diagram,
+    lyap: &[Exponent],
+) -> Result<(), CommandError> {
+    if args.param != Param::K {
+        return Err(usage(
+            "`--plot` draws Fig. 8b over k: it needs `--param k`".into(),
+        ));
+    }
+    let k_lo = k_lo.max(1500.0).min(to);
+    let ks: Vec<f64> = (0..)
+        .map(|i| k_lo + 5.0 * i as f64)
+        .take_while(|&k| k <= to)
+        .collect();
+    let rows = bifurcation::sweep(
+        &Sweep {
+            tilts: 600,
+            keep: 150,
+            ..*sw
+        },
+        &ks,
+        &|| {},
+    );
+    tilting_viz::continuation::draw_cascade(path, (k_lo, to), &rows, diagram, lyap)
+        .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))
 }
 
 /// The human summary.
@@ -304,9 +352,9 @@ fn human(r: &ContinuationReport) -> String {
         let pos = r
             .lyapunov
             .iter()
-            .find(|e| e.lambda.is_some_and(|l| l > 0.0));
+            .find(|e| e.lambda.is_some_and(|l| l > 0.01));
         s += &format!(
-            "Lyapunov: {} values; first positive exponent at {name} = {}\n",
+            "Lyapunov: {} values; first exponent above 0.01 1/s at {name} = {}\n",
             r.lyapunov.len(),
             pos.map_or("none".into(), |e| format!(
                 "{} ({:.4} 1/s)",
