@@ -118,6 +118,11 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
             args.tilts, args.transient
         )));
     }
+    if args.plot.is_some() && args.param != Param::K {
+        return Err(usage(
+            "`--plot` draws Fig. 8b over k: it needs `--param k`".into(),
+        ));
+    }
     let start = Instant::now();
     let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
     let o = orbit::smallest(&pb).ok_or_else(|| {
