@@ -57,6 +57,45 @@ pub fn padded_range(v: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
     }
 }
 
+/// One angle-against-time panel of a run or fit-check figure: its caption, the time axis
+/// `t` (s) and the angle axis `y` (rad, labelled `ylabel`), with the light mesh both figures
+/// share; the caller draws the curves.
+fn angle_panel<'a, DB: DrawingBackend>(
+    panel: &'a DrawingArea<DB, plotters::coord::Shift>,
+    caption: &str,
+    ylabel: &str,
+    t: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> Result<
+    ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+>
+where
+    DB::ErrorType: 'static,
+{
+    let mut chart = ChartBuilder::on(panel)
+        .caption(caption, ("sans-serif", 24))
+        .margin(12)
+        .margin_right(40)
+        .x_label_area_size(55)
+        .y_label_area_size(95)
+        .build_cartesian_2d(t, y)?;
+    chart
+        .configure_mesh()
+        .x_desc("time t [s]")
+        .y_desc(ylabel)
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 18))
+        .light_line_style(WHITE.mix(0.0))
+        .bold_line_style(BLACK.mix(0.08))
+        .y_label_formatter(&|v| format!("{v:.3}"))
+        .draw()?;
+    Ok(chart)
+}
+
 /// Draws `alpha(t)` and `beta(t)` of an offline run (`simulate --plot`) in two stacked panels,
 /// with the transition times marked: vertical lines at tilt starts and at landings.
 pub fn plot_run(path: &Path, sc: &Scenario, r: &SimulationReport) -> Result<()> {
@@ -99,23 +138,7 @@ pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
         // Headroom above the curve for the legend.
         let top = hi + 0.3 * (hi - lo);
         let mid = 0.5 * (lo + hi);
-        let mut chart = ChartBuilder::on(panel)
-            .caption(caption, ("sans-serif", 24))
-            .margin(12)
-            .margin_right(40)
-            .x_label_area_size(55)
-            .y_label_area_size(95)
-            .build_cartesian_2d(0.0..t_max, lo..top)?;
-        chart
-            .configure_mesh()
-            .x_desc("time t [s]")
-            .y_desc(ylabel)
-            .axis_desc_style(("sans-serif", 22))
-            .label_style(("sans-serif", 18))
-            .light_line_style(WHITE.mix(0.0))
-            .bold_line_style(BLACK.mix(0.08))
-            .y_label_formatter(&|v| format!("{v:.3}"))
-            .draw()?;
+        let mut chart = angle_panel(panel, caption, ylabel, 0.0..t_max, lo..top)?;
         // A landing and the re-tilt it triggers share one instant: landings are marked in the
         // lower half of the panel, tilt starts in the upper half, so both stay visible.
         let mut labelled = [false; 2];
@@ -187,23 +210,7 @@ pub fn plot_fit(
     ]) {
         let (lo, hi) = padded_range(s.iter().map(|x| x.x[i]), 0.08);
         let top = hi + 0.25 * (hi - lo);
-        let mut chart = ChartBuilder::on(panel)
-            .caption(caption, ("sans-serif", 24))
-            .margin(12)
-            .margin_right(40)
-            .x_label_area_size(55)
-            .y_label_area_size(95)
-            .build_cartesian_2d(t0..t1, lo..top)?;
-        chart
-            .configure_mesh()
-            .x_desc("time t [s]")
-            .y_desc(ylabel)
-            .axis_desc_style(("sans-serif", 22))
-            .label_style(("sans-serif", 18))
-            .light_line_style(WHITE.mix(0.0))
-            .bold_line_style(BLACK.mix(0.08))
-            .y_label_formatter(&|v| format!("{v:.3}"))
-            .draw()?;
+        let mut chart = angle_panel(panel, caption, ylabel, t0..t1, lo..top)?;
         chart
             .draw_series(LineSeries::new(
                 s.iter().map(|x| (x.t, x.x[i])),
