@@ -101,42 +101,8 @@ async fn a_wrong_identity_cannot_move_the_robot() {
     // Counted before the puts below: a session gets its own puts too.
     let rogue_heard = rogue_states.load(Ordering::Relaxed);
 
-    let huge = codec::encode(&TorqueCommand { seq: 0, tau: 1e9 });
-    let lie = codec::encode(&Reference {
-        kind: Reference::HOLD,
-        amplitude: 0.0,
-        omega: 0.0,
-        kp: 30.0,
-        kd: 8.0,
-        k: 0.0,
-        energy_avg: 0.0,
-        torque_limit: 0.0,
-    });
     for c in [&logger, &rogue] {
-        for i in 0..100u64 {
-            let k = &c.keys;
-            let t = codec::encode(&TorqueCommand {
-                seq: 500 + i,
-                tau: 12.345,
-            });
-            for (key, payload) in [
-                (k.controller_torque(), GARBAGE),
-                (k.controller_torque(), &huge[..]),
-                (k.controller_torque(), &t[..]),
-                (k.plant_state(), GARBAGE),
-                (k.planner_reference(), &lie[..]),
-            ] {
-                c.session
-                    .put(key.to_owned(), payload.to_vec())
-                    .await
-                    .unwrap();
-            }
-        }
-        let _ = c
-            .session
-            .liveliness()
-            .declare_token(c.keys.alive_planner().to_owned())
-            .await;
+        attack(c).await;
     }
 
     // The same garbage with the right identity (a stolen key) is delivered: 5 torques, 7 states
