@@ -315,9 +315,13 @@ pub struct LawArgs {
     )]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub energy_avg: Option<f64>,
-    /// Desired arm trajectory: hold (beta_d = pi/2) or sinusoid:A,w (beta_d = A sin(w t) + pi/2,
-    /// A in rad, w in rad/s) [default: hold]
-    #[cfg_attr(feature = "clap", arg(long, value_name = "hold|sinusoid:A,w"))]
+    /// Desired arm trajectory: hold (beta_d = pi/2), sinusoid:A,w (beta_d = A sin(w t) + pi/2,
+    /// A in rad, w in rad/s), or excitation[:A,w] (the identification's flat Fourier motion,
+    /// at most A rad from upright, base frequency w rad/s) [default: hold]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "hold|sinusoid:A,w|excitation[:A,w]")
+    )]
     #[serde(
         default,
         with = "crate::trajectory::text",
