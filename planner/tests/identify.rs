@@ -342,4 +342,26 @@ fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent
         "{:?}",
         id.base[3]
     );
+    // What is identified instead is the sum, reported as its own estimate (pi3 alone is not,
+    // and says why from the regressor's columns); checked against the hidden robot's sum.
+    assert!(
+        id.base[2].value.is_none()
+            && id.base[2]
+                .not_identifiable
+                .as_deref()
+                .is_some_and(|w| w.contains("columns of pi3 and pi5")),
+        "{:?}",
+        id.base[2]
+    );
+    let sum = id.base.iter().find(|e| e.name == "pi3+pi5").unwrap();
+    let want = base_of(&truth)[2] + base_of(&truth)[4];
+    let got = sum.value.unwrap();
+    assert!(
+        ((got - want) / want).abs() < 0.03,
+        "pi3+pi5: {got} vs {want}"
+    );
+    assert!(id
+        .not_identifiable
+        .iter()
+        .any(|s| s.starts_with("j_m and n_g")));
 }

@@ -69,8 +69,13 @@ pub(super) fn params(
         }
         _ => {
             out.push(
-                "j_m and n_g: the rotor's share (pi4, pi5) is not seen (direct drive, n_g = 1, or \
-                 flat motion only): its inertia is in i_l, which moves the same"
+                "j_m and n_g: not separable from the arm's inertia in this recording. Flat, the \
+                 columns of pi3 and pi5 are the same (beta_ddot): only pi3 + pi5 = m_l l_c^2 + \
+                 i_l + n_g^2 j_m enters; tilted, pi4 and pi5 have their own columns, but the \
+                 rotor's share is not seen (no tilts, a direct drive n_g = 1, or below the \
+                 noise). The identified sum (pi3+pi5, the arm's inertia about the joint) is \
+                 written as i_l with j_m = 0: the same inertia about the joint; tilted, the \
+                 model then differs by the rotor's share (pi4, pi5)"
                     .into(),
             );
             (0.0, prior.n_g)

@@ -307,18 +307,25 @@ pub fn identify(
     let mut fit = solve(&r, &cols, &names)?;
     // The rotor's share (pi4, pi5) is a fraction of a percent of the arm's inertia: under
     // sensor noise it may not be told from zero. Then it is left out (lumped into pi3, as for
-    // a direct drive) rather than let its noise spill into pi1 and pi3.
+    // a direct drive) rather than let its noise spill into pi1 and pi3; what column 2 then
+    // estimates is pi3 + pi5 (the flat rows, where its column is beta_ddot, carry it).
+    let mut lumped = false;
     if let Some(why) = rotor_unseen(&fit, &cols, corr) {
         out[3] = Some(why.clone());
         out[4] = Some(why);
         let (c, n) = active(&out);
         fit = solve(&r, &c, &n)?;
         cols = c;
+        lumped = true;
+    }
+    let lump = merge35 || lumped;
+    if lumped {
+        out[2] = Some(ROTOR_LUMPED.into());
     }
     let mut value = [None; N_BASE];
     let mut se = [None; N_BASE];
     for (j, &c) in cols.iter().enumerate() {
-        if !(merge35 && c == 2) {
+        if !(lump && c == 2) {
             value[c] = Some(fit.x[j]);
             se[c] = Some(fit.se[j] * corr);
         }
@@ -333,7 +340,7 @@ pub fn identify(
             not_identifiable: out[i].clone(),
         })
         .collect();
-    let sum35 = merge35.then(|| {
+    let sum35 = lump.then(|| {
         let j = cols.iter().position(|&c| c == 2).unwrap_or(0);
         (fit.x[j], fit.se[j] * corr)
     });
@@ -427,6 +434,14 @@ fn build_rows(
         }
     }
 }
+
+/// Why `pi3` alone is not given when the rotor's share is lumped: the regressor's columns.
+pub const ROTOR_LUMPED: &str = "pi3 alone is not separable from the rotor here: in the flat \
+     rows the columns of pi3 and pi5 are both beta_ddot (identical), so flat motion fixes only \
+     pi3 + pi5 = m_l l_c^2 + i_l + n_g^2 j_m, the arm's inertia about the joint; the columns \
+     differ only while the plate tilts (the plate's row has pi3 (alpha_ddot + beta_ddot) + pi4 \
+     beta_ddot, the arm's pi3 (alpha_ddot + beta_ddot) + pi4 alpha_ddot + pi5 beta_ddot), where \
+     the rotor's share is below this recording's noise: the sum is estimated (pi3+pi5)";
 
 /// Smallest ratio of an estimate of the rotor's share (`pi4`, `pi5`) to its standard error
 /// for the share to count as seen.

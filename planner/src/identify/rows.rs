@@ -373,6 +373,33 @@ fn tilted_rows(
 mod tests {
     use super::*;
 
+    /// The rotor's structural limit, from the regressor itself: in every flat row the columns
+    /// of `pi3` and `pi5` are the same number (`beta_ddot`, or its weak form), so no flat
+    /// recording separates them (only `pi3 + pi5` is fixed); in the tilted rows they differ as
+    /// soon as `alpha_ddot != 0`, and `pi4` has a column of its own.
+    #[test]
+    fn flat_rows_carry_pi3_and_pi5_in_one_column() {
+        let x = [0.0, 1.3, 0.0, 0.4];
+        let r = flat_row(&x, 0.7, 9.81, 1.0);
+        assert_eq!(r[2], r[4]);
+        assert_eq!((r[0], r[3]), (0.0, 0.0));
+        let xs: Vec<[f64; 4]> = (0..101)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                [0.0, 1.3 + 0.4 * t + 2.0 * t * t, 0.0, 0.4 + 4.0 * t]
+            })
+            .collect();
+        let tau = vec![1.0; 100];
+        let [_, (arm, _)] = weak_rows(&xs, &tau, 1e-3, Mode::Flat, 0.5, 9.81);
+        assert_eq!(arm[2], arm[4]);
+        assert_eq!((arm[0], arm[3]), (0.0, 0.0));
+        // Tilted: the plate's row has pi4 (beta_ddot) and no pi5; the arm's row has pi3
+        // (alpha_ddot + beta_ddot), pi4 (alpha_ddot) and pi5 (beta_ddot), all different.
+        let (plate, arm) = tilted_rows(&[0.02, 1.3, 0.1, 0.4], [0.8, 0.7], 0.5, 9.81, 1.0);
+        assert_eq!((plate[2], plate[3], plate[4]), (0.8 + 0.7, 0.7, 0.0));
+        assert_eq!((arm[2], arm[3], arm[4]), (0.8 + 0.7, 0.8, 0.7));
+    }
+
     /// The weak form of a smooth tilted motion equals the pointwise equations (with the
     /// exact accelerations) integrated against the test function, column by column: the
     /// arm's row against the torque held at each interval's midpoint value, the plate's row
