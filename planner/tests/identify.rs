@@ -255,6 +255,11 @@ fn record_noisy(sc: Scenario, seed: u64) -> tilting_planner::identify::Recorded 
     };
     let (report, logged) = simulate_logged(&sc, opts, &mut |_| {}).unwrap();
     assert!(report.fault.is_none(), "{:?}", report.fault);
+    // The excitation keeps the plate flat (the simulator's contact logic, with the true robot,
+    // decides: a tilt is a zero moment point past an edge).
+    if !sc.law.reference.adapts() {
+        assert_eq!(report.stats.tilts, 0, "the excitation tilted the plate");
+    }
     // The recording holds what the sensors gave (absent rates), not the observer's estimate.
     assert!(logged.trace.samples.iter().all(|s| s.x[3].is_nan()));
     tilting_planner::identify::Recorded {
@@ -364,4 +369,73 @@ fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent
         .not_identifiable
         .iter()
         .any(|s| s.starts_with("j_m and n_g")));
+}
+
+/// `b_v` within the 3 %: the tests' robot (a light arm: `m_l l_c` 28 % below the
+/// paper's) on a larger, faster excitation, `excitation:0.4,0.8` (its arm held at 0.4 rad
+/// needs 5.5 N m, 80 % of the excitation's torque limit; the default's 0.3 rad at 0.6 rad/s
+/// leaves the viscous column under the noise). Four noise seeds, each 300 s of excitation
+/// (flat throughout: asserted) + 30 s of robust orbit, identified as above: every parameter
+/// within 3 % of the hidden robot (measured: `b_v` +2.8, -1.4, +0.4, +2.5 %; `tau_c` within
+/// 0.5 %, `m_f` 1.0 %, `l_c` 0.01 %, the arm's inertia about the joint 0.03 %). Not for a heavy
+/// arm: the README's robot (`m_l l_c` 1 % above the paper's) falls over at 0.35 rad (docs/
+/// identify.md).
+#[test]
+fn a_larger_excitation_gets_b_v_within_three_percent_on_a_light_arm() {
+    let truth = robot();
+    let reference: tilting_controller::trajectory::Trajectory =
+        "excitation:0.4,0.8".parse().unwrap();
+    let excitation = Scenario {
+        plant_params: Some(truth),
+        control_period: 1e-3,
+        duration: 300.0,
+        ..Scenario::resolve(&[&ScenarioFile {
+            law: LawArgs {
+                reference: Some(reference),
+                ..LawArgs::default()
+            },
+            ..ScenarioFile::default()
+        }])
+    };
+    let orbit = Scenario {
+        plant_params: Some(truth),
+        control_period: 1e-3,
+        duration: 30.0,
+        law: LawSpec {
+            orbit_peak: Some(0.04),
+            ..LawSpec::default()
+        },
+        ..Scenario::default()
+    };
+    let opts = Options {
+        base: Params {
+            m_l: truth.m_l,
+            ..Params::default()
+        },
+        half_window: 0.05,
+        window: 2.0,
+        ..Options::default()
+    };
+    let joint = |p: &Params| p.m_l * p.lc() * p.lc() + p.i_l + p.n_g * p.n_g * p.j_m;
+    for seed in [3, 13, 23, 33] {
+        let mut rec = record_noisy(excitation.clone(), seed);
+        rec.append(record_noisy(orbit.clone(), seed + 1));
+        let p = identify(&rec.trace, &rec.tau, &opts).unwrap().params;
+        for (name, got, w) in [
+            ("m_f", p.m_f, truth.m_f),
+            ("l_c", p.lc(), truth.lc()),
+            ("arm inertia about the joint", joint(&p), joint(&truth)),
+            ("tau_c", p.tau_c, truth.tau_c),
+            ("b_v", p.b_v, truth.b_v),
+        ] {
+            eprintln!(
+                "seed {seed} {name}: {got} vs {w} ({:+.2} %)",
+                100.0 * (got - w) / w
+            );
+            assert!(
+                ((got - w) / w).abs() < 0.03,
+                "seed {seed} {name}: {got} vs {w}"
+            );
+        }
+    }
 }
