@@ -6,14 +6,15 @@
 //! Then the issue's noisy case: the same robot measured as hardware measures it (angles only,
 //! 1 mrad of noise, a 4,096-count encoder) on the excitation (`--reference excitation`, 300 s)
 //! and the robust orbit (30 s), identified from both recordings: each physical parameter's
-//! error, for four noise seeds.
+//! error, for four noise seeds; then the same on `excitation:0.3,0.8`, the largest motion this
+//! robot's arm was measured to hold flat (docs/identify.md).
 //!
 //! `cargo build --release -p tilting-planner -p tilting --example identify_bench &&
 //! ./target/release/examples/identify_bench` (the front door beside it resolves the
 //! planner's node features).
 
 use std::time::Instant;
-use tilting_controller::trajectory::EXCITATION_DEFAULT;
+use tilting_controller::trajectory::{Trajectory, EXCITATION_DEFAULT};
 use tilting_controller::{LawArgs, LawSpec};
 use tilting_planner::identify::{identify, Options, Recorded, Velocities};
 use tilting_plant::imperfect::{Imperfections, Measure};
@@ -112,13 +113,13 @@ fn noisy(robot: &Params) {
             source: Default::default(),
         }
     };
-    let excitation = Scenario {
+    let excitation = |reference: Trajectory| Scenario {
         plant_params: Some(*robot),
         control_period: 1e-3,
         duration: 300.0,
         ..Scenario::resolve(&[&ScenarioFile {
             law: LawArgs {
-                reference: Some(EXCITATION_DEFAULT),
+                reference: Some(reference),
                 ..LawArgs::default()
             },
             ..ScenarioFile::default()
@@ -144,32 +145,37 @@ fn noisy(robot: &Params) {
         ..Options::default()
     };
     let joint = |p: &Params| p.m_l * p.lc() * p.lc() + p.i_l + p.n_g * p.n_g * p.j_m;
-    println!(
-        "noisy (angles only, 1 mrad, 4,096 counts; excitation 300 s + robust orbit 30 s, \
-         windows 2 s): relative errors (%)"
-    );
-    println!("seed   m_f     l_c     joint inertia  tau_c   b_v    identify (ms)  rotor");
-    for seed in [3, 13, 23, 33] {
-        let mut rec = record(excitation.clone(), seed);
-        rec.append(record(orbit.clone(), seed + 1));
-        let t = Instant::now();
-        let id = identify(&rec.trace, &rec.tau, &opts).expect("identifiable");
-        let ms = 1e3 * t.elapsed().as_secs_f64();
-        let p = id.params;
-        let e = |g: f64, w: f64| 100.0 * (g - w) / w;
+    for reference in [
+        EXCITATION_DEFAULT,
+        "excitation:0.3,0.8".parse().expect("valid"),
+    ] {
         println!(
-            "{seed:<6} {:+.2}  {:+.3}  {:+.3}         {:+.2}  {:+.1}  {ms:.0}  {}",
-            e(p.m_f, robot.m_f),
-            e(p.lc(), robot.lc()),
-            e(joint(&p), joint(robot)),
-            e(p.tau_c, robot.tau_c),
-            e(p.b_v, robot.b_v),
-            if id.base[3].value.is_some() {
-                "seen"
-            } else {
-                "below the noise (lumped)"
-            }
+            "noisy (angles only, 1 mrad, 4,096 counts; {reference} 300 s + robust orbit 30 s, \
+             windows 2 s): relative errors (%)"
         );
+        println!("seed   m_f     l_c     joint inertia  tau_c   b_v    identify (ms)  rotor");
+        for seed in [3, 13, 23, 33] {
+            let mut rec = record(excitation(reference), seed);
+            rec.append(record(orbit.clone(), seed + 1));
+            let t = Instant::now();
+            let id = identify(&rec.trace, &rec.tau, &opts).expect("identifiable");
+            let ms = 1e3 * t.elapsed().as_secs_f64();
+            let p = id.params;
+            let e = |g: f64, w: f64| 100.0 * (g - w) / w;
+            println!(
+                "{seed:<6} {:+.2}  {:+.3}  {:+.3}         {:+.2}  {:+.1}  {ms:.0}  {}",
+                e(p.m_f, robot.m_f),
+                e(p.lc(), robot.lc()),
+                e(joint(&p), joint(robot)),
+                e(p.tau_c, robot.tau_c),
+                e(p.b_v, robot.b_v),
+                if id.base[3].value.is_some() {
+                    "seen"
+                } else {
+                    "below the noise (the sum pi3+pi5 reported)"
+                }
+            );
+        }
     }
 }
 
