@@ -50,6 +50,10 @@ fn bad_input_names_the_flag_and_the_range() {
         (vec!["--max-period", "3"], "invalid `--max-period` = 3"),
         (vec!["--to", "-5"], "invalid `--to` = -5"),
         (vec!["--kd", "0"], "invalid `--kd` = 0"),
+        (
+            vec!["--control-period", "0"],
+            "invalid `--control-period` = 0: must be in (0, 0.05] s",
+        ),
     ] {
         let o = Command::new(BIN)
             .args(["plan", "continuation"])
@@ -92,4 +96,33 @@ fn the_flip_continued_in_k_and_kd_passes_through_k_star() {
     let fold: Vec<[f64; 2]> =
         serde_json::from_value(v["region"]["fold"]["points"].clone()).unwrap();
     assert!(fold.iter().all(|p| p[0] > 0.0 && p[0] < 500.0), "{fold:?}");
+}
+
+#[test]
+fn control_period_adds_the_sampled_loops_exponents() {
+    let o = Command::new(BIN)
+        .args(["plan", "continuation", "--to", "1000", "--max-period", "1"])
+        .args([
+            "--lyapunov-step",
+            "500",
+            "--transient",
+            "10",
+            "--tilts",
+            "40",
+        ])
+        .args(["--control-period", "0.001", "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let s = v["lyapunov_sampled"].as_array().unwrap();
+    assert_eq!(s.len(), 2, "{s:?}");
+    for (e, k) in s.iter().zip([500.0, 1000.0]) {
+        assert_eq!(e["p"].as_f64(), Some(k));
+        assert_eq!(e["period"].as_f64(), Some(0.001));
+        // Positive below the hold's scale even on the stable orbit (planner/tests/
+        // sampled_lyapunov.rs), the second exponent negative: both of the same run.
+        assert!(e["lambda"].as_f64().unwrap() > 0.0, "{e}");
+        assert!(e["lambda2"].as_f64().unwrap() < 0.0, "{e}");
+    }
 }

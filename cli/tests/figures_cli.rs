@@ -1,5 +1,6 @@
-//! Runs the built `tilting figures` binary: the quick preview writes the five PNGs,
-//! `--only` and `--json` select and report, and a bad `--out` or figure number fails clearly.
+//! Runs the built `tilting figures` binary: the quick preview writes the seven PNGs (Figs. 4 to
+//! 8, 8b and 8c), `--only` and `--json` select and report, and a bad `--out` or figure id fails
+//! clearly, naming the ids there are.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -39,19 +40,119 @@ fn assert_png(path: &Path) {
     );
 }
 
+/// CRC-32 (ISO 3309, as PNG uses it), bit by bit.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xedb8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// Reads the PNG at `path` chunk by chunk (every chunk's CRC checked, IHDR first, IEND last,
+/// image data present) and returns its size in pixels from IHDR.
+fn decoded_size(path: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert!(
+        bytes.starts_with(PNG_MAGIC),
+        "{} is not a PNG",
+        path.display()
+    );
+    let (mut at, mut names, mut size, mut data) = (PNG_MAGIC.len(), Vec::new(), (0, 0), 0);
+    while at + 12 <= bytes.len() {
+        let len = u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+        let body = &bytes[at + 4..at + 8 + len];
+        let crc = u32::from_be_bytes(bytes[at + 8 + len..at + 12 + len].try_into().unwrap());
+        assert_eq!(
+            crc32(body),
+            crc,
+            "{}: bad CRC in a {:?} chunk",
+            path.display(),
+            &body[..4]
+        );
+        let name = String::from_utf8_lossy(&body[..4]).into_owned();
+        if name == "IHDR" {
+            let be = |i: usize| u32::from_be_bytes(body[4 + i..8 + i].try_into().unwrap());
+            size = (be(0), be(4));
+        }
+        if name == "IDAT" {
+            data += len;
+        }
+        names.push(name);
+        at += 12 + len;
+    }
+    assert_eq!(at, bytes.len(), "{}: trailing bytes", path.display());
+    assert_eq!(names.first().map(String::as_str), Some("IHDR"), "{names:?}");
+    assert_eq!(names.last().map(String::as_str), Some("IEND"), "{names:?}");
+    assert!(
+        data > 20_000,
+        "{}: {data} bytes of image data",
+        path.display()
+    );
+    size
+}
+
 #[test]
-fn quick_run_writes_all_five_figures() {
+fn quick_run_writes_all_seven_figures() {
     let dir = Scratch::new("all");
     // A directory that does not exist yet is created.
     let out = dir.path().join("nested").join("figs");
     let o = figures(&["--quick", "--out", &out.to_string_lossy()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    for n in 4..=8 {
+    let ids = ["4", "5", "6", "7", "8", "8b", "8c"];
+    for n in ids {
         assert_png(&out.join(format!("fig{n}.png")));
     }
     let text = String::from_utf8_lossy(&o.stdout);
-    for n in 4..=8 {
+    for n in ids {
         assert!(text.contains(&format!("fig{n}.png")), "{text}");
+    }
+}
+
+#[test]
+fn figures_8b_and_8c_are_the_continuation_and_the_stability_region() {
+    let dir = Scratch::new("8bc");
+    let o = figures(&["--quick", "--json", "--only", "8c,8b", "--out", &dir.arg()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: FiguresReport = serde_json::from_slice(&o.stdout).expect("stdout is the report");
+    let ids: Vec<&str> = v.figures.iter().map(|f| f.figure.as_str()).collect();
+    assert_eq!(ids, vec!["8b", "8c"], "{v:?}");
+    // The sizes `plan continuation --plot` and `plan stability --plot` draw.
+    assert_eq!(decoded_size(&dir.path().join("fig8b.png")), (1600, 1250));
+    assert_eq!(decoded_size(&dir.path().join("fig8c.png")), (1300, 950));
+    let Summary::Fig8b(b) = &v.figures[0].summary else {
+        panic!("not Fig. 8b's summary: {:?}", v.figures[0].summary)
+    };
+    // The quick preview continues to period 4: three branches, the first flip at the
+    // project's k* = 1923.99 (the multipliers' bisection of `plan bifurcation`), then two more.
+    assert_eq!(b.branch_periods, vec![1, 2, 4], "{b:?}");
+    assert!((b.flips_k[0] - 1923.99).abs() < 0.01, "{b:?}");
+    assert!(b.flips_k.windows(2).all(|w| w[1] > w[0]), "{b:?}");
+    let Summary::Fig8c(c) = &v.figures[1].summary else {
+        panic!("not Fig. 8c's summary: {:?}", v.figures[1].summary)
+    };
+    // The flip curve passes through (k*, 14.14), more damping tolerating more adaptation; the
+    // fold lies below the paper's k = 500.
+    let at = c
+        .flip_curve
+        .iter()
+        .find(|p| p[1] == 14.14)
+        .expect("the base point");
+    assert!((at[0] - 1923.99).abs() < 0.01, "{at:?}");
+    assert!(c.flip_curve.windows(2).all(|w| w[1][0] > w[0][0]), "{c:?}");
+    assert!(
+        c.fold_curve.iter().all(|p| p[0] > 0.0 && p[0] < 500.0),
+        "{c:?}"
+    );
+    for n in ["4", "5", "6", "7", "8"] {
+        assert!(!dir.path().join(format!("fig{n}.png")).exists());
     }
 }
 
@@ -61,8 +162,8 @@ fn only_and_json_select_and_report() {
     let o = figures(&["--quick", "--json", "--only", "8,5", "--out", &dir.arg()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: FiguresReport = serde_json::from_slice(&o.stdout).expect("stdout is the report");
-    let numbers: Vec<u8> = v.figures.iter().map(|f| f.figure).collect();
-    assert_eq!(numbers, vec![5, 8], "{v:?}");
+    let ids: Vec<&str> = v.figures.iter().map(|f| f.figure.as_str()).collect();
+    assert_eq!(ids, vec!["5", "8"], "{v:?}");
     assert!(v.failed.is_empty(), "{v:?}");
     assert_eq!(v.out, dir.path());
     // Fig. 5: four panels with the solved frequencies, in the tilting band at A = 0.33.
@@ -105,11 +206,14 @@ fn out_that_is_a_file_is_rejected() {
 #[test]
 fn unknown_figure_is_rejected() {
     let dir = Scratch::new("nine");
-    for bad in ["9", "4,9", "x"] {
+    for bad in ["9", "4,9", "x", "8d", "8b,8B"] {
         let o = figures(&["--quick", "--only", bad, "--out", &dir.arg()]);
         assert_eq!(o.status.code(), Some(2), "--only {bad}: {}", stderr(&o));
         let err = stderr(&o);
-        assert!(err.contains("--only") && err.contains("4 to 8"), "{err}");
+        assert!(
+            err.contains("--only") && err.contains("4, 5, 6, 7, 8, 8b, 8c"),
+            "{err}"
+        );
     }
     assert!(
         std::fs::read_dir(dir.path())

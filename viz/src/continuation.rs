@@ -6,9 +6,10 @@
 use anyhow::Result;
 use plotters::prelude::*;
 use std::path::Path;
-use tilting_planner::bifurcation::Row;
+use tilting_planner::bifurcation::{self, Row, Sweep};
 use tilting_planner::continuation::twopar::Region;
 use tilting_planner::continuation::{Diagram, EventKind};
+use tilting_planner::lyapunov::sampled::SampledExponent;
 use tilting_planner::lyapunov::Exponent;
 
 const FONT: &str = "sans-serif";
@@ -27,16 +28,79 @@ fn colour(tilts: usize) -> RGBColor {
     PERIOD_COLOURS[(tilts.trailing_zeros() as usize).min(PERIOD_COLOURS.len() - 1)]
 }
 
+/// The sweep of the loop drawn under Fig. 8b's branches: `k` from the curve's start (at least
+/// 1500) to its end in steps of `k_step`, `tilts` tilts per `k`, the last `keep` drawn.
+#[derive(Debug, Clone, Copy)]
+pub struct CascadeSweep {
+    /// Step of `k` (1/(J s^2)).
+    pub k_step: f64,
+    /// Tilts simulated per `k`.
+    pub tilts: usize,
+    /// Tilts drawn (the last ones).
+    pub keep: usize,
+}
+
+impl CascadeSweep {
+    /// The published figure's: step 5, 600 tilts, 150 drawn.
+    pub const FULL: Self = Self {
+        k_step: 5.0,
+        tilts: 600,
+        keep: 150,
+    };
+
+    /// The values of `k` it runs over `[max(k_lo, 1500), k_hi]`.
+    pub fn ks(&self, (k_lo, k_hi): (f64, f64)) -> Vec<f64> {
+        let k_lo = k_lo.max(1500.0).min(k_hi);
+        (0..)
+            .map(|i| k_lo + self.k_step * i as f64)
+            .take_while(|&k| k <= k_hi)
+            .collect()
+    }
+}
+
+/// Fig. 8b as `plan continuation --plot` and `figures` draw it: sweeps the loop of `sw` (its
+/// `tilts` and `keep` replaced by `grid`'s) over [`CascadeSweep::ks`] of `(k_lo, k_hi)` on all
+/// cores (`tick` after each `k`), then draws the diagram `d` and the exponents over it with
+/// [`draw_cascade`] (`sampled`: the sampled loop's exponents, drawn when not empty). Returns the
+/// sweep's rows.
+#[allow(clippy::too_many_arguments)]
+pub fn cascade_figure(
+    path: &Path,
+    sw: &Sweep,
+    (k_lo, k_hi): (f64, f64),
+    grid: CascadeSweep,
+    d: &Diagram,
+    lyap: &[Exponent],
+    sampled: &[SampledExponent],
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<Row>> {
+    let ks = grid.ks((k_lo, k_hi));
+    let rows = bifurcation::sweep(
+        &Sweep {
+            tilts: grid.tilts,
+            keep: grid.keep,
+            ..*sw
+        },
+        &ks,
+        tick,
+    );
+    let k_lo = ks.first().copied().unwrap_or(k_lo);
+    draw_cascade(path, (k_lo, k_hi), &rows, d, lyap, sampled)?;
+    Ok(rows)
+}
+
 /// Draws Fig. 8b into `path` (PNG) over `k` in `[k0, k1]`: the sweep's peaks (`rows`, grey
 /// dots), each branch's tilt peaks (one curve per tilt of the cycle; solid where the orbit is
 /// stable, dashed where not), the flips (black diamonds), and below the largest Lyapunov
-/// exponent (1/s) with its zero line.
+/// exponent (1/s) with its zero line; with `sampled` not empty, the sampled loop's two largest
+/// exponents too (orange: the largest solid, the second dashed).
 pub fn draw_cascade(
     path: &Path,
     (k0, k1): (f64, f64),
     rows: &[Row],
     d: &Diagram,
     lyap: &[Exponent],
+    sampled: &[SampledExponent],
 ) -> Result<()> {
     crate::plot::register_fonts()?;
     let root = BitMapBackend::new(path, (1600, 1250)).into_drawing_area();
@@ -148,7 +212,7 @@ pub fn draw_cascade(
         .border_style(BLACK.mix(0.3))
         .label_font((FONT, 17))
         .draw()?;
-    draw_lyapunov(&bottom, (k0, k1), d, lyap)?;
+    draw_lyapunov(&bottom, (k0, k1), d, lyap, sampled)?;
     root.present()?;
     Ok(())
 }
@@ -159,13 +223,28 @@ fn draw_lyapunov(
     (k0, k1): (f64, f64),
     d: &Diagram,
     lyap: &[Exponent],
+    sampled: &[SampledExponent],
 ) -> Result<()> {
+    let inside = |(k, _): &(f64, f64)| *k >= k0 && *k <= k1;
     let pts: Vec<(f64, f64)> = lyap
         .iter()
         .filter_map(|e| e.lambda.map(|l| (e.p, l)))
-        .filter(|(k, _)| *k >= k0 && *k <= k1)
+        .filter(inside)
         .collect();
-    let (lo, hi) = crate::plot::padded_range(pts.iter().map(|p| p.1).chain([0.0]), 0.08);
+    let s1: Vec<(f64, f64)> = sampled
+        .iter()
+        .filter_map(|e| e.lambda.map(|l| (e.p, l)))
+        .filter(inside)
+        .collect();
+    let s2: Vec<(f64, f64)> = sampled
+        .iter()
+        .filter_map(|e| e.lambda2.map(|l| (e.p, l)))
+        .filter(inside)
+        .collect();
+    let (lo, hi) = crate::plot::padded_range(
+        pts.iter().chain(&s1).chain(&s2).map(|p| p.1).chain([0.0]),
+        0.08,
+    );
     let mut chart = ChartBuilder::on(area)
         .caption(
             "largest Lyapunov exponent λ (variational equations through the landings)",
@@ -189,14 +268,30 @@ fn draw_lyapunov(
         vec![(k0, 0.0), (k1, 0.0)],
         BLACK.stroke_width(1),
     ))?;
-    chart.draw_series(LineSeries::new(
-        pts.clone(),
-        RGBColor(31, 119, 180).stroke_width(2),
-    ))?;
-    chart.draw_series(
-        pts.iter()
-            .map(|&p| Circle::new(p, 2, RGBColor(31, 119, 180).filled())),
-    )?;
+    let blue = RGBColor(31, 119, 180);
+    chart
+        .draw_series(LineSeries::new(pts.clone(), blue.stroke_width(2)))?
+        .label("continuous loop (the paper's): largest λ of the tilt map")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], blue.stroke_width(2)));
+    chart.draw_series(pts.iter().map(|&p| Circle::new(p, 2, blue.filled())))?;
+    let orange = RGBColor(255, 127, 14);
+    if let Some(h) = sampled.first().map(|e| e.period) {
+        chart
+            .draw_series(LineSeries::new(s1, orange.stroke_width(2)))?
+            .label(format!(
+                "sampled loop (hold {} ms): largest λ (positive below the hold's scale)",
+                h * 1e3
+            ))
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 24, y)], orange.stroke_width(2))
+            });
+        chart
+            .draw_series(DashedLineSeries::new(s2, 5, 4, orange.stroke_width(2)))?
+            .label("sampled loop: second λ")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 24, y)], orange.stroke_width(1))
+            });
+    }
     for &k in d.flips.iter().filter(|&&k| k >= k0 && k <= k1) {
         chart.draw_series(DashedLineSeries::new(
             vec![(k, lo), (k, hi)],
@@ -218,14 +313,14 @@ fn draw_lyapunov(
                     RGBColor(214, 39, 40).stroke_width(2),
                 )
             });
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font((FONT, 17))
-            .draw()?;
     }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font((FONT, 17))
+        .draw()?;
     Ok(())
 }
 

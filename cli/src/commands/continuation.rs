@@ -9,12 +9,13 @@ use clap::Args;
 use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
-use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::continuation::twopar::{self, Region};
 use tilting_planner::continuation::{self, Diagram, EventKind, Param, Settings};
+use tilting_planner::lyapunov::sampled::{self, SampledExponent};
 use tilting_planner::lyapunov::{self, Exponent};
-use tilting_planner::orbit::{self, OrbitProblem};
+use tilting_planner::orbit::OrbitProblem;
 use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
+use tilting_viz::continuation::CascadeSweep;
 
 /// `continuation`: pseudo-arclength continuation of the period-1 orbit, branch switching at
 /// each flip, and the Lyapunov exponent.
@@ -56,6 +57,11 @@ pub struct ContinuationArgs {
     /// Lyapunov: tilts averaged
     #[arg(long, default_value_t = 400)]
     pub tilts: usize,
+    /// Also the exponents of the loop sampled at this control period (s; 0.001 for 1 kHz): the
+    /// torque held between samples, as `simulate --control-period` and the live loop run it
+    /// (on the Lyapunov curve's values, with its --transient and --tilts)
+    #[arg(long, value_name = "SECONDS")]
+    pub control_period: Option<f64>,
     /// Draw Fig. 8b into this PNG file: the branches over a sweep of the loop (k from the
     /// Lyapunov curve's first value to --to, step 5, 600 tilts, 150 kept) with the exponent
     /// below (--param k only)
@@ -81,6 +87,8 @@ pub struct ContinuationReport {
     pub diagram: Diagram,
     /// The largest Lyapunov exponent against the parameter.
     pub lyapunov: Vec<Exponent>,
+    /// With `--control-period`: the sampled loop's two largest exponents on the same values.
+    pub lyapunov_sampled: Vec<SampledExponent>,
     /// Continuation steps over all branches.
     pub steps: usize,
     /// Wall times (s).
@@ -96,6 +104,8 @@ pub struct ContinuationTiming {
     pub continuation_s: f64,
     /// The Lyapunov curve on all cores (s).
     pub lyapunov_s: f64,
+    /// The sampled loop's curve on all cores (s), 0 without `--control-period`.
+    pub lyapunov_sampled_s: f64,
     /// `continuation_s` per step (ms).
     pub per_step_ms: f64,
 }
@@ -123,26 +133,12 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
             "`--plot` draws Fig. 8b over k: it needs `--param k`".into(),
         ));
     }
-    let start = Instant::now();
+    if let Some(h) = args.control_period {
+        check("control-period", h, h > 0.0 && h <= 0.05, "in (0, 0.05] s")?;
+    }
     let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
-    let o = orbit::smallest(&pb).ok_or_else(|| {
-        CommandError::Failed(anyhow!(
-            "no periodic orbit for K_P = {}, K_D = {}",
-            args.kp,
-            args.kd
-        ))
-    })?;
-    let sw = Sweep {
-        problem: pb,
-        start_beta0: o.beta0,
-        start_beta_dot0: o.beta_dot0,
-        energy_avg: o.energy_avg,
-        tilts: 0,
-        keep: 1,
-        period_tol: 1e-5,
-    };
-    let base = pb.with_adaptation(args.k, o.energy_avg);
-    let p0 = args.param.get(&base);
+    // The parameter's start value (the adaptation's E_av does not enter any parameter).
+    let p0 = args.param.get(&pb.with_adaptation(args.k, 0.0));
     let to = match (args.to, args.param) {
         (Some(v), _) => v,
         (None, Param::K) => 2400.0,
@@ -167,23 +163,17 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
         "finite and > 0",
     )?;
     let ds_max = args.max_step.unwrap_or(span / 50.0).max(ds);
-    let guess = bifurcation::attracting_orbit_guess(&sw, args.k, 200).ok_or_else(|| {
-        CommandError::Failed(anyhow!(
-            "the adapted loop at k = {} does not settle on a tilting orbit to start from",
-            args.k
-        ))
-    })?;
+    let lstep = args.lyapunov_step.unwrap_or(span / 200.0);
+    check("lyapunov-step", lstep, lstep >= 0.0, "finite and >= 0")?;
+    let start = Instant::now();
+    let st = continuation::start(&pb, args.k).map_err(|e| CommandError::Failed(anyhow!(e)))?;
+    let (o, sw, base, guess) = (&st.orbit, &st.sweep, st.base, st.guess);
     let setup_s = start.elapsed().as_secs_f64();
     let set = Settings {
-        p_min: p0.min(to),
-        p_max: p0.max(to),
         ds,
         ds_min: ds * 1e-4,
         ds_max,
-        max_steps: 2000,
-        locate_tol: 1e-7,
-        max_period: args.max_period,
-        stop_at_first_event: false,
+        ..Settings::over(p0, to, args.max_period)
     };
     let b = bar(1000, "continuation", args.model.json);
     let at = AtomicU64::new(0);
@@ -200,16 +190,7 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     .map_err(|e| CommandError::Failed(anyhow!("continuation failed: {e}")))?;
     let continuation_s = start.elapsed().as_secs_f64();
     b.finish_and_clear();
-    let lstep = args.lyapunov_step.unwrap_or(span / 200.0);
-    check("lyapunov-step", lstep, lstep >= 0.0, "finite and >= 0")?;
-    let ps: Vec<f64> = if lstep > 0.0 {
-        let n = (span / lstep).floor() as usize;
-        (0..=n)
-            .map(|i| p0 + (to - p0).signum() * lstep * i as f64)
-            .collect()
-    } else {
-        Vec::new()
-    };
+    let ps = continuation::grid(p0, to, lstep);
     let b = bar(ps.len() as u64, "lyapunov", args.model.json);
     let start = Instant::now();
     let param = args.param;
@@ -223,15 +204,40 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     );
     let lyapunov_s = start.elapsed().as_secs_f64();
     b.finish_and_clear();
+    let start = Instant::now();
+    let lyap_sampled = match args.control_period {
+        Some(h) => {
+            let b = bar(ps.len() as u64, "sampled", args.model.json);
+            let c = sampled::curve(
+                &ps,
+                &|p| param.set(&base, p),
+                h,
+                [o.beta0, o.beta_dot0],
+                args.transient,
+                args.tilts,
+                &|| b.inc(1),
+            );
+            b.finish_and_clear();
+            c
+        }
+        None => Vec::new(),
+    };
+    let lyapunov_sampled_s = start.elapsed().as_secs_f64();
     if let Some(path) = &args.plot {
-        plot_cascade(
+        let ks = CascadeSweep::FULL.ks((ps.first().copied().unwrap_or(p0), to));
+        let b = bar(ks.len() as u64, "sweep", args.model.json);
+        tilting_viz::continuation::cascade_figure(
             path,
-            args,
-            &sw,
+            sw,
             (ps.first().copied().unwrap_or(p0), to),
+            CascadeSweep::FULL,
             &diagram,
             &lyap,
-        )?;
+            &lyap_sampled,
+            &|| b.inc(1),
+        )
+        .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))?;
+        b.finish_and_clear();
     }
     let steps = diagram.steps();
     let report = ContinuationReport {
@@ -242,45 +248,14 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
             setup_s,
             continuation_s,
             lyapunov_s,
+            lyapunov_sampled_s,
             per_step_ms: 1e3 * continuation_s / steps.max(1) as f64,
         },
         diagram,
         lyapunov: lyap,
+        lyapunov_sampled: lyap_sampled,
     };
     emit(args.model.json, &report, || human(&report))
-}
-
-/// Draws Fig. 8b for `continuation --plot`: a sweep of the loop over `[max(k_lo, 1500), to]`
-/// (step 5, 600 tilts, 150 kept) under the branches, the exponent below.
-fn plot_cascade(
-    path: &std::path::Path,
-    args: &ContinuationArgs,
-    sw: &Sweep,
-    (k_lo, to): (f64, f64),
-    diagram: &Diagram,
-    lyap: &[Exponent],
-) -> Result<(), CommandError> {
-    if args.param != Param::K {
-        return Err(usage(
-            "`--plot` draws Fig. 8b over k: it needs `--param k`".into(),
-        ));
-    }
-    let k_lo = k_lo.max(1500.0).min(to);
-    let ks: Vec<f64> = (0..)
-        .map(|i| k_lo + 5.0 * i as f64)
-        .take_while(|&k| k <= to)
-        .collect();
-    let rows = bifurcation::sweep(
-        &Sweep {
-            tilts: 600,
-            keep: 150,
-            ..*sw
-        },
-        &ks,
-        &|| {},
-    );
-    tilting_viz::continuation::draw_cascade(path, (k_lo, to), &rows, diagram, lyap)
-        .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))
 }
 
 /// The human summary.
@@ -368,10 +343,31 @@ fn human(r: &ContinuationReport) -> String {
             ))
         );
     }
+    if let Some(h) = r.lyapunov_sampled.first().map(|e| e.period) {
+        let pos = r
+            .lyapunov_sampled
+            .iter()
+            .find(|e| e.lambda.is_some_and(|l| l > 0.01));
+        let faults = r
+            .lyapunov_sampled
+            .iter()
+            .filter(|e| e.fault.is_some())
+            .count();
+        s += &format!(
+            "Lyapunov of the loop sampled every {} ms: {} values ({faults} faulted); first largest exponent above 0.01 1/s at {name} = {}\n",
+            h * 1e3,
+            r.lyapunov_sampled.len(),
+            pos.map_or("none".into(), |e| format!(
+                "{} ({:.4} 1/s)",
+                e.p,
+                e.lambda.unwrap_or(0.0)
+            ))
+        );
+    }
     let tm = &r.timing;
     s += &format!(
-        "wall time: set-up {:.3} s, continuation {:.3} s ({:.2} ms per step), Lyapunov {:.3} s\n",
-        tm.setup_s, tm.continuation_s, tm.per_step_ms, tm.lyapunov_s
+        "wall time: set-up {:.3} s, continuation {:.3} s ({:.2} ms per step), Lyapunov {:.3} s, sampled {:.3} s\n",
+        tm.setup_s, tm.continuation_s, tm.per_step_ms, tm.lyapunov_s, tm.lyapunov_sampled_s
     );
     s
 }
@@ -446,45 +442,17 @@ pub fn stability(args: &StabilityArgs) -> Result<(), CommandError> {
     let (ok, range) = p2.allows(lo);
     check("from2", lo, ok, range)?;
     check("to2", hi, hi > lo, "finite and > --from2")?;
-    let start = Instant::now();
     let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
-    let o = orbit::smallest(&pb).ok_or_else(|| {
-        CommandError::Failed(anyhow!(
-            "no periodic orbit for K_P = {}, K_D = {}",
-            args.kp,
-            args.kd
-        ))
-    })?;
-    let base = pb.with_adaptation(ORBIT_K, o.energy_avg);
-    let base_p2 = p2.get(&base);
+    let base_p2 = p2.get(&pb);
     if !(lo..=hi).contains(&base_p2) {
         return Err(usage(format!(
             "invalid range [--from2 {lo}, --to2 {hi}]: it must contain the base value {p2} = {base_p2}"
         )));
     }
-    let sw = Sweep {
-        problem: pb,
-        start_beta0: o.beta0,
-        start_beta_dot0: o.beta_dot0,
-        energy_avg: o.energy_avg,
-        tilts: 0,
-        keep: 1,
-        period_tol: 1e-5,
-    };
-    let guess = bifurcation::attracting_orbit_guess(&sw, ORBIT_K, 200).ok_or_else(|| {
-        CommandError::Failed(anyhow!("the adapted loop at k = {ORBIT_K} does not settle"))
-    })?;
+    let start = Instant::now();
     let b = bar(400, "stability", args.model.json);
-    let region = twopar::stability_region(
-        &base,
-        ORBIT_K,
-        guess,
-        (0.0, args.k_max),
-        (p2, (lo, hi)),
-        (hi - lo) / 60.0,
-        &|| b.inc(1),
-    )
-    .map_err(|e| CommandError::Failed(anyhow!("two-parameter continuation failed: {e}")))?;
+    let region = twopar::region(&pb, ORBIT_K, args.k_max, (p2, (lo, hi)), &|| b.inc(1))
+        .map_err(|e| CommandError::Failed(anyhow!(e)))?;
     b.finish_and_clear();
     if let Some(path) = &args.plot {
         tilting_viz::continuation::draw_stability(path, &region)

@@ -1,5 +1,5 @@
-//! `tilting figures`: the paper's Figs. 4 to 8 as PNG files, drawn by `tilting_viz::figures`,
-//! with a progress bar and a summary of what each figure shows.
+//! `tilting figures`: the paper's Figs. 4 to 8 and issue 19's Figs. 8b and 8c as PNG files,
+//! drawn by `tilting_viz::figures`, with a progress bar and a summary of what each shows.
 
 use super::ModelArgs;
 use crate::CommandError;
@@ -9,17 +9,17 @@ use serde::{Deserialize, Serialize};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_viz::figures::{Figures, Settings, Summary, ALL};
+use tilting_viz::figures::{figure_id, Figures, Settings, Summary, ALL};
 
 /// Flags of `tilting figures`.
 #[derive(Debug, Clone, Args)]
 pub struct FiguresArgs {
-    /// Directory for fig4.png ... fig8.png (created if missing)
+    /// Directory for fig4.png ... fig8.png, fig8b.png, fig8c.png (created if missing)
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Draw only these figures (comma-separated numbers from 4 to 8)
-    #[arg(long, value_name = "N,...", value_delimiter = ',', value_parser = parse_figure)]
-    pub only: Vec<u8>,
+    /// Draw only these figures (comma-separated: 4, 5, 6, 7, 8, 8b, 8c)
+    #[arg(long, value_name = "ID,...", value_delimiter = ',', value_parser = parse_figure)]
+    pub only: Vec<&'static str>,
     /// Coarse grids and short runs: a fast preview (used by the tests)
     #[arg(long)]
     pub quick: bool,
@@ -28,13 +28,8 @@ pub struct FiguresArgs {
     pub model: ModelArgs,
 }
 
-fn parse_figure(s: &str) -> Result<u8, String> {
-    match s.trim().parse::<u8>() {
-        Ok(n) if ALL.contains(&n) => Ok(n),
-        _ => Err(format!(
-            "no figure `{s}`: the figures are numbered 4 to 8 (e.g. --only 4,7)"
-        )),
-    }
+fn parse_figure(s: &str) -> Result<&'static str, String> {
+    figure_id(s)
 }
 
 /// What `tilting figures --json` prints (fields in the order of the JSON).
@@ -42,7 +37,7 @@ fn parse_figure(s: &str) -> Result<u8, String> {
 pub struct FiguresReport {
     /// The figures that failed: `figN: why`.
     pub failed: Vec<String>,
-    /// The figures drawn, in increasing number.
+    /// The figures drawn, in the order of `tilting_viz::figures::ALL`.
     pub figures: Vec<FigureReport>,
     /// The landing impact law.
     pub impact: String,
@@ -57,8 +52,8 @@ pub struct FiguresReport {
 /// One figure drawn.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FigureReport {
-    /// Its number, 4 to 8.
-    pub figure: u8,
+    /// Its id: "4" to "8", "8b", "8c".
+    pub figure: String,
     /// The PNG file.
     pub path: PathBuf,
     /// Wall-clock time of its computation and drawing (s).
@@ -67,18 +62,16 @@ pub struct FigureReport {
     pub summary: Summary,
 }
 
-/// `tilting figures`: the PNGs of the paper's Figs. 4 to 8.
+/// `tilting figures`: the PNGs of the paper's Figs. 4 to 8 and of Figs. 8b and 8c.
 pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
     let start = Instant::now();
     let params = args.model.params()?;
     let out = prepare_out(&args.out)?;
-    let mut which: Vec<u8> = if args.only.is_empty() {
-        ALL.collect()
-    } else {
-        args.only.clone()
-    };
-    which.sort_unstable();
-    which.dedup();
+    // In the order of ALL, each once.
+    let which: Vec<&str> = ALL
+        .into_iter()
+        .filter(|n| args.only.is_empty() || args.only.contains(n))
+        .collect();
     let set = if args.quick {
         Settings::quick()
     } else {
@@ -90,17 +83,21 @@ pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
         set,
         out,
     };
-    let units: u64 = which.iter().map(|&n| ctx.units(n)).sum();
+    let units: u64 = which.iter().map(|n| ctx.units(n)).sum();
     let bar = progress(units, args.model.json);
     let mut done = Vec::new();
     let mut failed = Vec::new();
+    let mut reached = 0;
     for &n in &which {
         bar.set_message(format!("fig{n}"));
         let t0 = Instant::now();
         let r = ctx.draw(n, &|| bar.inc(1));
+        // 8b and 8c give an upper bound of their ticks: each figure ends at its share.
+        reached += ctx.units(n);
+        bar.set_position(reached);
         match r {
             Ok(summary) => done.push(FigureReport {
-                figure: n,
+                figure: n.to_owned(),
                 path: ctx.path(n),
                 seconds: t0.elapsed().as_secs_f64(),
                 summary,
@@ -168,7 +165,7 @@ fn progress(len: u64, json: bool) -> indicatif::ProgressBar {
     let b = indicatif::ProgressBar::new(len);
     b.set_style(
         indicatif::ProgressStyle::with_template(
-            "figures {msg:5} [{bar:40}] {pos}/{len} {elapsed_precise} (eta {eta})",
+            "figures {msg:6} [{bar:40}] {pos}/{len} {elapsed_precise} (eta {eta})",
         )
         .expect("valid template")
         .progress_chars("=> "),

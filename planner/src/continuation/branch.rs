@@ -47,14 +47,37 @@ fn locate(
     let d = &b.y - &a.y;
     let t = d.normalize();
     let f = |s: &Solved| arclength::tests(&arclength::monodromy_of(s))[which];
-    let (mut t_lo, mut f_lo) = (0.0, f(a));
-    let (mut t_hi, mut f_hi) = (1.0, f(b));
-    let (mut p_lo, mut p_hi) = (c.p(&a.y), c.p(&b.y));
-    let mut best = None;
-    let mut side = 0i8;
     // The bracket along the chord, in parameter units (at a fold the parameter itself is
     // stationary, so its own bracket would close long before the point is found).
-    let width = d.norm() * c.scale;
+    illinois(
+        (f(a), c.p(&a.y)),
+        (f(b), c.p(&b.y)),
+        d.norm() * c.scale,
+        tol,
+        |th| {
+            let s = c.correct(&(&a.y + &d * th), &t)?;
+            let (fs, ps) = (f(&s), c.p(&s.y));
+            Ok((s, fs, ps))
+        },
+    )
+}
+
+/// The Illinois variant of regula falsi on the chord parameter `theta` in `[0, 1]` between two
+/// points whose test-function values `f_a`, `f_b` have opposite signs (parameters `p_a`,
+/// `p_b`): `at(theta)` returns the point there, its test value and its parameter. Ends when the
+/// chord bracket times `width` (the chord's length in parameter units) is below `tol`, or the
+/// parameter bracket below `tol / 1000`; returns the last trial point.
+pub(crate) fn illinois<T>(
+    (f_a, p_a): (f64, f64),
+    (f_b, p_b): (f64, f64),
+    width: f64,
+    tol: f64,
+    mut at: impl FnMut(f64) -> Result<(T, f64, f64), OrbitError>,
+) -> Result<T, OrbitError> {
+    let (mut t_lo, mut f_lo, mut p_lo) = (0.0, f_a, p_a);
+    let (mut t_hi, mut f_hi, mut p_hi) = (1.0, f_b, p_b);
+    let mut best = None;
+    let mut side = 0i8;
     for _ in 0..60 {
         if (t_hi - t_lo) * width < tol || (p_hi - p_lo).abs() < 1e-3 * tol {
             break;
@@ -63,9 +86,7 @@ fn locate(
         if !(th > t_lo && th < t_hi) {
             th = 0.5 * (t_lo + t_hi);
         }
-        let s = c.correct(&(&a.y + &d * th), &t)?;
-        let fs = f(&s);
-        let ps = c.p(&s.y);
+        let (s, fs, ps) = at(th)?;
         if fs == 0.0 {
             return Ok(s);
         }
@@ -101,7 +122,7 @@ fn event(c: &Continuation, s: &Solved, kind: EventKind) -> Result<Event, OrbitEr
 
 /// The kinds whose test function changes sign from `a` to `b` (a Neimark–Sacker point only
 /// while the pair of multipliers is complex on both sides).
-fn crossings(a: &Matrix2<f64>, b: &Matrix2<f64>, skip_fold: bool) -> Vec<EventKind> {
+pub(crate) fn crossings(a: &Matrix2<f64>, b: &Matrix2<f64>, skip_fold: bool) -> Vec<EventKind> {
     let (ta, tb) = (arclength::tests(a), arclength::tests(b));
     let complex = |m: &Matrix2<f64>| m.trace().powi(2) < 4.0 * m.determinant();
     let mut out = Vec::new();
@@ -312,4 +333,81 @@ pub(crate) fn resolve(c: &Continuation, ev: &Event) -> Result<Solved, OrbitError
     let mut t = DVector::zeros(y.len());
     t[y.len() - 1] = 1.0;
     c.correct(&y, &t)
+}
+
+#[cfg(test)]
+mod tests {
+    //! The detection path (the test functions, [`crossings`] and the [`illinois`] locator) on
+    //! synthetic map Jacobians whose bifurcation points are known in closed form: the orbit's
+    //! branches never meet a Neimark–Sacker point, so this is where it is checked.
+    use super::*;
+
+    /// Runs the detection as [`follow`] does between two parameter values: which test
+    /// functions change sign, then each zero located on the chord `p(theta) = a + theta (b - a)`.
+    fn detect(
+        family: impl Fn(f64) -> Matrix2<f64>,
+        (a, b): (f64, f64),
+        tol: f64,
+    ) -> Vec<(EventKind, f64)> {
+        let (ma, mb) = (family(a), family(b));
+        crossings(&ma, &mb, false)
+            .into_iter()
+            .map(|kind| {
+                let f = |p: f64| arclength::tests(&family(p))[kind as usize];
+                let p = illinois((f(a), a), (f(b), b), (b - a).abs(), tol, |th| {
+                    let p = a + th * (b - a);
+                    Ok((p, f(p), p))
+                })
+                .expect("located");
+                (kind, p)
+            })
+            .collect()
+    }
+
+    fn moduli(m: &Matrix2<f64>) -> Vec<f64> {
+        eigenvalues2(m).iter().map(|v| v[0].hypot(v[1])).collect()
+    }
+
+    #[test]
+    fn a_complex_pair_leaving_the_unit_circle_is_a_neimark_sacker_point_located_to_1e_6() {
+        // The companion matrix of mu^2 - t mu + q: det = q(p) = 1/2 + p^2 reaches 1 at
+        // p* = 1/sqrt(2), where the trace t(p) = 0.6 + 0.1 p is far below 2 sqrt(q): the pair
+        // (q^(1/2) e^(+-i w)) crosses the circle there and nowhere else in [0, 2].
+        let family = |p: f64| Matrix2::new(0.0, -1.0, 0.5 + p * p, 0.6 + 0.1 * p);
+        let p_star = std::f64::consts::FRAC_1_SQRT_2;
+        // Wide and lopsided brackets: regula falsi alone would stall on the convex side.
+        for (a, b) in [(0.1, 1.9), (0.0, 0.75), (1.2, 0.3)] {
+            let found = detect(family, (a, b), 1e-7);
+            assert_eq!(found.len(), 1, "[{a}, {b}]: {found:?}");
+            let (kind, p) = found[0];
+            assert_eq!(kind, EventKind::NeimarkSacker);
+            assert!((p - p_star).abs() < 1e-6, "[{a}, {b}]: {p} vs {p_star}");
+            // Independently: both multipliers on the unit circle there, as a complex pair.
+            let m = family(p);
+            assert!(moduli(&m).iter().all(|r| (r - 1.0).abs() < 2e-6), "{m}");
+            assert!(eigenvalues2(&m)[0][1].abs() > 0.5);
+        }
+    }
+
+    #[test]
+    fn a_real_pair_with_unit_product_is_not_a_neimark_sacker_point() {
+        // diag(2, s): det - 1 = 2 s - 1 changes sign at s = 1/2 with both multipliers real (a
+        // neutral saddle): no multiplier crosses the circle, so nothing may be reported.
+        let family = |p: f64| Matrix2::new(2.0, 0.0, 0.0, p);
+        assert!(detect(family, (0.3, 0.7), 1e-7).is_empty());
+    }
+
+    #[test]
+    fn flip_and_fold_are_located_where_a_real_multiplier_crosses_minus_and_plus_one() {
+        // A triangular family with the multipliers mu_1(p) = p^3 - 1.3 and mu_2(p) = 1.7 p: the
+        // flip where mu_1 = -1, p = 0.3^(1/3), and the fold where mu_2 = 1, p = 1/1.7.
+        let family = |p: f64| Matrix2::new(p.powi(3) - 1.3, 0.4, 0.0, 1.7 * p);
+        let found = detect(family, (0.4, 1.2), 1e-7);
+        let (flip, fold) = (0.3f64.cbrt(), 1.0 / 1.7);
+        assert_eq!(found.len(), 2, "{found:?}");
+        assert_eq!(found[0].0, EventKind::Flip);
+        assert!((found[0].1 - flip).abs() < 1e-6, "{found:?} vs {flip}");
+        assert_eq!(found[1].0, EventKind::Fold);
+        assert!((found[1].1 - fold).abs() < 1e-6, "{found:?} vs {fold}");
+    }
 }

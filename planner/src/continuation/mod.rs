@@ -27,7 +27,8 @@ pub mod twopar;
 
 pub use param::Param;
 
-use crate::orbit::{self, OrbitError, OrbitProblem};
+use crate::bifurcation::{self, Sweep};
+use crate::orbit::{self, OrbitError, OrbitProblem, OrbitSolution};
 use arclength::Continuation;
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
@@ -57,6 +58,26 @@ pub struct Settings {
     pub max_period: usize,
     /// End each branch at its first located bifurcation.
     pub stop_at_first_event: bool,
+}
+
+impl Settings {
+    /// `plan continuation`'s settings from `p0` to `to` up to period `max_period`: first step
+    /// 1/200 of the range, largest 1/50, smallest 1e-4 of the first, at most 2000 steps per
+    /// branch, bifurcations located to 1e-7.
+    pub fn over(p0: f64, to: f64, max_period: usize) -> Self {
+        let span = (to - p0).abs();
+        Self {
+            p_min: p0.min(to),
+            p_max: p0.max(to),
+            ds: span / 200.0,
+            ds_min: span / 200.0 * 1e-4,
+            ds_max: span / 50.0,
+            max_steps: 2000,
+            locate_tol: 1e-7,
+            max_period,
+            stop_at_first_event: false,
+        }
+    }
 }
 
 /// One point of a branch: a solved period-`n` cycle.
@@ -160,6 +181,60 @@ impl Diagram {
     pub fn steps(&self) -> usize {
         self.branches.iter().map(|b| b.steps).sum()
     }
+}
+
+/// Where the continuation commands and figures start: the paper's loop, its smallest orbit
+/// (whose average energy `E_av` the adaptation targets), the loop adapted at `k`, and the orbit
+/// the adapted loop settles on.
+#[derive(Debug, Clone)]
+pub struct Start {
+    /// The smallest periodic orbit of the loop without adaptation.
+    pub orbit: OrbitSolution,
+    /// The loop with the adaptation gain `k` towards the orbit's `E_av`.
+    pub base: OrbitProblem,
+    /// A sweep of the adapted loop from that orbit (0 tilts: set `tilts` and `keep` to run it).
+    pub sweep: Sweep,
+    /// A Newton guess `(beta0, beta_dot0, t_end)` (rad, rad/s, s) of the orbit the loop
+    /// adapted at `k` settles on after 200 tilts.
+    pub guess: [f64; 3],
+}
+
+/// The [`Start`] of the loop `pb` (no adaptation) adapted at `k` (1/(J s^2)). Errors: no
+/// periodic orbit, or the adapted loop does not settle on a tilting orbit.
+pub fn start(pb: &OrbitProblem, k: f64) -> Result<Start, String> {
+    let law = pb.control.law;
+    let o = orbit::smallest(pb)
+        .ok_or_else(|| format!("no periodic orbit for K_P = {}, K_D = {}", law.kp, law.kd))?;
+    let sweep = Sweep {
+        problem: *pb,
+        start_beta0: o.beta0,
+        start_beta_dot0: o.beta_dot0,
+        energy_avg: o.energy_avg,
+        tilts: 0,
+        keep: 1,
+        period_tol: 1e-5,
+    };
+    let guess = bifurcation::attracting_orbit_guess(&sweep, k, 200).ok_or_else(|| {
+        format!("the adapted loop at k = {k} does not settle on a tilting orbit to start from")
+    })?;
+    Ok(Start {
+        base: pb.with_adaptation(k, o.energy_avg),
+        orbit: o,
+        sweep,
+        guess,
+    })
+}
+
+/// The values `p0, p0 + step, ...` towards `to` (the sign of `to - p0`), at most to `to`: the
+/// grid of a Lyapunov curve; empty when `step` is 0.
+pub fn grid(p0: f64, to: f64, step: f64) -> Vec<f64> {
+    if step <= 0.0 || !step.is_finite() {
+        return Vec::new();
+    }
+    let n = ((to - p0).abs() / step).floor() as usize;
+    (0..=n)
+        .map(|i| p0 + (to - p0).signum() * step * i as f64)
+        .collect()
 }
 
 /// The problem `base` with `param` at `p0` and its period-1 orbit from `guess` `(beta0,

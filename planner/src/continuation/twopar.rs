@@ -290,3 +290,33 @@ pub fn stability_region(
     }
     Ok(region)
 }
+
+/// The stability region as `plan stability` and `figures` compute it: the loop `pb` (no
+/// adaptation) adapted at `k0` ([`super::start`]), its flip searched up to `k_max` and its fold
+/// down to `k = 0`, both continued over `p2` in `[lo, hi]` (which must contain `pb`'s value) in
+/// steps of `(hi - lo) / 60`. `tick` after each step of the curves.
+pub fn region(
+    pb: &OrbitProblem,
+    k0: f64,
+    k_max: f64,
+    (p2, (lo, hi)): (Param, (f64, f64)),
+    tick: &(dyn Fn() + Sync),
+) -> Result<Region, String> {
+    let here = p2.get(pb);
+    if !(lo..=hi).contains(&here) || p2 == Param::K {
+        return Err(format!(
+            "the range [{lo}, {hi}] of `{p2}` must contain the loop's value {here} (and not be k)"
+        ));
+    }
+    let st = super::start(pb, k0)?;
+    stability_region(
+        &st.base,
+        k0,
+        st.guess,
+        (0.0, k_max),
+        (p2, (lo, hi)),
+        (hi - lo) / 60.0,
+        tick,
+    )
+    .map_err(|e| format!("two-parameter continuation failed: {e}"))
+}

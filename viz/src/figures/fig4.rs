@@ -104,7 +104,7 @@ pub(super) fn fig4(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig4Summary> {
         };
         curves.push(curve);
     }
-    draw_fig4(&ctx.path(4), &cells, &curves)?;
+    draw_fig4(&ctx.path("4"), &cells, &curves)?;
     let no_tilt = cells.iter().filter(|c| c.2 == 0).count();
     let band_033 = curves
         .iter()

@@ -147,7 +147,7 @@ pub(super) fn fig5(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig5Summary> {
         })
         .collect();
     let panels = panels.into_iter().collect::<Result<Vec<_>>>()?;
-    draw_fig5(&ctx.path(5), &panels)?;
+    draw_fig5(&ctx.path("5"), &panels)?;
     let text = panels
         .iter()
         .map(|q| {

@@ -26,7 +26,7 @@ pub(super) fn fig6(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig6Summary> {
             ctx.impact.as_str()
         ));
     }
-    draw_fig6(&ctx.path(6), &kps, &cells, &paper)?;
+    draw_fig6(&ctx.path("6"), &kps, &cells, &paper)?;
     let orbits: usize = cells.iter().map(|c| c.max_tilt.len()).sum();
     let stable: usize = cells
         .iter()

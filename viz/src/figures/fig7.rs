@@ -103,7 +103,13 @@ pub(super) fn fig7(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig7Summary> {
         OrbitProblem::start(o.beta0, o.beta_dot0),
         o.period,
     )?;
-    draw_fig7(&ctx.path(7), &o, &orbit_trace, &runs, ctx.set.fig7_duration)?;
+    draw_fig7(
+        &ctx.path("7"),
+        &o,
+        &orbit_trace,
+        &runs,
+        ctx.set.fig7_duration,
+    )?;
     let text = runs
         .iter()
         .map(|r| {

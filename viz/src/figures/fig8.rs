@@ -55,7 +55,7 @@ pub(super) fn fig8(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig8Summary> {
             r
         })
         .collect();
-    draw_fig8(&ctx.path(8), &rows, k_star, &sw, &series, &series_sw)?;
+    draw_fig8(&ctx.path("8"), &rows, k_star, &sw, &series, &series_sw)?;
     let onset = rows.iter().find(|r| r.period != Some(1)).map(|r| r.k);
     let faults = rows.iter().filter(|r| r.fault.is_some()).count();
     let text = format!(

@@ -10,13 +10,20 @@
 //! - Fig. 7: the unstable orbit left alone (perturbed up and down) and stabilised by the energy
 //!   adaptation `k = 500`;
 //! - Fig. 8 ([`bifurcation`]): the tilt peaks over the adaptation gain `k`, with `k*`, and three
-//!   peak series.
+//!   peak series;
+//! - Fig. 8b (issue 19, [`crate::continuation::cascade_figure`]): the continued period-1, 2, 4,
+//!   ... orbits over the sweep, and the largest Lyapunov exponent below;
+//! - Fig. 8c (issue 19, [`crate::continuation::draw_stability`]): the stability region of the
+//!   period-1 orbit in `(k, K_D)`.
+//!
+//! Figures are named by strings: `"4"` to `"8"`, `"8b"`, `"8c"` ([`ALL`]).
 
 mod fig4;
 mod fig5;
 mod fig6;
 mod fig7;
 mod fig8;
+mod fig8bc;
 mod style;
 
 pub use fig4::{Fig4Curve, Fig4Summary};
@@ -24,6 +31,7 @@ pub use fig5::{Fig5Panel, Fig5Summary};
 pub use fig6::Fig6Summary;
 pub use fig7::{Fig7Run, Fig7Summary};
 pub use fig8::Fig8Summary;
+pub use fig8bc::{Fig8bSummary, Fig8cSummary};
 
 use crate::plot::register_fonts;
 use anyhow::{anyhow, Context, Result};
@@ -46,8 +54,19 @@ use tilting_planner::sinusoid::{self, Search};
 use tilting_plant::paper::{ORBIT_KD as KD, ORBIT_KP as KP};
 use tilting_plant::{Fault, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak};
 
-/// The figures there are: 4 to 8, as numbered in the paper.
-pub const ALL: std::ops::RangeInclusive<u8> = 4..=8;
+/// The figures there are, in drawing order: the paper's 4 to 8, and issue 19's 8b and 8c.
+pub const ALL: [&str; 7] = ["4", "5", "6", "7", "8", "8b", "8c"];
+
+/// The id in [`ALL`] that `s` names (surrounding spaces ignored), or an error listing them.
+pub fn figure_id(s: &str) -> Result<&'static str, String> {
+    let t = s.trim();
+    ALL.iter().copied().find(|&n| n == t).ok_or_else(|| {
+        format!(
+            "no figure `{s}`: the figures are {} (e.g. --only 4,8b)",
+            ALL.join(", ")
+        )
+    })
+}
 
 /// Grid sizes and run lengths; [`Settings::quick`] for previews and tests.
 #[derive(Debug, Clone, Copy)]
@@ -74,6 +93,18 @@ pub struct Settings {
     /// Fig. 8: tilts per time series, and how many of the last are shown.
     series_tilts: usize,
     series_keep: usize,
+    /// Fig. 8b: the highest period continued, where the branches end, the Lyapunov curve's
+    /// step in `k` with its transient and averaged tilts, and the sweep under the branches.
+    cascade_period: usize,
+    cascade_to: f64,
+    lyapunov_step: f64,
+    lyapunov_transient: usize,
+    lyapunov_tilts: usize,
+    cascade_sweep: crate::continuation::CascadeSweep,
+    /// Fig. 8b: the step in `k` of the 1 kHz sampled loop's exponents (0: none).
+    sampled_step: f64,
+    /// Fig. 8c: the range of K_D (1/s).
+    kd_range: (f64, f64),
 }
 
 impl Settings {
@@ -93,6 +124,16 @@ impl Settings {
             keep: 150,
             series_tilts: 600,
             series_keep: 60,
+            // `plan continuation`'s defaults.
+            cascade_period: 16,
+            cascade_to: 2400.0,
+            lyapunov_step: 9.5,
+            lyapunov_transient: 200,
+            lyapunov_tilts: 400,
+            cascade_sweep: crate::continuation::CascadeSweep::FULL,
+            sampled_step: 38.0,
+            // `plan stability`'s default.
+            kd_range: (8.0, 18.0),
         }
     }
 
@@ -112,6 +153,18 @@ impl Settings {
             keep: 40,
             series_tilts: 150,
             series_keep: 30,
+            cascade_period: 4,
+            cascade_to: 2250.0,
+            lyapunov_step: 175.0,
+            lyapunov_transient: 30,
+            lyapunov_tilts: 60,
+            cascade_sweep: crate::continuation::CascadeSweep {
+                k_step: 50.0,
+                tilts: 150,
+                keep: 40,
+            },
+            sampled_step: 0.0,
+            kd_range: (13.0, 15.5),
         }
     }
 }
@@ -151,8 +204,8 @@ pub struct Figures {
 type Ctx = Figures;
 
 impl Figures {
-    /// The file of figure `n`: `{out}/fig{n}.png`.
-    pub fn path(&self, n: u8) -> PathBuf {
+    /// The file of figure `n` (an id of [`ALL`]): `{out}/fig{n}.png`.
+    pub fn path(&self, n: &str) -> PathBuf {
         self.out.join(format!("fig{n}.png"))
     }
 
@@ -172,14 +225,17 @@ impl Figures {
         gains::range(FIG8_K.0, FIG8_K.1, self.set.k_step)
     }
 
-    /// Progress units of figure `n` (the ticks [`Figures::draw`] gives).
-    pub fn units(&self, n: u8) -> u64 {
+    /// Progress units of figure `n` (the ticks [`Figures::draw`] gives; for 8b and 8c, whose
+    /// continuation step counts are not known beforehand, an upper bound).
+    pub fn units(&self, n: &str) -> u64 {
         (match n {
-            4 => self.amplitudes().len() + 1,
-            5 => FIG5_S.len(),
-            6 => self.kps().len() + 1,
-            7 => 4,
-            8 => self.ks().len() + FIG8_SERIES.len() + 2,
+            "4" => self.amplitudes().len() + 1,
+            "5" => FIG5_S.len(),
+            "6" => self.kps().len() + 1,
+            "7" => 4,
+            "8" => self.ks().len() + FIG8_SERIES.len() + 2,
+            "8b" => fig8bc::units_8b(self),
+            "8c" => fig8bc::units_8c(),
             _ => 0,
         }) as u64
     }
@@ -198,18 +254,20 @@ impl Figures {
         OrbitProblem::new(self.params, self.impact, KP, KD)
     }
 
-    /// Computes and draws figure `n` (4 to 8) into [`Figures::path`], calling `tick` once per
-    /// unit of progress ([`Figures::units`] in all; from several threads); returns
-    /// its summary: a one-line `text` and the figure's numbers.
-    pub fn draw(&self, n: u8, tick: &(dyn Fn() + Sync)) -> Result<Summary> {
+    /// Computes and draws figure `n` (an id of [`ALL`]) into [`Figures::path`], calling `tick`
+    /// once per unit of progress (about [`Figures::units`] in all; from several threads);
+    /// returns its summary: a one-line `text` and the figure's numbers.
+    pub fn draw(&self, n: &str, tick: &(dyn Fn() + Sync)) -> Result<Summary> {
         register_fonts()?;
         Ok(match n {
-            4 => Summary::Fig4(fig4::fig4(self, tick)?),
-            5 => Summary::Fig5(fig5::fig5(self, tick)?),
-            6 => Summary::Fig6(fig6::fig6(self, tick)?),
-            7 => Summary::Fig7(fig7::fig7(self, tick)?),
-            8 => Summary::Fig8(fig8::fig8(self, tick)?),
-            _ => return Err(anyhow!("no figure {n}: the figures are numbered 4 to 8")),
+            "4" => Summary::Fig4(fig4::fig4(self, tick)?),
+            "5" => Summary::Fig5(fig5::fig5(self, tick)?),
+            "6" => Summary::Fig6(fig6::fig6(self, tick)?),
+            "7" => Summary::Fig7(fig7::fig7(self, tick)?),
+            "8" => Summary::Fig8(fig8::fig8(self, tick)?),
+            "8b" => Summary::Fig8b(fig8bc::fig8b(self, tick)?),
+            "8c" => Summary::Fig8c(fig8bc::fig8c(self, tick)?),
+            _ => return Err(anyhow!(figure_id(n).err().unwrap_or_default())),
         })
     }
 }
@@ -229,6 +287,10 @@ pub enum Summary {
     Fig7(Fig7Summary),
     /// Fig. 8.
     Fig8(Fig8Summary),
+    /// Fig. 8b.
+    Fig8b(Fig8bSummary),
+    /// Fig. 8c.
+    Fig8c(Fig8cSummary),
 }
 
 impl Summary {
@@ -240,6 +302,8 @@ impl Summary {
             Summary::Fig6(s) => &s.text,
             Summary::Fig7(s) => &s.text,
             Summary::Fig8(s) => &s.text,
+            Summary::Fig8b(s) => &s.text,
+            Summary::Fig8c(s) => &s.text,
         }
     }
 }

@@ -17,6 +17,11 @@
 //!
 //! A landing after which the plate does not tilt back at once (it rests flat for a while, or
 //! tilts the same way again) leaves the tilt map: the exponent is then reported as not defined.
+//!
+//! [`sampled`]: the same for the loop sampled at a control period (the torque held between
+//! samples), where the hold adds a phase against the sample grid.
+
+pub mod sampled;
 
 use crate::orbit::{self, Flow, OrbitProblem};
 use nalgebra::{Matrix2, Matrix4, SVector, Vector2, Vector4};
