@@ -251,16 +251,28 @@ impl LawSpec {
 }
 
 impl std::fmt::Display for LawSpec {
-    /// One line: `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J, torque limit none`.
+    /// One line: `hold, K_P0 = 100, K_D = 14.14, k = 500, E_av = ... J, torque limit none`;
+    /// the excitation says it runs without the energy adaptation.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         if !self.law.is_default() {
             write!(f, "{} law, ", self.law.name())?;
         }
-        write!(
-            f,
-            "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit ",
-            self.reference, self.kp, self.kd, self.k, self.energy_avg
-        )?;
+        if self.reference.adapts() {
+            write!(
+                f,
+                "{}, K_P0 = {}, K_D = {}, k = {}, E_av = {} J, torque limit ",
+                self.reference, self.kp, self.kd, self.k, self.energy_avg
+            )?;
+        } else {
+            // The excitation runs without the energy adaptation (k and E_av do not act), its
+            // torque clipped below the one that lifts the plate.
+            write!(
+                f,
+                "{}, K_P = {}, K_D = {}, no energy adaptation, torque clipped below the \
+                 plate's lift-off, torque limit ",
+                self.reference, self.kp, self.kd
+            )?;
+        }
         match self.torque_limit {
             Some(l) => write!(f, "{l} N m")?,
             None => f.write_str("none")?,

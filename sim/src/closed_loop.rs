@@ -503,6 +503,34 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
     })
 }
 
+/// The law that runs, in words, for the summaries of `simulate` and `live`: the gains, and the
+/// energy adaptation (`k`, `E_av`) when the reference adapts; the excitation runs without it,
+/// its torque clipped to `tilting_controller::excitation_torque_limit` of the model `params`.
+pub fn law_line(law: &tilting_controller::LawSpec, params: &tilting_plant::Params) -> String {
+    if law.reference.adapts() {
+        format!(
+            "K_P0 = {}, K_D = {}, k = {}{}",
+            law.kp,
+            law.kd,
+            law.k,
+            if law.k != 0.0 {
+                format!(", E_av = {} J", law.energy_avg)
+            } else {
+                String::new()
+            }
+        )
+    } else {
+        format!(
+            "{}, K_P = {}, K_D = {}, no energy adaptation, torque clipped to {:.3} N m",
+            law.reference,
+            law.kp,
+            law.kd,
+            tilting_controller::excitation_torque_limit(params)
+                .min(law.torque_limit.unwrap_or(f64::INFINITY))
+        )
+    }
+}
+
 /// The human-readable summary of a run.
 pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
     use std::fmt::Write as _;
@@ -517,17 +545,10 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
     };
     let _ = writeln!(
         s,
-        "simulated {} s of {} s ({coupling}; K_P0 = {}, K_D = {}, k = {}{}; {} impact law)",
+        "simulated {} s of {} s ({coupling}; {}; {} impact law)",
         r.final_state.t,
         sc.duration,
-        sc.law.kp,
-        sc.law.kd,
-        sc.law.k,
-        if sc.law.k != 0.0 {
-            format!(", E_av = {} J", sc.law.energy_avg)
-        } else {
-            String::new()
-        },
+        law_line(&sc.law, &sc.params),
         sc.impact.as_str(),
     );
     let _ = writeln!(
