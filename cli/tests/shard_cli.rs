@@ -49,7 +49,8 @@ fn merge(files: &[PathBuf]) -> Output {
 }
 
 /// A small survey of every map (20 tilts): points that survive and points that fail quickly
-/// (a 20 ms delay, 50 Hz), lossy points whose random streams are seeded, noisy robots.
+/// (a 20 ms delay, 50 Hz), lossy points whose random streams are seeded, noisy robots, and
+/// the robot rows' bisections (the arm-mass band, Coulomb friction, the estimators' noise).
 const MARGINS: &[&str] = &[
     "plan",
     "margins",
@@ -69,6 +70,20 @@ const MARGINS: &[&str] = &[
     "0,1",
     "--seed",
     "7",
+    "--param-bands",
+    "m_l",
+    "--param-span",
+    "0.1",
+    "--viscous-span",
+    "0",
+    "--coulomb-span",
+    "0.3",
+    "--noise-span",
+    "0.005",
+    "--encoder-bits",
+    "none",
+    "--bisections",
+    "2",
 ];
 
 #[test]
@@ -77,8 +92,9 @@ fn margins_shards_merge_to_the_whole_run_bit_for_bit() {
     let mut whole_args = MARGINS.to_vec();
     whole_args.push("--json");
     let whole = ok(&whole_args);
-    // 17 points: 3 shards of 5 or 6, and 20 shards of which 3 are empty.
-    for n in [1, 3, 20] {
+    // 25 units (17 points, 8 searches): 3 shards of 8 or 9, and 30 shards of which 5 are
+    // empty.
+    for n in [1, 3, 30] {
         let files = shards(dir.path(), "m", MARGINS, n);
         let o = merge(&files);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -100,6 +116,7 @@ fn margins_shards_merge_to_the_whole_run_bit_for_bit() {
         survived.contains(&true) && survived.contains(&false),
         "{survived:?}"
     );
+    assert_eq!(v["robot"]["edges"].as_array().unwrap().len(), 8);
 
     // Incomplete, repeated, mixed: refused, nothing on stdout.
     let files = shards(dir.path(), "m", MARGINS, 3);

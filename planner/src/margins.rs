@@ -17,8 +17,10 @@
 //! Each point is one run of up to `tilts × 0.6 s` of plant time (the orbit tilts every 0.435 s),
 //! stopped early at the first fault; points run in parallel (rayon).
 
+mod bands;
 mod survey;
 
+pub use bands::{band_point, search, BandPoint, Bands, Edge, Knob, Search};
 pub use survey::{
     InvalidSurvey, MarginsReport, RobotMargins, Survey, SurveyError, SurveyShard, UnitResult,
     MAX_POINTS,
@@ -28,7 +30,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use tilting_link::{Impairment, LinkSpec};
 use tilting_plant::imperfect::Imperfections;
-use tilting_plant::{Mode, Plant, TiltPeak, Transition};
+use tilting_plant::{Mode, Plant, SimConfig, TiltPeak, Transition};
 use tilting_sim::{run_sampled_over, LoopOptions, Scenario};
 
 /// Plant time allowed per requested tilt (s): the orbit tilts every 0.435 s.
@@ -133,7 +135,11 @@ fn run(
         t_end,
         imp,
         &LoopOptions {
-            model: Some(sc.sim_config()),
+            // The controller's model: the scenario's `params`, whatever the plant's.
+            model: Some(SimConfig {
+                params: sc.params,
+                ..sc.sim_config()
+            }),
             ..*opts
         },
         &mut robot.hardware(),

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
 use tilting_planner::jobs::{self, BifurcationJob, BifurcationRange, GainsJob, JobError};
-use tilting_planner::margins::{self, Criteria, Sample, Survey, SurveyShard};
+use tilting_planner::margins::{self, Bands, Criteria, Sample, Survey, SurveyShard};
 use tilting_planner::shard::Shard;
 use tilting_plant::{ImpactLaw, Params, ParamsArgs};
 
@@ -349,6 +349,8 @@ fn margins_survey(
             watchdog,
             tolerance,
         },
+        // The robot rows (parameter bands, friction, estimators) are the CLI's only.
+        bands: Bands::default(),
     };
     s.check().map_err(usage)?;
     to_json(&s)
@@ -421,6 +423,7 @@ fn margins_points(
         mass_errors: vec![0.0],
         seed: 0,
         criteria: c,
+        bands: Bands::default(),
     };
     probe.check().map_err(usage)?;
     let samples: Vec<Sample> = (0..n)

@@ -10,7 +10,10 @@ use crate::CommandError;
 use anyhow::Context as _;
 use clap::Args;
 use std::path::PathBuf;
-use tilting_planner::margins::{Criteria, MarginsReport, RobotMargins, Survey, SurveyShard};
+use tilting_planner::margins::{
+    Bands, Criteria, Edge, Knob, MarginsReport, RobotMargins, Survey, SurveyShard,
+};
+use tilting_sim::robustness::Parameter;
 
 /// Flags of `tilting plan margins`.
 #[derive(Debug, Clone, Args)]
@@ -102,6 +105,78 @@ pub struct RobotMapArgs {
         allow_negative_numbers = true
     )]
     pub mass_errors: Vec<f64>,
+    /// The plant's parameters whose error band is searched by bisection, each way, with the
+    /// paper's law and with the robust one (--orbit-peak): comma-separated keys of m_f, m_l,
+    /// l, f, g, l_c, or none
+    #[arg(long, value_delimiter = ',', default_value = "m_f,m_l,l,f,g,l_c")]
+    pub param_bands: Vec<String>,
+    /// Largest relative parameter error searched each way, in (0, 0.9]
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    pub param_span: f64,
+    /// Largest viscous joint friction b_v of the plant searched (N m s/rad; the controller's
+    /// model has none), in [0, 100]; 0 for no row
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
+    pub viscous_span: f64,
+    /// Largest Coulomb joint friction tau_c of the plant searched (N m; the controller's
+    /// model has none), in [0, 100]; 0 for no row
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    pub coulomb_span: f64,
+    /// Largest angle noise searched with --measure angles, for the hybrid observer and the
+    /// finite-difference baseline (rad), in [0, 1]; 0 for no row
+    #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
+    pub noise_span: f64,
+    /// Encoder resolutions searched with --measure angles, fine to coarse, in bits (2^bits
+    /// counts per revolution), each in [1, 32], or none
+    #[arg(long, default_value = "16,6", value_name = "FINE,COARSE|none")]
+    pub encoder_bits: String,
+    /// Halvings of each search's interval, in [0, 20]: an edge is located within the
+    /// interval's length / 2^bisections
+    #[arg(long, default_value_t = 6)]
+    pub bisections: u32,
+}
+
+/// The robot rows the flags describe, or the flag that is wrong.
+fn bands(r: &RobotMapArgs) -> Result<Bands, String> {
+    let mut parameters = Vec::new();
+    for k in &r.param_bands {
+        if k == "none" && r.param_bands.len() == 1 {
+            break;
+        }
+        match Parameter::ALL.iter().find(|p| p.key() == k.trim()) {
+            Some(&p) if !parameters.contains(&p) => parameters.push(p),
+            Some(_) => return Err(format!("invalid `--param-bands`: {k} is given twice")),
+            None => {
+                return Err(format!(
+                    "invalid `--param-bands` value {k:?}: allowed m_f, m_l, l, f, g, l_c, or \
+                     none"
+                ))
+            }
+        }
+    }
+    let encoder_bits = if r.encoder_bits == "none" {
+        None
+    } else {
+        let bad = || {
+            format!(
+                "invalid `--encoder-bits` = {:?}: expected FINE,COARSE (two bit counts in \
+                 [1, 32]) or none",
+                r.encoder_bits
+            )
+        };
+        let (a, b) = r.encoder_bits.split_once(',').ok_or_else(bad)?;
+        let a: u32 = a.trim().parse().map_err(|_| bad())?;
+        let b: u32 = b.trim().parse().map_err(|_| bad())?;
+        Some((a, b))
+    };
+    Ok(Bands {
+        parameters,
+        param_span: r.param_span,
+        viscous_span: r.viscous_span,
+        coulomb_span: r.coulomb_span,
+        noise_span: r.noise_span,
+        encoder_bits,
+        bisections: r.bisections,
+    })
 }
 
 /// The imperfection maps as text.
@@ -137,6 +212,93 @@ fn robot_text(r: &RobotMargins) -> String {
         r.mass_error_range
             .map_or("none of the grid".into(), |(a, b)| format!("{a} to {b}")),
     );
+    s += &edges_text(&r.edges);
+    s
+}
+
+/// One edge in words: the farthest surviving value, and the nearest failing one past it.
+fn edge_text(e: &Edge) -> String {
+    let v = |x: f64| match e.knob {
+        Knob::Parameter(_) => format!("{:+.1} %", 100.0 * x),
+        Knob::EncoderBits(_) => format!("{x}"),
+        Knob::AngleNoise(_) => format!("{:.3} mrad", 1e3 * x),
+        _ => format!("{x:.3}"),
+    };
+    match (e.edge, e.beyond) {
+        (None, _) => format!("none ({} fails)", v(e.start)),
+        (Some(x), None) => format!("{} (end)", v(x)),
+        (Some(x), Some(b)) => format!("{} ({} fails)", v(x), v(b)),
+    }
+}
+
+/// The robot rows searched by bisection, as tables.
+fn edges_text(edges: &[Edge]) -> String {
+    if edges.is_empty() {
+        return String::new();
+    }
+    let find = |knob: Knob, robust: bool, up: bool| {
+        edges
+            .iter()
+            .find(|e| e.knob == knob && e.robust == robust && (e.end > e.start) == up)
+    };
+    let mut s = String::from(
+        "\nthe robot rows, by bisection (the edge survives, the value in brackets fails)\n",
+    );
+    let mut knobs: Vec<Knob> = Vec::new();
+    for e in edges {
+        if !knobs.contains(&e.knob) {
+            knobs.push(e.knob);
+        }
+    }
+    let params: Vec<Knob> = knobs
+        .iter()
+        .copied()
+        .filter(|k| matches!(k, Knob::Parameter(_)))
+        .collect();
+    if !params.is_empty() {
+        s += &format!(
+            "  {:<6}{:<50}{}\n",
+            "param", "band, plain law (plant = (1 + e) model)", "band, robust law (--orbit-peak)"
+        );
+        for k in params {
+            let side = |robust: bool| {
+                let down = find(k, robust, false).map_or("-".into(), edge_text);
+                let up = find(k, robust, true).map_or("n/a".into(), edge_text);
+                format!("{down} to {up}")
+            };
+            s += &format!("  {:<6}{:<50}{}\n", k.name(), side(false), side(true));
+        }
+    }
+    for (k, label) in [
+        (Knob::Viscous, "viscous friction b_v (N m s/rad)"),
+        (Knob::Coulomb, "Coulomb friction tau_c (N m)"),
+    ] {
+        if knobs.contains(&k) {
+            let f = |robust| find(k, robust, true).map_or("-".into(), edge_text);
+            s += &format!("  {label}: plain {}, robust {}\n", f(false), f(true));
+        }
+    }
+    for (knob, label) in [
+        (
+            Knob::AngleNoise as fn(_) -> Knob,
+            "angle noise, --measure angles",
+        ),
+        (Knob::EncoderBits, "fewest encoder bits, --measure angles"),
+    ] {
+        let (obs, fd) = (
+            knob(tilting_controller::EstimatorChoice::Observer),
+            knob(tilting_controller::EstimatorChoice::Fd),
+        );
+        if knobs.contains(&obs) || knobs.contains(&fd) {
+            let f = |k| {
+                edges
+                    .iter()
+                    .find(|e| e.knob == k)
+                    .map_or("-".into(), edge_text)
+            };
+            s += &format!("  {label}: observer {}, fd {}\n", f(obs), f(fd));
+        }
+    }
     s
 }
 
@@ -151,7 +313,7 @@ pub fn robot_plot_path(plot: &std::path::Path) -> PathBuf {
 /// Checks the flags: every grid value in range, not too many points
 /// ([`Survey::check`]), a PNG for `--plot`.
 fn check_args(args: &MarginsArgs) -> Result<(), CommandError> {
-    survey(args).check().map_err(|e| usage(e.to_string()))?;
+    survey(args)?.check().map_err(|e| usage(e.to_string()))?;
     if let Some(p) = &args.plot {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(usage(format!(
@@ -164,8 +326,8 @@ fn check_args(args: &MarginsArgs) -> Result<(), CommandError> {
 }
 
 /// The survey the flags describe.
-fn survey(args: &MarginsArgs) -> Survey {
-    Survey {
+fn survey(args: &MarginsArgs) -> Result<Survey, CommandError> {
+    Ok(Survey {
         delays: args.delays.clone(),
         losses: args.losses.clone(),
         rate: args.rate,
@@ -179,13 +341,14 @@ fn survey(args: &MarginsArgs) -> Survey {
             watchdog: args.watchdog,
             tolerance: args.tolerance,
         },
-    }
+        bands: bands(&args.robot).map_err(usage)?,
+    })
 }
 
 /// `tilting plan margins`.
 pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
     check_args(args)?;
-    let survey = survey(args);
+    let survey = survey(args)?;
     if let Some(s) = args.sharding.shard {
         if args.plot.is_some() {
             return Err(usage(

@@ -2,6 +2,7 @@
 //! plain and the predicting controller, the rate maps with and without samples on events, the
 //! robot's imperfection maps, and the boundaries read off them ([`Survey::run`]).
 
+use super::bands::{self, Bands, Edge};
 use super::{
     boundaries, delay_loss_map, imperfect_point, imperfection_map, imperfection_range,
     nominal_peak, point, rate_map, Criteria, ImperfectPoint, Imperfection, Point,
@@ -32,6 +33,10 @@ pub struct Survey {
     pub seed: u64,
     /// What a point must meet.
     pub criteria: Criteria,
+    /// The robot rows searched by bisection (parameter bands, friction, estimators); absent
+    /// from the grid of a survey written before they existed, which then has none.
+    #[serde(default, skip_serializing_if = "Bands::is_none")]
+    pub bands: Bands,
 }
 
 /// Most points of one map.
@@ -85,6 +90,10 @@ pub struct RobotMargins {
     pub largest_rate_noise: Option<f64>,
     /// The range of mass errors around 0 survived, every grid value inside it too.
     pub mass_error_range: Option<(f64, f64)>,
+    /// The robot rows searched by bisection (`tilting_planner::margins::Bands`), in the order
+    /// of [`Bands::searches`]: parameter bands, friction, estimators.
+    #[serde(default)]
+    pub edges: Vec<Edge>,
 }
 
 /// The result of a survey (the JSON of `plan margins`).
@@ -165,6 +174,7 @@ impl Survey {
                 "too many points: {n} imperfection values, at most {MAX_POINTS}"
             ));
         }
+        self.bands.check().map_err(InvalidSurvey)?;
         let n = self.delays.len() * self.losses.len();
         if n > MAX_POINTS || self.rates.len() > MAX_POINTS {
             return bad(format!(
@@ -179,7 +189,8 @@ impl Survey {
     pub fn units(&self) -> u64 {
         let network = self.delays.len() * self.losses.len() + self.rates.len();
         let robot = self.angle_noises.len() + self.rate_noises.len() + self.mass_errors.len();
-        (2 * network + robot + 1) as u64
+        let searches = self.bands.searches().len();
+        (2 * network + robot + searches + 1) as u64
     }
 
     /// Runs the survey on the paper's loop, the points in parallel; `tick` is called after the
@@ -212,10 +223,13 @@ impl Survey {
         let robot = |which, values: &[f64]| {
             imperfection_map(&sc, rate, which, values, seed, c, nominal, tick)
         };
+        let searches = self.bands.searches();
+        let b = self.bands.bisections;
         let maps = Maps {
             angle_noise: robot(Imperfection::AngleNoise, &self.angle_noises),
             rate_noise: robot(Imperfection::RateNoise, &self.rate_noises),
             mass_error: robot(Imperfection::MassError, &self.mass_errors),
+            edges: bands::edges(&searches, b, rate, seed, c, nominal, tick),
             delay_loss,
             delay_loss_predict,
             rates,
@@ -253,13 +267,15 @@ impl Survey {
                 angle_noise: m.angle_noise,
                 rate_noise: m.rate_noise,
                 mass_error: m.mass_error,
+                edges: m.edges,
             },
         }
     }
 
     /// The survey's points in the report's order (the units of [`Survey::run_shard`]): the
     /// delay × loss map of the plain controller, of the predicting one, the rate maps without
-    /// and with samples on events, and the angle-noise, rate-noise and mass-error maps.
+    /// and with samples on events, the angle-noise, rate-noise and mass-error maps, and the
+    /// searches of the robot rows (one unit each).
     fn unit_list(&self) -> Vec<Unit> {
         let pairs = || {
             self.delays
@@ -277,6 +293,7 @@ impl Survey {
         ] {
             u.extend(values.iter().map(|&v| Unit::Robot(which, v)));
         }
+        u.extend(self.bands.searches().into_iter().map(Unit::Band));
         u
     }
 
@@ -318,6 +335,10 @@ impl Survey {
                 }
                 Unit::Robot(which, v) => {
                     UnitResult::Robot(imperfect_point(&sc, rate, which, v, seed, &c, nominal))
+                }
+                Unit::Band(s) => {
+                    let b = self.bands.bisections;
+                    UnitResult::Band(bands::search(&s, b, rate, seed, &c, nominal))
                 }
             };
             tick();
@@ -374,6 +395,11 @@ impl Survey {
                         Imperfection::MassError => maps.mass_error.push(p),
                     }
                 }
+                (Unit::Band(s), UnitResult::Band(e))
+                    if e.knob == s.knob && e.robust == s.robust && e.end == s.end =>
+                {
+                    maps.edges.push(e)
+                }
                 _ => return Err(bad("not a point of this map")),
             }
         }
@@ -390,6 +416,8 @@ enum Unit {
     Rate(f64, bool),
     /// The robot with one imperfection at a value.
     Robot(Imperfection, f64),
+    /// One search of the robot rows.
+    Band(bands::Search),
 }
 
 /// The maps of a survey, each in grid order.
@@ -402,6 +430,7 @@ struct Maps {
     angle_noise: Vec<ImperfectPoint>,
     rate_noise: Vec<ImperfectPoint>,
     mass_error: Vec<ImperfectPoint>,
+    edges: Vec<Edge>,
 }
 
 /// The result of one point of a survey.
@@ -412,6 +441,8 @@ pub enum UnitResult {
     Network(Point),
     /// A point of an imperfection map.
     Robot(ImperfectPoint),
+    /// A search of the robot rows.
+    Band(Edge),
 }
 
 /// One shard of a survey ([`Survey::run_shard`]).
@@ -458,6 +489,7 @@ mod tests {
                 tilts: 20,
                 ..Criteria::default()
             },
+            bands: Bands::default(),
         };
         let ticks = std::sync::atomic::AtomicU64::new(0);
         let r = s
@@ -478,5 +510,35 @@ mod tests {
             "{}",
             r.survives_means
         );
+        assert!(r.robot.edges.is_empty());
+    }
+
+    /// The grid of a shard file written before the robot rows existed (no `bands` key) still
+    /// parses, as a survey with no rows and the same units; a survey with no rows writes no
+    /// `bands` key, so its grid is the old one, byte for byte; one with rows writes them and
+    /// reads them back.
+    #[test]
+    fn a_survey_without_robot_rows_keeps_the_old_grid() {
+        let old = r#"{"delays":[0.0],"losses":[0.0],"rate":1000.0,"rates":[1000.0],
+            "angle_noises":[0.0],"rate_noises":[],"mass_errors":[0.0,0.01],"seed":3,
+            "criteria":{"tilts":20,"watchdog":50,"tolerance":0.25}}"#;
+        let s: Survey = serde_json::from_str(old).unwrap();
+        assert_eq!(s.bands, Bands::default());
+        assert_eq!(s.points(), 2 + 2 + 1 + 2);
+        let text = serde_json::to_string(&s).unwrap();
+        assert!(!text.contains("bands"), "{text}");
+        let with = Survey {
+            bands: Bands {
+                parameters: vec![tilting_sim::robustness::Parameter::F],
+                param_span: 0.2,
+                coulomb_span: 1.0,
+                bisections: 3,
+                ..Bands::default()
+            },
+            ..s.clone()
+        };
+        assert_eq!(with.points(), s.points() + 4 + 2);
+        let back: Survey = serde_json::from_str(&serde_json::to_string(&with).unwrap()).unwrap();
+        assert_eq!(back, with);
     }
 }
