@@ -28,6 +28,12 @@ pub struct Curve {
     pub ends: [EndReason; 2],
 }
 
+/// A step that moves `(p1, p2)` (scaled) by less than this share of its arclength counts as
+/// stalled.
+const STALL: f64 = 0.1;
+/// This many stalled steps in a row end a direction of the curve.
+const STALL_STEPS: usize = 5;
+
 /// The plane: base problem, the two parameters and their scales.
 struct Plane {
     base: OrbitProblem,
@@ -150,6 +156,7 @@ pub fn curve(
         let mut u = u0.clone();
         let mut pts = Vec::new();
         let mut h = ds / pl.s2;
+        let mut stalled = 0;
         let end = loop {
             if steps >= 2 * max_steps {
                 break EndReason::Steps;
@@ -176,6 +183,18 @@ pub fn curve(
                     tick();
                     let (a, b) = (v[m] * pl.s1, v[m + 1] * pl.s2);
                     pts.push([a, b]);
+                    // The share of the step that moved the parameters (scaled): where the
+                    // curve runs towards orbits with ever longer tilts (K_D below 8), the
+                    // orbit takes the whole arclength while (k, p2) creep on, each step
+                    // dearer than the last (minutes, issue 19): end there instead.
+                    let moved = (v.rows(m, 2) - u.rows(m, 2)).norm() / h;
+                    stalled = if moved < STALL { stalled + 1 } else { 0 };
+                    if stalled >= STALL_STEPS {
+                        break EndReason::Failed(format!(
+                            "the curve stalls at ({p1} = {a:.4}, {p2} = {b:.4}): {STALL_STEPS} steps moved the parameters by less than {STALL} of the step (the orbit changes alone; its tilt lasts {:.3} s)",
+                            v[2]
+                        ));
+                    }
                     dir = t;
                     u = v;
                     h = (h * 1.5).min(4.0 * ds / pl.s2);
