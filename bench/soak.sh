@@ -1,26 +1,34 @@
 #!/usr/bin/env bash
-# Soak test of issue 22: `tilting live` for SECONDS open, then SECONDS with `--secure`, on this
-# machine, no attacker. For each run it prints the safe-mode entries (the plant's watchdog
-# trips), the deadline misses, the link flaps (the controller's liveliness token lost at the
-# plant, and "TX task failed" / "RX task failed" of zenoh's transport in every node's log), the
-# loop latency p50/p99 (state published -> torque received, the plant's last 4096 periods), the
-# orbit verdict, and the resident memory (VmRSS) of each process at the start (15 s in) and the
-# end (5 s before it); then the secure/open p99 ratio.
+# Soak test of issue 22: `tilting live` open and `tilting live --secure`, SECONDS each, in
+# PAIRS interleaved pairs (open then secure, secure then open, ...: a drift of the machine's
+# load falls on both modes alike), on this machine, no attacker. For each run it prints the
+# safe-mode entries (the plant's watchdog trips), the deadline misses, the link flaps (the
+# controller's liveliness token lost at the plant, and "TX task failed" / "RX task failed" of
+# zenoh's transport in every node's log), the loop latency p50/p99 (state published -> torque
+# received, the plant's last 4096 periods), the orbit verdict, the router's nice value, the
+# load average, and the resident memory (VmRSS) of each process at the start (15 s in) and
+# the end (5 s before it); then each pair's secure/open latency ratios and their median.
 #
-#   bench/soak.sh            # 600 s each (20 min in all)
-#   bench/soak.sh 180        # 3 min each
+#   bench/soak.sh              # 600 s each, one pair (20 min in all): issue 22's soak
+#   bench/soak.sh 60 3         # three pairs of 1 min each (6 min in all)
 #
 # Env: TILTING (default ./target/release/tilting), SOAK_OUT (default runs/soak-<UTC time>).
 # Build first: cargo build --release --workspace --bins
 set -uo pipefail
 S=${1:-600}
-if ! [[ "$S" =~ ^[0-9]+$ ]] || [ "$S" -lt 30 ]; then
-    echo "usage: bench/soak.sh [SECONDS >= 30]" >&2
+PAIRS=${2:-1}
+if ! [[ "$S" =~ ^[0-9]+$ ]] || [ "$S" -lt 30 ] || ! [[ "$PAIRS" =~ ^[0-9]+$ ]] || [ "$PAIRS" -lt 1 ]; then
+    echo "usage: bench/soak.sh [SECONDS >= 30] [PAIRS >= 1]" >&2
     exit 2
 fi
 T=${TILTING:-./target/release/tilting}
+if ! [ -x "$T" ]; then
+    echo "soak: no $T (build first: cargo build --release --workspace --bins)" >&2
+    exit 2
+fi
 OUT=${SOAK_OUT:-runs/soak-$(date -u +%Y%m%dT%H%M%SZ)}
 mkdir -p "$OUT"
+: >"$OUT/table.txt"
 
 rss() { awk '/VmRSS/{print $2}' "/proc/$1/status" 2>/dev/null || echo "?"; }
 # "name=KB ..." for `tilting live` and each of its children.
@@ -31,54 +39,86 @@ sample() {
     done
     echo "$out"
 }
+load() { cut -d' ' -f1 /proc/loadavg; }
 
-for mode in open secure; do
-    dir="$OUT/$mode"
-    flags=()
+# run PAIR MODE: one `tilting live` run, its line appended to table.txt.
+run() {
+    local pair=$1 mode=$2
+    local dir="$OUT/$pair-$mode" flags=()
     [ "$mode" = secure ] && flags=(--secure)
-    echo "soak: $mode, $S s -> $dir" >&2
+    echo "soak: pair $pair, $mode, $S s -> $dir" >&2
+    local load0
+    load0=$(load)
     RUST_LOG=warn,zenoh_transport::unicast::universal::link=debug \
-        "$T" live --duration "$S" --out "$dir" "${flags[@]}" >"$OUT/$mode.stdout" 2>"$OUT/$mode.stderr" &
-    pid=$!
+        "$T" live --duration "$S" --out "$dir" "${flags[@]}" >"$dir.stdout" 2>"$dir.stderr" &
+    local pid=$!
     sleep 15
+    local start end
     start=$(sample "$pid")
     sleep $((S - 20))
     end=$(sample "$pid")
     wait "$pid"
-    rc=$?
-    tx=$(cat "$dir"/*.log "$OUT/$mode.stderr" 2>/dev/null | grep -c "TX task failed")
-    rx=$(cat "$dir"/*.log "$OUT/$mode.stderr" 2>/dev/null | grep -c "RX task failed")
-    python3 - "$mode" "$dir/summary.json" "$rc" "$tx" "$rx" "$start" "$end" >>"$OUT/table.txt" <<'PY'
+    local rc=$?
+    local tx rx
+    tx=$(cat "$dir"/*.log "$dir.stderr" 2>/dev/null | grep -c "TX task failed")
+    rx=$(cat "$dir"/*.log "$dir.stderr" 2>/dev/null | grep -c "RX task failed")
+    python3 - "$pair" "$mode" "$dir" "$rc" "$tx" "$rx" "$start" "$end" "$load0" "$(load)" \
+        >>"$OUT/table.txt" <<'PY'
 import json, sys
-mode, path, rc, tx, rx, start, end = sys.argv[1:]
+pair, mode, d, rc, tx, rx, start, end, l0, l1 = sys.argv[1:]
+tag = f"{pair} {mode:6}"
 try:
-    s = json.load(open(path))
+    s = json.load(open(f"{d}/summary.json"))
 except Exception as e:
-    print(f"{mode}: no summary ({e}); exit {rc}")
+    print(f"{tag}: no summary ({e}); exit {rc}")
     sys.exit()
+nice = "-"
+try:
+    for line in open(f"{d}/router.json"):
+        nice = json.loads(line).get("nice", nice)
+except (OSError, ValueError):
+    pass
 p = s.get("plant") or {}
 lat = p.get("latency_us") or {}
 orbit = (s.get("orbit") or {}).get("state", "?")
-print(f"{mode}: exit {rc}, {s['result']}, {p.get('steps', 0)} periods; safe-mode entries "
+print(f"{tag}: exit {rc}, {s['result']}, {p.get('steps', 0)} periods; safe-mode entries "
       f"{p.get('watchdog_trips', '?')}, safe periods {p.get('safe_periods', '?')}, deadline misses "
-      f"{p.get('deadline_misses', '?')}; link flaps: controller token lost {p.get('token_losses', '?')} "
-      f"times at the plant, 'TX task failed' {tx}, 'RX task failed' {rx} (the last include the "
-      f"links closed at the end); latency p50 {lat.get('p50', 0):.0f} us, p99 {lat.get('p99', 0):.0f} us; "
-      f"orbit {orbit}")
-print(f"{mode}: RSS kB at start: {start}")
-print(f"{mode}: RSS kB at end:   {end}")
-print(f"{mode}: p99 {lat.get('p99', 0)}")
+      f"{p.get('deadline_misses', '?')}; link flaps: controller token lost "
+      f"{p.get('token_losses', '?')} times at the plant, 'TX task failed' {tx}, 'RX task failed' "
+      f"{rx} (these include the links closed at the end); latency p50 {lat.get('p50', 0):.0f} us, "
+      f"p99 {lat.get('p99', 0):.0f} us; orbit {orbit}; router nice {nice}; load {l0} -> {l1}")
+print(f"{tag}: RSS kB at start: {start}")
+print(f"{tag}: RSS kB at end:   {end}")
+print(f"{tag}: latency {lat.get('p50', 0)} {lat.get('p99', 0)}")
 PY
+}
+
+for pair in $(seq 1 "$PAIRS"); do
+    if [ $((pair % 2)) = 1 ]; then order="open secure"; else order="secure open"; fi
+    for mode in $order; do
+        run "$pair" "$mode"
+    done
 done
-cat "$OUT/table.txt" | grep -v ": p99 "
+grep -v ": latency " "$OUT/table.txt"
 python3 - "$OUT/table.txt" <<'PY'
-import sys
-p99 = {}
+import statistics, sys
+lat = {}
 for line in open(sys.argv[1]):
-    mode, _, rest = line.partition(": p99 ")
-    if rest:
-        p99[mode] = float(rest)
-if p99.get("open"):
-    print(f"secure/open latency p99: {p99.get('secure', 0) / p99['open']:.2f}x "
-          f"({p99.get('secure', 0):.0f} / {p99['open']:.0f} us)")
+    tag, sep, rest = line.partition(": latency ")
+    if sep:
+        pair, mode = tag.split()
+        lat.setdefault(pair, {})[mode] = [float(x) for x in rest.split()]
+r50, r99 = [], []
+for pair, m in lat.items():
+    if "open" in m and "secure" in m and m["open"][0] > 0 and m["open"][1] > 0:
+        (o50, o99), (s50, s99) = m["open"], m["secure"]
+        r50.append(s50 / o50)
+        r99.append(s99 / o99)
+        print(f"pair {pair}: secure/open latency p50 {r50[-1]:.2f}x ({s50:.0f} / {o50:.0f} us), "
+              f"p99 {r99[-1]:.2f}x ({s99:.0f} / {o99:.0f} us)")
+    else:
+        print(f"pair {pair}: incomplete (a run without a summary or latency)")
+if r99:
+    print(f"secure/open latency over {len(r99)} pair(s): median p50 {statistics.median(r50):.2f}x, "
+          f"median p99 {statistics.median(r99):.2f}x (target p99 <= 1.5x)")
 PY
