@@ -6,10 +6,17 @@
 //!
 //! Asserted against independent truths: the identified parameters against the hidden robot
 //! (3 % where the excitation fixes them: `m_f`, `l_c`, `tau_c`); the run against the planned
-//! orbit of the identified robot (`plan orbit`, a BVP, not the simulator): at least 200 tilts
-//! above 0.01 rad in 100 s, alternating, their mean peak within 10 % of the planned peak.
-//! (Measured: 226 tilts, mean -2.5 %; single peaks reach 16 % off, and the noise adds lift-offs
-//! below 0.01 rad: the "every peak within 10 %" is not met and not asserted.)
+//! orbit of the identified robot (`plan orbit`, a BVP, not the simulator), run with the robust
+//! law's peak trim on that plan (`--orbit-peak`): at least 200 tilts above 0.01 rad in 100 s,
+//! alternating, **every** peak after the first 10 tilts within 10 % of the planned peak, their
+//! mean within 4 %, and at most 10 lift-offs below 0.01 rad (sensor noise). Measured on this
+//! robot and another one, 4 noise seeds each: 226-228 tilts, the last peak more than 10 % off
+//! is the 6th at worst, the worst after the 10th 4.5-6.6 % off, the mean -0.9 to -1.1 %, 0 or
+//! 1 noise lift-off (docs/architecture.md, "State estimation in the controller"). Tilts
+//! counted: lift-offs whose peak exceeds 0.01 rad, a quarter of the orbit's; the first 10 are
+//! the settling of the trim (the first tilt starts from the paper's initial state, 15-30 %
+//! off the identified robot's orbit, and the trim changes the torque scale by 2 % of the
+//! peak's error per tilt).
 
 use std::process::{Command, Output};
 
@@ -105,7 +112,7 @@ fn identified_robot_keeps_its_planned_orbit_over_a_50_ms_round_trip() {
     let plan = tilting(&["plan", "orbit", "--params", &id, "--k", "500", "--json"]);
     let plan: serde_json::Value = serde_json::from_slice(&plan.stdout).unwrap();
     let (e_av, peak) = planned(&plan);
-    let e = e_av.to_string();
+    let (e, p) = (e_av.to_string(), peak.to_string());
     let mut a = vec![
         "simulate",
         "--params",
@@ -126,27 +133,39 @@ fn identified_robot_keeps_its_planned_orbit_over_a_50_ms_round_trip() {
         "0.05",
         "--max-age",
         "60",
+        "--orbit-peak",
+        &p,
         "--json",
     ];
     a.extend(noise);
     let run = tilting(&a);
     let run: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert!(run["fault"].is_null(), "{}", run["fault"]);
-    let peaks: Vec<f64> = run["tilt_peaks"]
+    let all: Vec<f64> = run["tilt_peaks"]
         .as_array()
         .unwrap()
         .iter()
         .map(|p| p["alpha"].as_f64().unwrap())
-        .filter(|a| a.abs() > 0.01)
         .collect();
+    let peaks: Vec<f64> = all.iter().copied().filter(|a| a.abs() > 0.01).collect();
+    let lift_offs = all.len() - peaks.len();
     assert!(peaks.len() >= 200, "{} tilts above 0.01 rad", peaks.len());
+    assert!(lift_offs <= 10, "{lift_offs} lift-offs below 0.01 rad");
     assert!(
         peaks.windows(2).all(|w| (w[0] > 0.0) != (w[1] > 0.0)),
         "the tilts alternate"
     );
+    for (i, a) in peaks.iter().enumerate().skip(10) {
+        let err = (a.abs() - peak) / peak;
+        assert!(
+            err.abs() < 0.10,
+            "tilt {i}: peak {a} vs planned {peak} ({:+.1} %)",
+            100.0 * err
+        );
+    }
     let mean = peaks[10..].iter().map(|a| a.abs()).sum::<f64>() / (peaks.len() - 10) as f64;
     assert!(
-        ((mean - peak) / peak).abs() < 0.10,
+        ((mean - peak) / peak).abs() < 0.04,
         "mean peak {mean} vs planned {peak}"
     );
 }

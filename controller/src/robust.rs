@@ -55,6 +55,12 @@ use tilting_plant::{paper, Mode, Params, State, TorqueLaw};
 /// Trim gain `g`: the relative change of the scale per unit relative peak error, per tilt
 /// (0.035 and 0.05 converge faster but fail more points of the robustness table).
 pub const TRIM_GAIN: f64 = 0.02;
+/// A tilt whose peak is below this share of `p*` does not trim the scale: with noisy angles
+/// and `--predict`, the law sees predicted states, whose mode flickers at a landing (a
+/// "tilt" of 1e-5 rad between two flat samples); each such tilt trimmed the scale up by
+/// almost [`TRIM_GAIN`], and the peaks of issue 17's headline chain ran 40 % high on average.
+/// The orbit's own tilts are ten times above it.
+pub const MIN_TRIM_PEAK: f64 = 0.1;
 /// Flat for this long (s) means the plate has landed for good: the re-entry starts. The orbit
 /// tilts again at each landing; a half period is 0.435 s.
 pub const IDLE: f64 = 0.5;
@@ -156,6 +162,9 @@ impl RobustLaw {
 
     /// The trim after a tilt of peak `p` (rad).
     fn trim(&self, m: &mut Memory, p: f64) {
+        if p < MIN_TRIM_PEAK * self.peak {
+            return;
+        }
         let s = m.scale * (1.0 + TRIM_GAIN * (self.peak - p) / self.peak);
         m.scale = s.clamp(SCALE_RANGE.0, SCALE_RANGE.1);
         m.tilts += 1;
