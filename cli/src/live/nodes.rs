@@ -214,6 +214,15 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
         v.extend(["--torque-limit".into(), limit.to_string()]);
     }
     v.extend(["--max-age".into(), args.max_age.to_string()]);
+    if !job.reference.reference.adapts() {
+        // The excitation starts from the arm at rest upright on the flat plate, where its ramp
+        // starts (as `simulate`'s scenario does), not on the orbit.
+        v.extend([
+            "--mode".into(),
+            "flat".into(),
+            format!("--x0=0,{},0,0", std::f64::consts::FRAC_PI_2),
+        ]);
+    }
     if let Some(p) = args.params_files().0 {
         v.extend(["--params".into(), p.display().to_string()]);
     }
