@@ -595,23 +595,25 @@ pub struct RouterArgs {
     pub listen: Vec<String>,
     /// Nice value (0-19) the router lowers itself to before it opens its session, so that on a
     /// host it shares with the plant or the controller the loop's processes run first (0: keep
-    /// the priority it was started with)
+    /// the priority it was started with; see the README's "Cost" for when a higher value hurts)
     #[arg(long, default_value_t = ROUTER_NICE, value_name = "0-19",
           value_parser = clap::value_parser!(i32).range(0..=19))]
     pub nice: i32,
 }
 
-/// Default nice value of `tilting-router` (`--nice`).
+/// Default nice value of `tilting-router` (`--nice`): 0, the priority it was started with.
 ///
 /// The router carries no message of the control loop (the plant and the controller talk over
 /// their direct link), but with a recorder, a planner or a logger attached it decrypts, routes
 /// and re-encrypts every state and torque at the very moment the controller wakes up for that
-/// state. On a host it shares with the loop, at the same priority, the scheduler often lets
-/// the router run first: `live --secure` measured a loop latency p99 1.5-1.65x the open
-/// loop's, and 0.6-0.9x with the router at nice 19 (README, "Cost"). The router still runs
-/// whenever the loop sleeps, which at 1 kHz is most of each period: what it relays is
-/// delayed by the loop's work, not lost.
-pub const ROUTER_NICE: i32 = 19;
+/// state, and on a host it shares with the loop it competes with the controller for the CPU:
+/// that is the secure loop's extra latency (README, "Cost"). `--nice 19` removes it (loop
+/// latency p99 0.6-0.9x the open loop's instead of 1.0-1.5x, at load 9-11 on 2 cores), but it
+/// is not the default: on a saturated host (load 11-12 on 2 cores) 3 of 3 runs with the router
+/// at nice 19 had 6 to 11 safe-mode entries, against 0 of 4 at nice 0. The loop's publishers
+/// use blocking congestion control, so a router starved of CPU back-pressures the plant and
+/// the controller.
+pub const ROUTER_NICE: i32 = 0;
 
 /// Lowers the calling thread's priority to nice `nice` if it is higher than the current one
 /// (threads made afterwards, zenoh's among them, inherit it on Linux, where a thread is a task
