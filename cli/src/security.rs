@@ -316,6 +316,41 @@ pub fn client_config(dir: &Path, node: &str, router_endpoint: &str) -> Value {
 /// The nodes of the direct loop: the plant listens, the controller dials it.
 pub const DIRECT: [&str; 2] = ["plant", "controller"];
 
+/// The session flags of `node` in the deployed secure topology, from the certificate directory
+/// `certs`: the plant and the controller run the direct loop with their own access control
+/// (`{node}-direct.json5`: the plant `--listen`s on `plant_endpoint`, the controller
+/// `--connect`s to it), and both `--connect` to the router at `router_endpoint`; every other
+/// node is a client of the router (`{node}.json5`). Certificates without the
+/// `{node}-direct.json5` files (made before the direct loop) run the loop through the router.
+/// The one place these flags are made: `tilting live --secure`, the flood benchmark and the
+/// network-namespace test all start their nodes with them.
+pub fn session_flags(
+    certs: &Path,
+    node: &str,
+    plant_endpoint: &str,
+    router_endpoint: &str,
+) -> Vec<String> {
+    let direct = certs.join(format!("{node}-direct.json5"));
+    if !DIRECT.contains(&node) || !direct.is_file() {
+        let client = certs.join(format!("{node}.json5"));
+        return vec![
+            "--zenoh-config".into(),
+            client.display().to_string(),
+            "--connect".into(),
+            router_endpoint.into(),
+        ];
+    }
+    let mut v = vec!["--zenoh-config".into(), direct.display().to_string()];
+    let to_plant = if node == "plant" {
+        "--listen"
+    } else {
+        "--connect"
+    };
+    v.extend([to_plant.into(), plant_endpoint.into()]);
+    v.extend(["--connect".into(), router_endpoint.into()]);
+    v
+}
+
 /// The zenoh configuration of `node` (one of [`DIRECT`]) in the direct loop (`{node}-direct.json5`,
 /// what `tilting live --secure` runs): a **peer** with the TLS link of [`client_config`] (its own
 /// certificate, mutual authentication, names checked), no scouting, and its own access control

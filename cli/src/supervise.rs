@@ -11,7 +11,8 @@
 //!   supervisor dies (Linux: `PR_SET_PDEATHSIG`), and is killed if dropped while running.
 //! - [`Child::stop`] asks politely (SIGINT, then SIGTERM) and kills after a grace period.
 //! - A node prints its summary as the last JSON line of stdout; [`Child::summary`] reads it
-//!   into the node's summary type (`PlantSummary`, `ControllerSummary`).
+//!   into the node's summary type (`PlantSummary`, `ControllerSummary`), or from the node's
+//!   fallback file when its stdout failed (a full disk: `tilting_net::say_summary`).
 
 use anyhow::{anyhow, Context as _};
 use serde::de::DeserializeOwned;
@@ -101,6 +102,10 @@ pub fn endpoint(port: u16) -> String {
 /// A child node. Killed on drop if still running.
 pub struct Child {
     name: String,
+    /// The binary's file name (`tilting-plant`): names the node's fallback summary.
+    bin: String,
+    /// When it was started (a fallback summary older than that is another process's).
+    started: std::time::SystemTime,
     child: std::process::Child,
     stdout: PathBuf,
     stderr: PathBuf,
@@ -153,6 +158,11 @@ impl Child {
             .with_context(|| format!("cannot start {}", bin.display()))?;
         Ok(Self {
             name: name.to_owned(),
+            bin: bin
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            started: std::time::SystemTime::now(),
             child,
             stdout,
             stderr,
@@ -279,15 +289,31 @@ impl Child {
     }
 
     /// The node's summary: the last line of stdout that parses as a `T` (a node's summary type,
-    /// or `serde_json::Value` for any JSON object).
+    /// or `serde_json::Value` for any JSON object), or if there is none, the node's
+    /// [`Child::fallback_summary`].
     pub fn summary<T: DeserializeOwned>(&self) -> Option<T> {
-        self.stdout().lines().rev().find_map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).ok()?;
-            if !v.is_object() {
-                return None;
-            }
-            serde_json::from_value(v).ok()
+        let last_object = |text: String| {
+            text.lines().rev().find_map(|l| {
+                let v: serde_json::Value = serde_json::from_str(l).ok()?;
+                if !v.is_object() {
+                    return None;
+                }
+                serde_json::from_value(v).ok()
+            })
+        };
+        last_object(self.stdout()).or_else(|| {
+            let fallback = self.fallback_summary()?;
+            last_object(std::fs::read_to_string(fallback).ok()?)
         })
+    }
+
+    /// The file where the node put its summary because its stdout failed
+    /// (`tilting_net::summary_fallback`), if this process wrote it (not one of an earlier
+    /// process with the same pid).
+    pub fn fallback_summary(&self) -> Option<PathBuf> {
+        let path = tilting_net::summary_fallback(&self.bin, self.pid());
+        let written = std::fs::metadata(&path).and_then(|m| m.modified()).ok()?;
+        (written >= self.started).then_some(path)
     }
 }
 

@@ -37,7 +37,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use tilting_proto::{codec, Keys, Message};
+use tilting_proto::{codec, Keys, Message, SourceId};
+use zenoh::bytes::ZBytes;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::{Sample, SampleKind};
@@ -254,6 +255,40 @@ pub fn say_out(text: &str) -> std::io::Result<()> {
     r
 }
 
+/// Where node `node` (its binary's name, e.g. `tilting-plant`) of process `pid` puts its
+/// summary when its standard output fails ([`say_summary`]): the system's temporary
+/// directory, `{node}-{pid}-summary.json`.
+pub fn summary_fallback(node: &str, pid: u32) -> PathBuf {
+    std::env::temp_dir().join(format!("{node}-{pid}-summary.json"))
+}
+
+/// Prints a node's JSON summary on standard output ([`say_out`]); if that fails (a full disk
+/// under a redirected stdout: ENOSPC; a closed pipe), writes it to [`summary_fallback`] of
+/// this process instead and says so on stderr, or as a last resort puts the summary itself on
+/// stderr. Returns the fallback file if the summary went there.
+pub fn say_summary(node: &str, json: &str) -> Option<PathBuf> {
+    let Err(e) = say_out(json) else {
+        return None;
+    };
+    let path = summary_fallback(node, std::process::id());
+    match std::fs::write(&path, format!("{json}\n")) {
+        Ok(()) => {
+            say_err(&format!(
+                "{node}: cannot print the summary on stdout ({e}); it is in {}",
+                path.display()
+            ));
+            Some(path)
+        }
+        Err(e2) => {
+            say_err(&format!(
+                "{node}: cannot print the summary on stdout ({e}) nor write {} ({e2}): {json}",
+                path.display()
+            ));
+            None
+        }
+    }
+}
+
 /// Writes `text` and a line end to standard error, ignoring a failure (`eprintln!` panics on
 /// a broken or full stderr; a node must not).
 pub fn say_err(text: &str) {
@@ -274,10 +309,27 @@ pub fn init_tracing(default_filter: &str) {
 }
 
 /// A publisher of raw payloads on one key (tools that forward bytes: `replay`, tests that
-/// send garbage). Nodes use [`TypedPublisher`].
+/// send garbage). Nodes use [`TypedPublisher`]. Every put carries the session's identity as
+/// its attachment ([`source_id`], [`tilting_proto::source`]).
 #[derive(Debug)]
 pub struct RawPublisher {
     publisher: Publisher<'static>,
+    /// The attachment of every put: the session's [`SourceId`].
+    source: ZBytes,
+}
+
+/// The identity of `session` as its publishers attach it: its `ZenohId`.
+pub fn source_id(session: &Session) -> SourceId {
+    SourceId(session.zid().to_le_bytes())
+}
+
+/// The source a sample names in its attachment ([`tilting_proto::source`]), if any.
+pub fn source_of(sample: &Sample) -> Option<SourceId> {
+    let a = sample.attachment()?;
+    if a.len() != tilting_proto::source::ATTACHMENT_SIZE {
+        return None;
+    }
+    SourceId::from_attachment(&a.to_bytes())
 }
 
 /// Quality of service of a publisher.
@@ -306,12 +358,14 @@ impl RawPublisher {
             .map_err(|e| {
                 anyhow::anyhow!("cannot declare a publisher on {key}: {}", zenoh_error(&e))
             })?;
-        Ok(Self { publisher })
+        let source = ZBytes::from(source_id(session).attachment());
+        Ok(Self { publisher, source })
     }
 
-    /// Publishes `bytes` as they are (synchronously).
+    /// Publishes `bytes` as they are (synchronously), with the session's identity attached.
     pub fn put_raw(&self, bytes: &[u8]) -> anyhow::Result<()> {
-        self.publisher.put(bytes).wait().map_err(|e| {
+        let put = self.publisher.put(bytes).attachment(self.source.clone());
+        put.wait().map_err(|e| {
             anyhow::anyhow!("put on {}: {}", self.publisher.key_expr(), zenoh_error(&e))
         })
     }
@@ -462,9 +516,21 @@ pub async fn subscribe_bytes<F>(
 where
     F: Fn(&[u8]) + Send + Sync + 'static,
 {
+    subscribe_sourced(session, key, move |b, _| on_bytes(b)).await
+}
+
+/// Like [`subscribe_bytes`], with the source the sample names ([`source_of`]).
+pub async fn subscribe_sourced<F>(
+    session: &Session,
+    key: &str,
+    on_bytes: F,
+) -> anyhow::Result<zenoh::pubsub::Subscriber<()>>
+where
+    F: Fn(&[u8], Option<SourceId>) + Send + Sync + 'static,
+{
     session
         .declare_subscriber(key.to_owned())
-        .callback(move |s| on_bytes(&s.payload().to_bytes()))
+        .callback(move |s| on_bytes(&s.payload().to_bytes(), source_of(&s)))
         .await
         .map_err(|e| anyhow::anyhow!("cannot subscribe to {key}: {}", zenoh_error(&e)))
 }
@@ -481,10 +547,23 @@ where
     T: Message + Send + 'static,
     F: Fn(T) + Send + Sync + 'static,
 {
+    subscribe_decoded_from(session, counter, move |m, _| on_msg(m)).await
+}
+
+/// Like [`subscribe_decoded`], with the source the sample names ([`source_of`]).
+pub async fn subscribe_decoded_from<T, F>(
+    session: &Session,
+    counter: Arc<DropCounter>,
+    on_msg: F,
+) -> anyhow::Result<zenoh::pubsub::Subscriber<()>>
+where
+    T: Message + Send + 'static,
+    F: Fn(T, Option<SourceId>) + Send + Sync + 'static,
+{
     let key = counter.key().to_owned();
-    subscribe_bytes(session, &key, move |bytes| {
+    subscribe_sourced(session, &key, move |bytes, source| {
         if let Some(m) = counter.decode::<T>(bytes) {
-            on_msg(m);
+            on_msg(m, source);
         }
     })
     .await

@@ -35,6 +35,7 @@ pub mod keys;
 pub mod mode;
 pub mod msg;
 pub mod plausible;
+pub mod source;
 pub mod topic;
 
 /// The protocol version this crate speaks. Protocol 2 added the `measured` byte to
@@ -48,4 +49,5 @@ pub use keys::{KeyError, Keys};
 pub use mode::{Mode, ModeError};
 pub use msg::{ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError};
 pub use plausible::Implausible;
+pub use source::{SourceId, SourcePin};
 pub use topic::{Topic, UnknownTopic};

@@ -17,7 +17,12 @@
 //!   run ahead of the wall clock: between two messages, `seq` grows by at most the elapsed
 //!   wall-clock time over the period, and `time` by at most that time, each plus a slack
 //!   ([`within_clock`]).
+//! - **Source.** Where the source is known (our publishers attach their session's identity:
+//!   [`crate::source`]), a stream is pinned to its first believed source, and a message from
+//!   another session is refused while that one keeps talking ([`foreign`]). This catches a
+//!   second publisher that does not lie about itself, not a forger (see [`crate::source`]).
 
+use crate::source::{self, SourceId};
 use crate::{PlantState, TorqueCommand};
 
 /// Relative tolerance of [`on_grid`] on the period's ends (the plant's times are sums of
@@ -94,6 +99,47 @@ pub enum Implausible {
         /// The fall angle, rad.
         limit: f64,
     },
+    /// A message from a foreign source: another session than the one the stream is pinned to
+    /// ([`crate::source::SourcePin`]).
+    #[error(
+        "{message} from a foreign source: {}, while the {who} is session {pinned}",
+        source::describe(*got)
+    )]
+    ForeignSource {
+        /// The message type.
+        message: &'static str,
+        /// Whose stream it claims to be: `plant` or `controller`.
+        who: &'static str,
+        /// The source it names, if any.
+        got: Option<SourceId>,
+        /// The pinned source.
+        pinned: SourceId,
+    },
+}
+
+impl Implausible {
+    /// Is this the refusal of a foreign source?
+    pub fn is_foreign(&self) -> bool {
+        matches!(self, Self::ForeignSource { .. })
+    }
+}
+
+/// The pin of `who`'s stream (`plant` or `controller`) admits a `message` from `got`, received
+/// at `now`: the [`Implausible::ForeignSource`] refusal of [`source::SourcePin::admits`].
+pub fn foreign(
+    pin: &source::SourcePin,
+    message: &'static str,
+    who: &'static str,
+    got: Option<SourceId>,
+    now: std::time::Instant,
+) -> Result<(), Implausible> {
+    pin.admits(got, now)
+        .map_err(|pinned| Implausible::ForeignSource {
+            message,
+            who,
+            got,
+            pinned,
+        })
 }
 
 /// The plant's rule for a torque command: `|tau| <= max_torque` (N m) and it answers a state
@@ -209,6 +255,9 @@ pub struct StateWindow {
     started: std::time::Instant,
     /// `(seq, time, when)` of the newest believed state.
     last: Option<(u64, f64, std::time::Instant)>,
+    /// `(seq, time, when)` of the origin: state 0 at the start ([`Self::from_start`]) or the
+    /// first believed state.
+    origin: Option<(u64, f64, std::time::Instant)>,
 }
 
 impl StateWindow {
@@ -228,6 +277,7 @@ impl StateWindow {
             from_start,
             started: std::time::Instant::now(),
             last: None,
+            origin: None,
         }
     }
 
@@ -249,25 +299,48 @@ impl StateWindow {
     }
 
     /// Whether state `s`, received at `now`, is believed; a believed state newer than the
-    /// newest becomes the newest.
+    /// newest becomes the newest ([`Self::test`], then [`Self::believe`]).
     pub fn check(&mut self, s: &PlantState, now: std::time::Instant) -> Result<(), Implausible> {
-        let last = match self.last {
-            Some((seq, time, at)) => Some(((seq, time), at)),
-            None if self.from_start => Some(((0, 0.0), self.started)),
+        self.test(s, now)?;
+        self.believe(s, now);
+        Ok(())
+    }
+
+    /// Whether state `s`, received at `now`, passes the window, without believing it (a
+    /// receiver with further rules, such as the source's, believes it after them).
+    pub fn test(&self, s: &PlantState, now: std::time::Instant) -> Result<(), Implausible> {
+        let origin = match self.origin {
+            Some(o) => Some(o),
+            None if self.from_start => Some((0, 0.0, self.started)),
             None => None,
         };
-        if let Some((last, since)) = last {
-            let elapsed = now.duration_since(since).as_secs_f64();
-            within_clock(s, last, elapsed, self.step(), self.slack)?;
-        }
+        // Within the clock since the newest believed state (a lockstep plant runs ahead of the
+        // wall clock one period per state), or since the origin (a real-time plant never
+        // does): the second keeps a receiver that stalled, then believed a backlog of old
+        // states late, from refusing every fresh state after it.
+        let within = |anchor: Option<(u64, f64, std::time::Instant)>| match anchor {
+            Some((seq, time, at)) => {
+                let elapsed = now.saturating_duration_since(at).as_secs_f64();
+                within_clock(s, (seq, time), elapsed, self.step(), self.slack)
+            }
+            None => Ok(()),
+        };
+        within(self.last.or(origin)).or_else(|e| within(origin).map_err(|_| e))?;
         if let Some(p) = self.period {
             on_grid("PlantState", s.seq, s.time, p)?;
         }
-        state_bounds(s, self.fall_angle)?;
+        state_bounds(s, self.fall_angle)
+    }
+
+    /// State `s`, received at `now`, is believed: if newer than the newest, it becomes the
+    /// newest.
+    pub fn believe(&mut self, s: &PlantState, now: std::time::Instant) {
+        if self.origin.is_none() && !self.from_start {
+            self.origin = Some((s.seq, s.time, now));
+        }
         if self.last.is_none_or(|l| s.seq > l.0) {
             self.last = Some((s.seq, s.time, now));
         }
-        Ok(())
     }
 }
 
@@ -352,6 +425,20 @@ mod tests {
         assert!(w.check(&state(15_000, 15.0), now).is_ok());
         // An old state is late, not a lie.
         assert!(w.check(&state(10, 0.01), now).is_ok());
+        // A receiver that stalled: it believed states to t = 2 s, then, 10 s later, a backlog
+        // of old states (t = 2.1 s) late; fresh states (t = 12 s) are within the clock since
+        // the origin, though 10 s past the newest believed one after no wall-clock time.
+        let t0 = now;
+        let mut r = StateWindow::new(Some(1e-3), 1e-4, half_pi, 1.0, true);
+        let at = |s: f64| t0 + std::time::Duration::from_secs_f64(s);
+        assert!(r.check(&state(2000, 2.0), at(2.0)).is_ok());
+        assert!(r.check(&state(2100, 2.1), at(12.0)).is_ok());
+        assert!(r.check(&state(12_000, 12.0), at(12.004)).is_ok());
+        // ... and the forged state is still refused by both anchors.
+        assert!(r
+            .check(&state(1 << 63, (1u64 << 63) as f64 * 1e-3), at(12.005))
+            .is_err());
+        assert!(r.check(&state(40_000, 40.0), at(12.005)).is_err());
         // The period known: off the grid is refused.
         let mut g = StateWindow::new(Some(1e-3), 1e-4, half_pi, 1.0, false);
         assert!(g.check(&state(10, 0.0105), now).is_ok());

@@ -2,16 +2,25 @@
 //! message, it applies the plant's own plausibility rules ([`tilting_proto::plausible`]) to it:
 //! a state inside the wall-clock window and on its period's time grid, below the fall angle; a
 //! torque within the torque bound, answering a state already seen; an event or a status about a
-//! state already seen, on the grid. A refused message is counted and never written, so it
-//! changes neither the recording nor anything judged from it (the status line, the peaks).
+//! state already seen, on the grid; and where the source is known, from the plant's session
+//! (states, events, statuses) or the controller's (torques), each pinned to the first believed
+//! message's source ([`tilting_proto::source`]). A refused message is counted and never
+//! written, so it changes neither the recording nor anything judged from it (the status line,
+//! the peaks).
 
 use crate::recorder::Record;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use tilting_proto::plausible::{self, Implausible, StateWindow};
+use tilting_proto::{SourceId, SourcePin};
 
 /// Delivery slack of the wall-clock window (s): how far the plant's messages may run ahead of
 /// the wall clock as the recorder sees them (a burst after a stall of the recorder's thread).
 pub const SLACK: f64 = 1.0;
+
+/// How long the plant's or the controller's pinned source may be silent before another
+/// session may take its place (s): a controller restarted after a crash is a new session.
+/// Half a second, the status line's silence alarm.
+pub const PIN_LAPSE: f64 = 0.5;
 
 /// The plausibility rules a recorder applies.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,11 +40,14 @@ pub struct Rules {
     pub from_start: bool,
 }
 
-/// The gate of one recording: the state window of the rules.
+/// The gate of one recording: the state window of the rules, and the pinned sources of the
+/// plant's and the controller's streams.
 #[derive(Debug)]
 pub(crate) struct Guard {
     rules: Rules,
     window: StateWindow,
+    plant: SourcePin,
+    controller: SourcePin,
 }
 
 impl Guard {
@@ -49,30 +61,50 @@ impl Guard {
                 SLACK,
                 rules.from_start,
             ),
+            plant: SourcePin::new(Duration::from_secs_f64(PIN_LAPSE)),
+            controller: SourcePin::new(Duration::from_secs_f64(PIN_LAPSE)),
         }
     }
 
-    /// Whether `rec` is believed; a believed state becomes the newest.
-    pub(crate) fn check(&mut self, rec: &Record) -> Result<(), Implausible> {
+    /// Whether `rec` from `source` is believed: the rules of its message, then its source;
+    /// a believed state becomes the newest, and a believed message's source holds the pin.
+    pub(crate) fn check(
+        &mut self,
+        rec: &Record,
+        source: Option<SourceId>,
+    ) -> Result<(), Implausible> {
         let now = Instant::now();
         let grid = |message, seq, time| match self.rules.period {
             Some(p) => plausible::on_grid(message, seq, time, p),
             None => Ok(()),
         };
+        let plant =
+            |pin: &SourcePin, message| plausible::foreign(pin, message, "plant", source, now);
         match rec {
-            Record::State(s) => self.window.check(s, now),
+            Record::State(s) => {
+                self.window.test(s, now)?;
+                plant(&self.plant, "PlantState")?;
+                self.window.believe(s, now);
+            }
             Record::Torque(c) => {
-                plausible::torque(c, self.window.newest(now), self.rules.max_torque)
+                plausible::torque(c, self.window.newest(now), self.rules.max_torque)?;
+                plausible::foreign(&self.controller, "TorqueCommand", "controller", source, now)?;
+                self.controller.believe(source, now);
+                return Ok(());
             }
             Record::Event(e) => {
                 plausible::ahead("ModeEvent", e.seq, self.window.newest(now))?;
-                grid("ModeEvent", e.seq, e.time)
+                grid("ModeEvent", e.seq, e.time)?;
+                plant(&self.plant, "ModeEvent")?;
             }
             Record::Status(st) => {
                 plausible::ahead("Status", st.seq, self.window.newest(now))?;
-                grid("Status", st.seq, st.time)
+                grid("Status", st.seq, st.time)?;
+                plant(&self.plant, "Status")?;
             }
-            Record::Reference(_) | Record::Wire(..) => Ok(()),
+            Record::Reference(_) | Record::Wire(..) => return Ok(()),
         }
+        self.plant.believe(source, now);
+        Ok(())
     }
 }

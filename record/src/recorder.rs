@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_proto::{
-    codec, encode, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand,
+    codec, encode, Keys, ModeEvent, PlantState, Reference, SourceId, Status, Topic, TorqueCommand,
 };
 
 /// Capacity of the queue to the writer thread (messages): about 30 s of a 1 kHz loop.
@@ -91,6 +91,9 @@ pub struct RecordView {
     /// Messages refused by the plausibility rules (not written), per topic
     /// ([`Topic::index`]).
     pub refused: [u64; 5],
+    /// Of those, the messages refused because they came from a foreign source (another
+    /// session than the plant's or the controller's: [`tilting_proto::source`]).
+    pub foreign: u64,
     /// The first refusal, in words.
     pub first_refusal: Option<String>,
     /// The newest status believed (written).
@@ -155,12 +158,29 @@ pub enum RecordError {
 
 /// The recorder: a writer thread and what it has written so far.
 pub struct Recorder {
-    sink: Sink<Record, Writer>,
+    sink: Sink<Received, Writer>,
     view: Arc<Mutex<RecordView>>,
 }
 
-/// A cheap, cloneable handle for subscriber callbacks.
-pub type RecordSender = SinkSender<Record>;
+/// A message and the source it names, if any ([`tilting_proto::source`]).
+type Received = (Record, Option<SourceId>);
+
+/// A cheap, cloneable handle for subscriber callbacks: [`RecordSender::send`] never blocks.
+#[derive(Clone)]
+pub struct RecordSender(SinkSender<Received>);
+
+impl RecordSender {
+    /// Queues `rec`, whose source is unknown.
+    pub fn send(&self, rec: Record) {
+        self.0.send((rec, None));
+    }
+
+    /// Queues `rec` from `source` (`None`: it named none): with plausibility rules, a message
+    /// from another session than the stream's pinned one is refused as foreign.
+    pub fn send_from(&self, rec: Record, source: Option<SourceId>) {
+        self.0.send((rec, source));
+    }
+}
 
 impl Recorder {
     /// The recording of a live run: [`RUN_MCAP`] for `keys`' robot in `dir`, with `csv` the
@@ -219,7 +239,7 @@ impl Recorder {
 
     /// A handle for callbacks.
     pub fn sender(&self) -> RecordSender {
-        self.sink.sender()
+        RecordSender(self.sink.sender())
     }
 
     /// A snapshot of what was written so far (at most [`VIEW_INTERVAL`] old while messages
@@ -340,8 +360,8 @@ impl Writer {
         r.ok()
     }
 
-    /// Whether `rec` passes the plausibility rules; a refusal is counted.
-    fn believed(&mut self, rec: &Record) -> bool {
+    /// Whether `rec` from `source` passes the plausibility rules; a refusal is counted.
+    fn believed(&mut self, rec: &Record, source: Option<SourceId>) -> bool {
         let Some(g) = &mut self.guard else {
             return true;
         };
@@ -353,10 +373,11 @@ impl Writer {
             Record::Reference(_) => Topic::Reference,
             Record::Wire(t, _) => *t,
         };
-        match g.check(rec) {
+        match g.check(rec, source) {
             Ok(()) => true,
             Err(e) => {
                 self.local.refused[topic.index()] += 1;
+                self.local.foreign += u64::from(e.is_foreign());
                 if self.local.first_refusal.is_none() {
                     self.local.first_refusal = Some(e.to_string());
                     self.pending = 64;
@@ -366,14 +387,14 @@ impl Writer {
         }
     }
 
-    fn write(&mut self, rec: Record) -> Result<(), RecordError> {
-        if !matches!(rec, Record::Wire(..)) && !self.believed(&rec) {
+    fn write(&mut self, rec: Record, source: Option<SourceId>) -> Result<(), RecordError> {
+        if !matches!(rec, Record::Wire(..)) && !self.believed(&rec, source) {
             return Ok(());
         }
         match rec {
             Record::Wire(topic, wire) => {
                 if let Some(r) = self.decode(topic, &wire) {
-                    self.write(r)?;
+                    self.write(r, source)?;
                 }
             }
             Record::State(s) => {
@@ -485,16 +506,16 @@ impl Writer {
     }
 }
 
-impl Drain<Record> for Writer {
+impl Drain<Received> for Writer {
     type Output = (RecordView, Result<(), RecordError>);
 
-    fn message(&mut self, rec: Record) {
+    fn message(&mut self, (rec, source): Received) {
         if self.result.is_ok() {
-            self.result = self.write(rec);
+            self.result = self.write(rec, source);
             self.note_error();
         } else {
             // The files stopped; the view goes on (the status line and the summary).
-            self.count_only(rec);
+            self.count_only(rec, source);
         }
         self.pending += 1;
         if self.pending >= 64 {
@@ -535,7 +556,7 @@ impl Writer {
     }
 
     /// After a write error: the view still follows what is believed (counts, status, peaks).
-    fn count_only(&mut self, rec: Record) {
+    fn count_only(&mut self, rec: Record, source: Option<SourceId>) {
         let rec = match rec {
             Record::Wire(topic, wire) => match self.decode(topic, &wire) {
                 Some(r) => r,
@@ -543,7 +564,7 @@ impl Writer {
             },
             r => r,
         };
-        if !self.believed(&rec) {
+        if !self.believed(&rec, source) {
             return;
         }
         match rec {
@@ -649,6 +670,17 @@ mod tests {
 
     fn keys() -> Keys {
         Keys::new("t").unwrap()
+    }
+
+    /// The rules of a 1 kHz plant with the default bounds, started with the recorder.
+    fn rules() -> Rules {
+        Rules {
+            period: Some(1e-3),
+            min_period: 1e-4,
+            max_torque: 116.5,
+            fall_angle: std::f64::consts::FRAC_PI_2,
+            from_start: true,
+        }
     }
 
     #[test]
@@ -779,13 +811,7 @@ mod tests {
     /// (the truth: the same stream recorded without the forgeries).
     #[test]
     fn forged_messages_are_refused_and_change_nothing() {
-        let rules = Rules {
-            period: Some(1e-3),
-            min_period: 1e-4,
-            max_torque: 116.5,
-            fall_angle: std::f64::consts::FRAC_PI_2,
-            from_start: true,
-        };
+        let rules = rules();
         let run = |forge: bool| {
             let tmp = tempfile::tempdir().unwrap();
             let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules)).unwrap();
@@ -825,6 +851,71 @@ mod tests {
         assert_eq!(span, Some((0.0, 0.199)));
         assert_eq!(v.peaks, clean.peaks);
         assert_eq!(clean.refused, [0; 5]);
+    }
+
+    /// A second session publishing plausible states (one period ahead, on the grid) and
+    /// torques amid the plant's and the controller's streams, naming no source or its own:
+    /// every one refused as foreign, and the recording is the honest stream's (the truth: the
+    /// same stream recorded alone). A forger that copies the plant's id passes: the identity
+    /// is the publisher's claim ([`tilting_proto::source`]).
+    #[test]
+    fn messages_from_a_foreign_source_are_refused_and_change_nothing() {
+        let rules = rules();
+        let (plant, ctl, other) = (
+            Some(SourceId([1; 16])),
+            Some(SourceId([2; 16])),
+            Some(SourceId([3; 16])),
+        );
+        let run = |forge: bool, copy_id: bool| {
+            let tmp = tempfile::tempdir().unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules)).unwrap();
+            let tx = rec.sender();
+            for k in 0..200u64 {
+                if forge && k >= 50 && k < 60 {
+                    let from = match (copy_id, k % 2) {
+                        (true, _) => plant,
+                        (false, 0) => other,
+                        (false, _) => None,
+                    };
+                    tx.send_from(Record::State(state(k, 1, 0.3)), from);
+                    let torque_from = if copy_id { ctl } else { from };
+                    let t = TorqueCommand {
+                        seq: k - 1,
+                        tau: 3.25,
+                    };
+                    tx.send_from(Record::Torque(t), torque_from);
+                }
+                let s = state(k, 1, 0.03 * (k as f64 * 0.06).sin());
+                tx.send_from(Record::State(s), plant);
+                tx.send_from(Record::Torque(TorqueCommand { seq: k, tau: 0.5 }), ctl);
+            }
+            let v = rec.finish().unwrap();
+            let file = crate::read(&tmp.path().join(RUN_MCAP)).unwrap();
+            let states: Vec<Vec<u8>> = file
+                .messages()
+                .filter(|m| m.topic == Topic::State)
+                .map(|m| m.wire)
+                .collect();
+            (v, states)
+        };
+        let (clean, truth) = run(false, false);
+        let (v, states) = run(true, false);
+        assert_eq!(v.refused, [10, 10, 0, 0, 0], "{v:?}");
+        assert_eq!(v.foreign, 20);
+        let first = v.first_refusal.as_deref().unwrap();
+        assert!(
+            first.contains("PlantState from a foreign source"),
+            "{first}"
+        );
+        assert_eq!(states, truth);
+        assert_eq!((v.states, v.torques, v.missing_states), (200, 200, 0));
+        assert_eq!(v.peaks, clean.peaks);
+        assert_eq!((clean.refused, clean.foreign), ([0; 5], 0));
+        // The limit: the plant's own id, copied, is believed (the forged state of seq k takes
+        // the place of the plant's, which then counts as a repeat).
+        let (v, states) = run(true, true);
+        assert_eq!((v.refused, v.foreign), ([0; 5], 0));
+        assert_ne!(states, truth);
     }
 
     #[test]

@@ -5,18 +5,22 @@
 //! cargo run --release -p tilting-tests --example flood_bench -- --seconds 5
 //! ```
 //!
-//! Four real-time runs at 1 kHz of `tilting-plant` and `tilting-controller` as processes, each
+//! Five real-time runs at 1 kHz of `tilting-plant` and `tilting-controller` as processes, each
 //! `--seconds` long:
 //!
 //! 1. **open, quiet**: the default topology (loopback peers, no authentication);
 //! 2. **open, flood**: the same, with a flooder peer that publishes, as fast as zenoh takes
 //!    them, spoofed plausible states, torques answering future states, absurd torques (1e9 N m)
-//!    and undecodable payloads on the state and torque keys: before the fix, all of it reaches
-//!    the plant and the controller;
-//! 3. **secure, quiet**: `--secure`'s topology (a `tilting-router` with mutual TLS and access
-//!    control, the nodes its clients);
-//! 4. **secure, flood**: the same flooder, holding a valid certificate of the wrong identity
-//!    (the logger's): the router drops its puts at ingress.
+//!    and undecodable payloads on the state and torque keys: all of it reaches the plant and
+//!    the controller, which refuse it by their rules;
+//! 3. **secure, quiet**: the deployed topology of `live --secure`, with the flags
+//!    `tilting::security::session_flags` gives `live` (the direct TLS loop between the plant
+//!    and the controller, each with its own access control, beside a `tilting-router` with
+//!    mutual TLS and access control);
+//! 4. **secure, flood via router**: the same flooder, holding a valid certificate of the wrong
+//!    identity (the logger's), a client of the router: the router drops its puts at ingress;
+//! 5. **secure, flood at plant**: the same flooder dialling the plant's own TLS endpoint: the
+//!    plant's own access control drops its puts.
 //!
 //! For each run it prints the deadline-miss rate of the plant (misses / periods), what the
 //! plant and the controller received, and how many messages the flooder sent.
@@ -34,6 +38,7 @@ struct Outcome {
     plant_torques: u64,
     plant_dropped: u64,
     plant_stale: u64,
+    plant_foreign: u64,
     ctl_states: u64,
     flood_sent: u64,
 }
@@ -84,7 +89,17 @@ async fn flood(c: Client, stop: Arc<AtomicBool>, sent: Arc<AtomicU64>) {
     let _ = c.session.close().await;
 }
 
-async fn run(secure: bool, flooding: bool, seconds: f64, tag: &str) -> Outcome {
+/// Where the flooder is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Flood {
+    None,
+    /// A client of the router (secure) or a peer of the plant (open).
+    Router,
+    /// Dialling the plant's own endpoint (secure).
+    Plant,
+}
+
+async fn run(secure: bool, flooding: Flood, seconds: f64, tag: &str) -> Outcome {
     let dir = Scratch::new(tag);
     let robot = robot(tag);
     let keys = Keys::new(&robot).unwrap();
@@ -92,26 +107,32 @@ async fn run(secure: bool, flooding: bool, seconds: f64, tag: &str) -> Outcome {
     let duration = seconds.to_string();
     let certs = dir.path().join("certs");
     let mut router = None;
-    let (plant_flags, ctl_flags, ep) = if secure {
+    let robot_flags = ["--robot".to_owned(), robot.clone()];
+    // (plant's flags, controller's flags, router's endpoint, plant's endpoint)
+    let (plant_flags, ctl_flags, router_ep, plant_ep) = if secure {
         tilting::security::generate(&keys, &certs, &[], "tls/127.0.0.1:7447", &[]).unwrap();
         let ep = format!("tls/127.0.0.1:{}", free_port());
+        let plant_ep = format!("tls/127.0.0.1:{}", free_port());
         router = Some(start_router(dir.path(), &certs, &ep));
         let flags = |node: &str| -> Vec<String> {
-            vec![
-                "--robot".into(),
-                robot.clone(),
-                "--zenoh-config".into(),
-                certs.join(format!("{node}.json5")).display().to_string(),
-                "--connect".into(),
-                ep.clone(),
-            ]
+            let mut v = robot_flags.to_vec();
+            v.extend(tilting::security::session_flags(
+                &certs, node, &plant_ep, &ep,
+            ));
+            v
         };
-        (flags("plant"), flags("controller"), ep)
+        (
+            flags("plant"),
+            flags("controller"),
+            ep.clone(),
+            plant_ep.clone(),
+        )
     } else {
         let port = free_port();
         (
             plant_args(&robot, port, &[]),
             peer_args(&robot, port, &[]),
+            endpoint(port),
             endpoint(port),
         )
     };
@@ -121,11 +142,16 @@ async fn run(secure: bool, flooding: bool, seconds: f64, tag: &str) -> Outcome {
     let mut ctl = Proc::spawn("controller", &ctl_bin, &ctl_flags, dir.path());
     let stop = Arc::new(AtomicBool::new(false));
     let sent = Arc::new(AtomicU64::new(0));
-    let flooder = if flooding {
+    let flooder = if flooding != Flood::None {
         let c = if secure {
-            Client::open_config(&robot, &certs.join("logger.json5"), &ep).await
+            let to = if flooding == Flood::Plant {
+                &plant_ep
+            } else {
+                &router_ep
+            };
+            Client::open_config(&robot, &certs.join("logger.json5"), to).await
         } else {
-            let port: u16 = ep.rsplit(':').next().unwrap().parse().unwrap();
+            let port: u16 = plant_ep.rsplit(':').next().unwrap().parse().unwrap();
             Client::open(&robot, None, Some(port)).await
         };
         Some(tokio::spawn(flood(c, stop.clone(), sent.clone())))
@@ -156,6 +182,7 @@ async fn run(secure: bool, flooding: bool, seconds: f64, tag: &str) -> Outcome {
         plant_torques: p.torques_received,
         plant_dropped: p.torques_dropped,
         plant_stale: p.torques_stale,
+        plant_foreign: p.torques_foreign,
         ctl_states: c.states_received,
         flood_sent: sent.load(Ordering::Relaxed),
     }
@@ -178,7 +205,7 @@ async fn main() {
         }
     }
     println!(
-        "{:<16} {:>8} {:>8} {:>8} {:>12} {:>10} {:>10} {:>12} {:>12}",
+        "{:<26} {:>8} {:>8} {:>8} {:>12} {:>10} {:>10} {:>10} {:>12} {:>12}",
         "run",
         "periods",
         "misses",
@@ -186,19 +213,23 @@ async fn main() {
         "plant torq",
         "dropped",
         "stale",
+        "foreign",
         "ctl states",
         "flood sent"
     );
-    for (secure, flooding, name) in [
-        (false, false, "open, quiet"),
-        (false, true, "open, flood"),
-        (true, false, "secure, quiet"),
-        (true, true, "secure, flood"),
-    ] {
-        let tag = format!("flood{}{}", u8::from(secure), u8::from(flooding));
-        let o = run(secure, flooding, seconds, &tag).await;
+    for (i, (secure, flooding, name)) in [
+        (false, Flood::None, "open, quiet"),
+        (false, Flood::Router, "open, flood"),
+        (true, Flood::None, "secure, quiet"),
+        (true, Flood::Router, "secure, flood via router"),
+        (true, Flood::Plant, "secure, flood at plant"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let o = run(secure, flooding, seconds, &format!("flood{i}")).await;
         println!(
-            "{:<16} {:>8} {:>8} {:>8.2} {:>12} {:>10} {:>10} {:>12} {:>12}",
+            "{:<26} {:>8} {:>8} {:>8.2} {:>12} {:>10} {:>10} {:>10} {:>12} {:>12}",
             name,
             o.steps,
             o.misses,
@@ -206,6 +237,7 @@ async fn main() {
             o.plant_torques,
             o.plant_dropped,
             o.plant_stale,
+            o.plant_foreign,
             o.ctl_states,
             o.flood_sent
         );

@@ -7,9 +7,11 @@
 //!   code 4), as the summary says;
 //! - the output on a full filesystem (a 256 kB tmpfs; root only): the alarm names ENOSPC and
 //!   the file within 1 s of the disk filling, the loop goes on, the report is printed and the
-//!   summary written to the fallback path, and no node panics;
+//!   summary written to the fallback path, and no node panics: the plant's and the
+//!   controller's own summaries go to their fallback files, named to the user;
 //! - SIGKILL of the router of `--secure`: the alarm within 1 s;
-//! - SIGSTOP of the plant: the silence alarm within 1 s.
+//! - SIGSTOP of the plant: the silence alarm within 1 s;
+//! - SIGSTOP of the controller beyond zenoh's lease: the token alarm, and the run goes on.
 //!
 //! Each test prints the figure it measured.
 
@@ -200,8 +202,6 @@ fn a_full_disk_is_said_at_once_and_the_report_survives() {
         "{alarm}"
     );
     // The loop went on to its end; the report is on stdout, the summary in the fallback.
-    // (The nodes' own summaries were to go to the full disk too: the verdict then comes from
-    // the recorder's view, which went on counting.)
     assert!(
         stdout.contains("live run failed: 12 s planned"),
         "{stdout}\n{stderr}"
@@ -224,6 +224,32 @@ fn a_full_disk_is_said_at_once_and_the_report_survives() {
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(status.code(), Some(1));
+    // The nodes' own summaries, whose stdout was on the full disk, went to their fallback
+    // files, said in the problems (and on stderr), and are in the live summary: the plant ran
+    // its 12 s, the controller answered.
+    let fallbacks: Vec<std::path::PathBuf> = ["tilting-plant-", "tilting-controller-"]
+        .iter()
+        .map(|node| {
+            let p = s
+                .problems
+                .iter()
+                .find(|p| p.contains("could not print its summary") && p.contains(node))
+                .unwrap_or_else(|| panic!("no fallback of {node}: {:?}", s.problems));
+            std::path::PathBuf::from(p.rsplit("it is in ").next().unwrap())
+        })
+        .collect();
+    for f in &fallbacks {
+        assert!(f.is_file(), "{}", f.display());
+        assert!(stderr.contains(&*f.display().to_string()), "{stderr}");
+        let _ = std::fs::remove_file(f);
+    }
+    let plant = s
+        .plant
+        .as_ref()
+        .expect("the plant's summary, from its fallback");
+    assert!((plant.time - 12.0).abs() < 0.01, "{}", plant.time);
+    let ctl = s.controller.as_ref().expect("the controller's summary");
+    assert!(ctl.torques_published > 1000, "{ctl:?}");
 }
 
 #[test]
@@ -294,4 +320,78 @@ fn a_silent_plant_is_said_within_a_second() {
         live.logs()
     );
     assert!(out.join("summary.json").exists());
+}
+
+/// A controller that stops answering while its process lives (SIGSTOP), for longer than
+/// zenoh's lease (10 s by default: its peers then close its transport and its liveliness token
+/// goes away), is said by the token alarm, on its own line, at the next of the monitor's
+/// 200 ms ticks after the loss: "controller link LOST". After SIGCONT the controller's session
+/// reconnects, the plant leaves the safe mode and the run goes on to its end.
+///
+/// Only generous bounds on time: the alarm within 40 s of the stop (the lease, plus the lease
+/// check's own period, on a loaded machine), and the run's end within 60 s of its planned
+/// length.
+#[test]
+fn a_lost_controller_token_is_said_and_the_run_goes_on() {
+    let _turn = realtime_turn();
+    let dir = Scratch::new("token");
+    let out = dir.path().join("out");
+    let duration = 40.0;
+    let mut live = start_live(&dir, &out, "token", &["--duration", &duration.to_string()]);
+    std::thread::sleep(Duration::from_millis(1000));
+    let ctl = child_named(live.pid() as u32, "tilting-controller").expect("the controller");
+    signal(ctl, libc::SIGSTOP);
+    let stopped = Instant::now();
+    let said = loop {
+        if let Some(l) = live
+            .stderr()
+            .lines()
+            .find(|l| l.contains("ALARM") && l.contains("controller link LOST"))
+        {
+            break (stopped.elapsed().as_secs_f64(), l.to_owned());
+        }
+        if stopped.elapsed() > Duration::from_secs(40) || live.try_wait().is_some() {
+            signal(ctl, libc::SIGCONT);
+            panic!("no token alarm\n{}", live.stderr());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    signal(ctl, libc::SIGCONT);
+    let resumed = stopped.elapsed().as_secs_f64();
+    let status = live.expect_exit(Duration::from_secs_f64(duration + 60.0));
+    let stderr = live.stderr();
+    eprintln!(
+        "controller stopped: token alarm after {:.3} s ({}), resumed at {resumed:.3} s; exit {status}",
+        said.0, said.1
+    );
+    assert!(
+        said.1.contains("its liveliness token is gone"),
+        "{}",
+        said.1
+    );
+    // The run went on to its planned end and reported: completed (0), orbit lost (4) or a
+    // fault (3) after the long safe hold; never a failure of `live` itself (1).
+    assert!(
+        matches!(status.code(), Some(0 | 3 | 4)),
+        "{status}\n{}",
+        live.logs()
+    );
+    let s = summary_at(&out.join("summary.json"));
+    let plant = s.plant.as_ref().expect("the plant's summary");
+    assert_eq!(
+        s.controller_exit.as_deref(),
+        Some("exit status: 0"),
+        "{stderr}"
+    );
+    if plant.fault.is_none() {
+        assert!(
+            (plant.time - duration).abs() < 0.01,
+            "the plant ran to its end: {} s",
+            plant.time
+        );
+    }
+    // The stop tripped the watchdog, and the controller's return ended the safe mode.
+    let first = plant.safe_modes.first().expect("a safe-mode stay");
+    assert!(first.end.is_some(), "{:?}", plant.safe_modes);
+    assert!(plant.token_losses >= 1, "{plant:?}");
 }

@@ -4,6 +4,10 @@
 //!   (`tau = 1e6` N m) from an outside zenoh peer into a running `tilting live`: refused, counted in the status line, the
 //!   report and `summary.json`, and neither the recording (its state count and span) nor the
 //!   verdict changes;
+//! - an outside peer that publishes well-formed, plausible states and torques on the plant's
+//!   and the controller's keys (in the window, on the time grid, below the bounds), naming no
+//!   source or another session's: refused as from a foreign source by the front door, the
+//!   controller and the plant, counted, and never recorded;
 //! - hostile files: `--params /dev/zero` and a scenario file of `/dev/zero` get a clear error
 //!   at the size limit; `tilting info`, `replay` and `animate --from` on a recording with
 //!   flipped bits end with an error or a partial read, never an abort.
@@ -21,15 +25,17 @@ fn live_summary(out: &Path) -> LiveSummary {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
 }
 
-#[test]
-fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
-    let tilting = bin("tilting");
-    let _turn = realtime_turn();
-    let dir = Scratch::new("forged");
+/// A running `tilting live` of `duration` s for robot `robot(tag)` with the plant on a free
+/// port, its output in `{dir}/out`: waits until its loop tilts. Returns it, the robot's name,
+/// the plant's port and the output directory.
+fn live_with_open_port(
+    dir: &Scratch,
+    tag: &str,
+    duration: f64,
+) -> (Proc, String, u16, std::path::PathBuf) {
     let out = dir.path().join("out");
-    let robot = robot("forged");
+    let robot = robot(tag);
     let port = free_port();
-    let duration = 6.0;
     let args: Vec<String> = [
         "live".into(),
         "--duration".into(),
@@ -42,13 +48,22 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
         out.display().to_string(),
     ]
     .into();
-    let mut live = Proc::spawn("live", &tilting, &args, dir.path());
-    // An outside peer joins the plant's port once the loop runs.
+    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
     let t0 = Instant::now();
     while !live.stderr().contains("tilts") {
         assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
         std::thread::sleep(Duration::from_millis(100));
     }
+    (live, robot, port, out)
+}
+
+#[test]
+fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
+    let _turn = realtime_turn();
+    let dir = Scratch::new("forged");
+    let duration = 6.0;
+    // An outside peer joins the plant's port once the loop runs.
+    let (mut live, robot, port, out) = live_with_open_port(&dir, "forged", duration);
     let rt = tokio::runtime::Runtime::new().unwrap();
     let _rogue = rt.block_on(async {
         let rogue = Client::open(&robot, None, Some(port)).await;
@@ -110,6 +125,144 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
     assert!(!stderr.contains("orbit LOST"), "{stderr}");
     let plant = s.plant.expect("the plant's summary");
     assert!(plant.torques_dropped >= 1, "{plant:?}");
+}
+
+/// An outside peer publishes plausible lies: states one period ahead of the newest one it
+/// heard, on the time grid, with `alpha = 0.3` rad and a marker `beta`, and torques (`3.25`
+/// N m) answering the newest state; half of each name no source, half a made-up session. Every
+/// rule but the source's lets them through, so the truth is the source: the front door counts
+/// each as foreign and records none (no marker in `run.mcap`, one state per period), the
+/// controller answers none, the plant applies none.
+///
+/// The pins lapse after 0.5 s (the front door, the controller) and `--watchdog` periods (the
+/// plant, 50 ms) of silence from the pinned session: the exact counts hold unless the plant or
+/// the controller stalled that long, which the plant's watchdog would show (checked).
+#[test]
+fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::Arc;
+    use tilting_proto::SourceId;
+    const MARK_BETA: f64 = 1.234567;
+    const MARK_TAU: f64 = 3.25;
+    let _turn = realtime_turn();
+    let dir = Scratch::new("foreign");
+    let duration = 6.0;
+    let (mut live, robot, port, out) = live_with_open_port(&dir, "foreign", duration);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (sent, _rogue) = rt.block_on(async {
+        let rogue = Client::open(&robot, None, Some(port)).await;
+        let newest = Arc::new(AtomicU64::new(0));
+        let n = newest.clone();
+        let _sub = tilting_net::subscribe_decoded(
+            &rogue.session,
+            Arc::new(tilting_net::DropCounter::new(rogue.keys.plant_state())),
+            move |s: PlantState| {
+                n.fetch_max(s.seq, Ordering::Relaxed);
+            },
+        )
+        .await
+        .unwrap();
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let s = &rogue.session;
+        let state_pub = s
+            .declare_publisher(rogue.keys.plant_state().to_owned())
+            .await
+            .unwrap();
+        let torque_pub = s
+            .declare_publisher(rogue.keys.controller_torque().to_owned())
+            .await
+            .unwrap();
+        let made_up = SourceId([0xee; 16]).attachment().to_vec();
+        let sent = 200u64;
+        for i in 0..sent {
+            let seq = newest.load(Ordering::Relaxed);
+            let lie = PlantState {
+                seq: seq + 1,
+                time: (seq + 1) as f64 * 1e-3,
+                alpha: 0.3,
+                beta: MARK_BETA,
+                alpha_dot: Some(0.0),
+                beta_dot: Some(0.0),
+                mode: 1,
+            };
+            let torque = TorqueCommand { seq, tau: MARK_TAU };
+            let (state, torque) = (codec::encode(&lie), codec::encode(&torque));
+            if i % 2 == 0 {
+                state_pub.put(state).await.unwrap();
+                torque_pub.put(torque).await.unwrap();
+            } else {
+                state_pub
+                    .put(state)
+                    .attachment(made_up.clone())
+                    .await
+                    .unwrap();
+                torque_pub
+                    .put(torque)
+                    .attachment(made_up.clone())
+                    .await
+                    .unwrap();
+            }
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+        (sent, rogue)
+    });
+    let status = live.expect_exit(Duration::from_secs(40));
+    let (stdout, stderr) = (live.stdout(), live.stderr());
+    assert!(status.success(), "{status}\n{}", live.logs());
+    let s = live_summary(&out);
+    let plant = s.plant.as_ref().expect("the plant's summary");
+    let ctl = s.controller.as_ref().expect("the controller's summary");
+    eprintln!(
+        "{sent} foreign states and torques: front door refused {:?} ({} foreign), controller {} \
+         foreign, plant {} foreign; watchdog trips {}",
+        s.record.refused,
+        s.record.foreign,
+        ctl.states_foreign,
+        plant.torques_foreign,
+        plant.watchdog_trips
+    );
+    // The front door: every lie refused as foreign, and said.
+    assert_eq!(s.record.dropped, 0, "{:?}", s.record);
+    assert_eq!(s.record.refused, [sent, sent, 0, 0, 0], "{:?}", s.record);
+    assert_eq!(s.record.foreign, 2 * sent, "{:?}", s.record);
+    let first = s.record.first_refusal.as_deref().unwrap_or_default();
+    assert!(first.contains("foreign source"), "{first}");
+    assert!(stderr.contains("foreign source)"), "{stderr}");
+    assert!(
+        stdout.contains(&format!("{} from a foreign source", 2 * sent)),
+        "{stdout}"
+    );
+    // The recording: none of the lies, one state per period, no gap.
+    let run = tilting_record::read(&out.join("run.mcap")).unwrap();
+    let mut marked = 0;
+    for m in run.messages() {
+        marked += match m.topic {
+            Topic::State => {
+                u32::from(codec::decode::<PlantState>(&m.wire).unwrap().beta == MARK_BETA)
+            }
+            Topic::Torque => {
+                u32::from(codec::decode::<TorqueCommand>(&m.wire).unwrap().tau == MARK_TAU)
+            }
+            _ => 0,
+        };
+    }
+    assert_eq!(marked, 0, "lies in the recording");
+    let states = run.count(Topic::State);
+    let want = (duration * 1000.0) as u64 + 1;
+    assert!(
+        states + 5 >= want && states <= want,
+        "{states} states, want {want}"
+    );
+    assert_eq!(s.record.missing_states, 0);
+    assert_eq!(s.orbit.as_ref().map(|o| o.state), Some(OrbitState::Holds));
+    // The nodes: the controller answered none of the states, the plant applied none of the
+    // torques (exactly counted unless a stall let a pin lapse: the watchdog would say so).
+    if plant.watchdog_trips == 0 {
+        assert_eq!(ctl.states_foreign, sent, "{ctl:?}");
+        assert_eq!(plant.torques_foreign, sent, "{plant:?}");
+    } else {
+        assert!(ctl.states_foreign > 0 && plant.torques_foreign > 0);
+    }
 }
 
 /// A file that never ends, given as parameters or a scenario, is refused at the size limit

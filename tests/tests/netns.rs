@@ -1,8 +1,13 @@
-//! The deployment topology on one machine: plant, controller and planner each in its own
+//! The deployed topology on one machine: plant, controller and planner each in its own
 //! network namespace (a network stack of its own), joined by veth pairs to a fourth namespace
-//! that runs the `tilting-router` with TLS and access control. A fifth namespace holds a rogue
-//! with valid certificates of the wrong identities: a controller with the logger's certificate
-//! and a planner with a `rogue` certificate signed by the same CA.
+//! that runs the `tilting-router` with TLS and access control and routes between the others.
+//! The nodes start with the flags `tilting live --secure` gives its own
+//! (`tilting::security::session_flags`): the controller dials the plant's own TLS endpoint
+//! across the namespaces (the direct loop, each end with its own access control), and both,
+//! and the planner, are clients or peers of the router. A fifth namespace holds a rogue with
+//! valid certificates of the wrong identities: a controller with the logger's certificate that
+//! dials the plant's own endpoint, and a planner with a `rogue` certificate, a client of the
+//! router.
 //!
 //! The test proves that the loop runs across the namespaces, and that the rogue's torques and
 //! reference are not delivered: the plant received no more torques than the real controller
@@ -74,7 +79,8 @@ async fn three_namespaces_through_a_secure_router() {
         ip(&["netns", "add", ns]);
         ip(&["-n", ns, "link", "set", "lo", "up"]);
     }
-    // Link i: 10.77.i.1 in the node's namespace, 10.77.i.2 on the router's side.
+    // Link i: 10.77.i.1 in the node's namespace, 10.77.i.2 on the router's side; the router's
+    // namespace forwards between the links (the controller reaches the plant through it).
     let mut router_ips = Vec::new();
     for (i, n) in nodes.iter().enumerate() {
         let i = i + 1;
@@ -103,91 +109,102 @@ async fn three_namespaces_through_a_secure_router() {
             &n_if,
         ]);
         ip(&["-n", &ns, "link", "set", &n_if, "up"]);
+        ip(&[
+            "-n",
+            &ns,
+            "route",
+            "add",
+            "default",
+            "via",
+            &format!("10.77.{i}.2"),
+        ]);
         router_ips.push(format!("10.77.{i}.2"));
     }
+    ip(&[
+        "netns",
+        "exec",
+        &router_ns,
+        "sysctl",
+        "-qw",
+        "net.ipv4.ip_forward=1",
+    ]);
+    // The plant's own endpoint (the direct loop), in its namespace: its certificate names it.
+    let plant_ep = "tls/10.77.1.1:7448";
+    let mut hosts = router_ips.clone();
+    hosts.push("10.77.1.1".into());
     let certs = dir.path().join("certs");
     tilting::security::generate(
         &keys,
         &certs,
-        &router_ips,
+        &hosts,
         "tls/10.77.1.2:7447",
         &["rogue".into()],
     )
     .expect("certificates");
-    let cfg = |node: &str| certs.join(format!("{node}.json5")).display().to_string();
     let ep = |i: usize| format!("tls/10.77.{i}.2:7447");
+    // The flags of `live --secure`, with this topology's endpoints.
+    let flags =
+        |node: &str, router: &str| tilting::security::session_flags(&certs, node, plant_ep, router);
     let mut router = start_router_with(
         dir.path(),
         &certs,
         "tls/0.0.0.0:7447",
         &["ip", "netns", "exec", &router_ns],
     );
-    let exec = |tag: &str, ns: &str, bin: &std::path::Path, args: &[&str]| {
+    let exec = |tag: &str, ns: &str, bin: &std::path::Path, args: &[String]| {
         let mut v: Vec<String> = vec!["netns".into(), "exec".into(), ns.into()];
         v.push(bin.display().to_string());
         v.extend(["--robot".into(), robot.clone()]);
-        v.extend(args.iter().map(|s| s.to_string()));
+        v.extend(args.iter().cloned());
         Proc::spawn(tag, std::path::Path::new("ip"), &v, dir.path())
+    };
+    let with = |mut v: Vec<String>, extra: &[&str]| {
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
     };
     let mut plant = exec(
         "plant",
         &name("p"),
         &plant_bin,
-        &[
-            "--zenoh-config",
-            &cfg("plant"),
-            "--connect",
-            &ep(1),
-            "--duration",
-            "3",
-        ],
+        &with(flags("plant", &ep(1)), &["--duration", "3"]),
     );
     let mut planner = exec(
         "planner",
         &name("n"),
         &planner_bin,
-        &[
-            "--zenoh-config",
-            &cfg("planner"),
-            "--connect",
-            &ep(3),
-            "--torque-limit",
-            "60",
-        ],
+        &with(flags("planner", &ep(3)), &["--torque-limit", "60"]),
     );
     let mut ctl = exec(
         "controller",
         &name("c"),
         &ctl_bin,
-        &["--zenoh-config", &cfg("controller"), "--connect", &ep(2)],
+        &flags("controller", &ep(2)),
     );
-    // The rogue: a controller with the logger's certificate (it may listen, so it answers
-    // every state it sees) and a planner with a `rogue` certificate and another law.
+    // The rogue: a controller with the logger's certificate dialling the plant's own endpoint
+    // (it may listen, so it answers every state it sees), and a planner with a `rogue`
+    // certificate and another law, a client of the router.
+    let logger = certs.join("logger.json5").display().to_string();
     let mut rogue_ctl = exec(
         "rogue-controller",
         &name("x"),
         &ctl_bin,
-        &[
-            "--zenoh-config",
-            &cfg("logger"),
-            "--connect",
-            &ep(4),
-            "--torque-limit",
-            "1",
-        ],
+        &with(
+            vec![],
+            &[
+                "--zenoh-config",
+                &logger,
+                "--connect",
+                plant_ep,
+                "--torque-limit",
+                "1",
+            ],
+        ),
     );
     let mut rogue_planner = exec(
         "rogue-planner",
         &name("x"),
         &planner_bin,
-        &[
-            "--zenoh-config",
-            &cfg("rogue"),
-            "--connect",
-            &ep(4),
-            "--torque-limit",
-            "2",
-        ],
+        &with(flags("rogue", &ep(4)), &["--torque-limit", "2"]),
     );
 
     let s = plant.expect_exit(Duration::from_secs(30));

@@ -414,6 +414,17 @@ async fn live(
         problems.push(format!("the recording failed: {e}"));
     }
     shutdown::show_failed_logs(&plant, controller.as_ref());
+    // A node whose stdout failed (a full disk) put its summary in a fallback file: say where.
+    for child in std::iter::once(&plant).chain(controller.as_ref()) {
+        if let Some(f) = child.fallback_summary() {
+            problems.push(format!(
+                "the {} could not print its summary into {} (see its log); it is in {}",
+                child.name(),
+                job.dir.join(format!("{}.json", child.name())).display(),
+                f.display()
+            ));
+        }
+    }
 
     let outcome = report::Outcome {
         end,

@@ -116,26 +116,7 @@ impl Topology {
     /// files run the loop through the router, as clients.
     fn session_flags(&self, node: &str, listen: u16, connect: &[u16]) -> Vec<String> {
         match &self.secure {
-            Some(s) => {
-                let direct = s.certs.join(format!("{node}-direct.json5"));
-                if !direct.is_file() {
-                    let client = s.certs.join(format!("{node}.json5"));
-                    return vec![
-                        "--zenoh-config".into(),
-                        client.display().to_string(),
-                        "--connect".into(),
-                        s.endpoint.clone(),
-                    ];
-                }
-                let mut v = vec!["--zenoh-config".into(), direct.display().to_string()];
-                if node == "plant" {
-                    v.extend(["--listen".into(), self.plant_tls()]);
-                } else {
-                    v.extend(["--connect".into(), self.plant_tls()]);
-                }
-                v.extend(["--connect".into(), s.endpoint.clone()]);
-                v
-            }
+            Some(s) => security::session_flags(&s.certs, node, &self.plant_tls(), &s.endpoint),
             None => {
                 let mut v = vec!["--listen".into(), endpoint(listen)];
                 for c in connect {

@@ -102,6 +102,7 @@ fn record_counts(o: &Outcome, csv: bool) -> RecordCounts {
         repeated_torques: v.repeated_torques,
         invalid: o.invalid,
         refused: v.refused,
+        foreign: v.foreign,
         first_refusal: v.first_refusal.clone(),
         peaks: v.peaks.iter().map(|p| [p.0, p.1]).collect(),
     }

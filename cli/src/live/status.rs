@@ -66,6 +66,9 @@ pub(super) fn status_line(
     }
     if v.refused_total() > 0 {
         line.push_str(&format!(" | refused {}", v.refused_total()));
+        if v.foreign > 0 {
+            line.push_str(&format!(" ({} foreign source)", v.foreign));
+        }
     }
     if dropped > 0 || v.missing_states > 0 {
         line.push_str(&format!(

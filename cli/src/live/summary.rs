@@ -142,6 +142,11 @@ pub struct RecordCounts {
     /// judged), per topic: states, torques, events, status, references.
     #[serde(default)]
     pub refused: [u64; 5],
+    /// Of those, the messages from a foreign source: another zenoh session than the plant's
+    /// (states, events, statuses) or the controller's (torques), each pinned to the first
+    /// believed message's source.
+    #[serde(default)]
+    pub foreign: u64,
     /// The first refusal, in words.
     #[serde(default)]
     pub first_refusal: Option<String>,
@@ -306,7 +311,8 @@ impl LiveSummary {
             let [s, t, e, st, rf] = r.refused;
             let _ = writeln!(
                 out,
-                "refused messages: {refused} implausible (states {s}, torques {t}, events {e}, status {st}, references {rf}; first: {}), {} malformed; none recorded or judged",
+                "refused messages: {refused} implausible (states {s}, torques {t}, events {e}, status {st}, references {rf}; {} from a foreign source; first: {}), {} malformed; none recorded or judged",
+                r.foreign,
                 r.first_refusal.as_deref().unwrap_or("-"),
                 r.invalid,
             );

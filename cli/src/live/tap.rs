@@ -1,5 +1,6 @@
 //! The in-process planner's session of a live run: it subscribes to the five topics for the
-//! recording (the recorder applies the plant's plausibility rules before it believes a message,
+//! recording (with the source each message names: the recorder applies the plant's
+//! plausibility rules and the pinned sources before it believes a message,
 //! and the status line reads the plant's latest status from it), watches the plant's and the
 //! controller's liveliness tokens, then publishes the reference.
 
@@ -7,7 +8,7 @@ use super::summary::PlannerCounts;
 use crate::record::{Record, Recorder};
 use std::sync::Arc;
 use std::time::Instant;
-use tilting_net::{subscribe_decoded, watch_presence, DropCounter, Presence, Role, ZenohArgs};
+use tilting_net::{subscribe_decoded_from, watch_presence, DropCounter, Presence, Role, ZenohArgs};
 use tilting_planner::node::ReferencePublisher;
 use tilting_proto::{Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
 use zenoh::pubsub::Subscriber;
@@ -57,36 +58,36 @@ impl Tap {
         let [state, torque, event, status, refs] = counters.clone();
         let tx = recorder.sender();
         let mut subscribers = vec![
-            subscribe_decoded(&session, state, move |m: PlantState| {
-                tx.send(Record::State(m))
+            subscribe_decoded_from(&session, state, move |m: PlantState, from| {
+                tx.send_from(Record::State(m), from)
             })
             .await?,
         ];
         let tx = recorder.sender();
         subscribers.push(
-            subscribe_decoded(&session, torque, move |m: TorqueCommand| {
-                tx.send(Record::Torque(m))
+            subscribe_decoded_from(&session, torque, move |m: TorqueCommand, from| {
+                tx.send_from(Record::Torque(m), from)
             })
             .await?,
         );
         let tx = recorder.sender();
         subscribers.push(
-            subscribe_decoded(&session, event, move |m: ModeEvent| {
-                tx.send(Record::Event(m))
+            subscribe_decoded_from(&session, event, move |m: ModeEvent, from| {
+                tx.send_from(Record::Event(m), from)
             })
             .await?,
         );
         let tx = recorder.sender();
         subscribers.push(
-            subscribe_decoded(&session, status, move |m: Status| {
-                tx.send(Record::Status(m))
+            subscribe_decoded_from(&session, status, move |m: Status, from| {
+                tx.send_from(Record::Status(m), from)
             })
             .await?,
         );
         let tx = recorder.sender();
         subscribers.push(
-            subscribe_decoded(&session, refs, move |m: Reference| {
-                tx.send(Record::Reference(m))
+            subscribe_decoded_from(&session, refs, move |m: Reference, from| {
+                tx.send_from(Record::Reference(m), from)
             })
             .await?,
         );

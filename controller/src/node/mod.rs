@@ -12,9 +12,15 @@
 //! `--ignore-planner`. A controller started after the planner still gets the reference: it
 //! queries the planner's queryable on the same key at start-up and each time a planner's
 //! liveliness token (`tilting/{robot}/alive/planner`) appears. Invalid payloads are dropped,
-//! counted and logged at a bounded rate; a non-finite torque is never published.
+//! counted and logged at a bounded rate; a non-finite torque is never published. A state
+//! must pass the plant's plausibility window, and where its source is known, come from the
+//! plant's session: the first believed state pins it, and states (and `--predict`'s statuses)
+//! from another session are refused while it keeps talking (`tilting_proto::source`), counted
+//! as `states_foreign`.
 //!
-//! At Ctrl-C or SIGTERM the node prints a JSON summary of its counters on stdout.
+//! At Ctrl-C or SIGTERM the node prints a JSON summary of its counters on stdout; if stdout
+//! fails (a full disk, a closed pipe), it goes to
+//! `$TMPDIR/tilting-controller-{pid}-summary.json` instead, said on stderr.
 
 use anyhow::Context as _;
 use std::process::ExitCode;
@@ -25,8 +31,8 @@ use std::time::Duration;
 use tilting_net::{DropCounter, Qos, Role, TypedPublisher, ZenohArgs};
 use tilting_plant::imperfect::Measurement;
 use tilting_plant::ParamsArgs;
-use tilting_proto::plausible::{StateWindow, MIN_PERIOD};
-use tilting_proto::{Keys, PlantState, Status, TorqueCommand};
+use tilting_proto::plausible::{self, StateWindow, MIN_PERIOD};
+use tilting_proto::{Keys, PlantState, SourceId, SourcePin, Status, TorqueCommand};
 
 use crate::estimate::{EstimatorArgs, Method};
 use crate::predict::{Predict, PredictArgs, Predictor};
@@ -83,6 +89,10 @@ struct Node {
     window: Mutex<StateWindow>,
     /// Well-formed states the window refused (not answered).
     states_refused: AtomicU64,
+    /// The plant's session, pinned by the first believed state ([`PLANT_PIN_LAPSE`]).
+    plant: Mutex<SourcePin>,
+    /// States and statuses refused as from a foreign source (not answered, not used).
+    states_foreign: AtomicU64,
     references: DropCounter,
     torques_published: AtomicU64,
     torques_not_finite: AtomicU64,
@@ -114,25 +124,38 @@ struct Prediction {
     estimates: u64,
 }
 
+/// How long the plant's pinned session may be silent before another may take its place (s):
+/// a plant restarted under a running controller is a new session.
+pub const PLANT_PIN_LAPSE: f64 = 0.5;
+
 impl Node {
-    fn on_state(&self, bytes: &[u8]) {
+    fn on_state(&self, bytes: &[u8], source: Option<SourceId>) {
         let Some(s) = self.states.decode::<PlantState>(bytes) else {
             return;
         };
         let Ok(mode) = s.mode() else {
             return; // unreachable: decode validated the mode
         };
+        let now = std::time::Instant::now();
         let believed = {
-            let mut w = self.window.lock().unwrap_or_else(|e| e.into_inner());
-            w.check(&s, std::time::Instant::now())
+            let w = self.window.lock().unwrap_or_else(|e| e.into_inner());
+            w.test(&s, now).map(|()| w)
         };
-        if let Err(e) = believed {
-            let n = self.states_refused.fetch_add(1, Ordering::Relaxed) + 1;
-            if n.is_power_of_two() {
-                tracing::warn!("state refused, not answered ({n} so far): {e}");
+        let mut window = match believed {
+            Ok(w) => w,
+            Err(e) => {
+                let n = self.states_refused.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_power_of_two() {
+                    tracing::warn!("state refused, not answered ({n} so far): {e}");
+                }
+                return;
             }
+        };
+        if !self.from_plant("PlantState", source, now) {
             return;
         }
+        window.believe(&s, now);
+        drop(window);
         let y = Measurement {
             angles: s.angles(),
             rates: s.rates(),
@@ -252,11 +275,39 @@ impl Node {
     }
 
     /// The plant's status: with `--predict auto`, its median torque age sets the delay.
-    fn on_status(&self, bytes: &[u8]) {
+    /// Whether a `message` from `source`, received at `now`, comes from the plant's pinned
+    /// session (which it then keeps alive, or pins); a refusal is counted and logged at a
+    /// bounded rate.
+    fn from_plant(
+        &self,
+        message: &'static str,
+        source: Option<SourceId>,
+        now: std::time::Instant,
+    ) -> bool {
+        let mut pin = self.plant.lock().unwrap_or_else(|e| e.into_inner());
+        match plausible::foreign(&pin, message, "plant", source, now) {
+            Ok(()) => {
+                pin.believe(source, now);
+                true
+            }
+            Err(e) => {
+                let n = self.states_foreign.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_power_of_two() {
+                    tracing::warn!("refused, not answered ({n} so far): {e}");
+                }
+                false
+            }
+        }
+    }
+
+    fn on_status(&self, bytes: &[u8], source: Option<SourceId>) {
         let Some(m) = &self.predict else { return };
         let Ok(st) = tilting_proto::codec::decode::<Status>(bytes) else {
             return; // the status is advisory here; malformed ones are the logger's business
         };
+        if !self.from_plant("Status", source, std::time::Instant::now()) {
+            return;
+        }
         let mut pr = m.lock().unwrap_or_else(|e| e.into_inner());
         if pr.estimate && pr.period_known && st.age_p50.is_finite() && st.age_p50 >= 0.0 {
             let d = st.age_p50.round() * pr.p.period();
@@ -301,6 +352,7 @@ impl Node {
             states_received: self.states.received(),
             states_dropped: self.states.dropped(),
             states_refused: self.states_refused.load(Ordering::Relaxed),
+            states_foreign: self.states_foreign.load(Ordering::Relaxed),
             torques_published: self.torques_published.load(Ordering::Relaxed),
             torques_not_finite: self.torques_not_finite.load(Ordering::Relaxed),
             publish_errors: self.publish_errors.load(Ordering::Relaxed),
@@ -326,6 +378,11 @@ pub struct ControllerSummary {
     /// ahead of the wall clock, off the time grid, beyond the fall angle) and not answered.
     #[serde(default)]
     pub states_refused: u64,
+    /// Well-formed states (and `--predict`'s statuses) refused because they came from another
+    /// zenoh session than the plant's (pinned by the first believed state; see
+    /// `tilting_proto::source`), not answered.
+    #[serde(default)]
+    pub states_foreign: u64,
     /// Torques published.
     pub torques_published: u64,
     /// States whose torque came out NaN or infinite (not published).
@@ -433,6 +490,8 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
             false,
         )),
         states_refused: AtomicU64::new(0),
+        plant: Mutex::new(SourcePin::new(Duration::from_secs_f64(PLANT_PIN_LAPSE))),
+        states_foreign: AtomicU64::new(0),
         references: DropCounter::new(keys.planner_reference()),
         torques_published: AtomicU64::new(0),
         torques_not_finite: AtomicU64::new(0),
@@ -464,12 +523,17 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
 
     let n = node.clone();
     let _state_sub =
-        tilting_net::subscribe_bytes(&session, keys.plant_state(), move |b| n.on_state(b)).await?;
+        tilting_net::subscribe_sourced(&session, keys.plant_state(), move |b, from| {
+            n.on_state(b, from)
+        })
+        .await?;
     let n = node.clone();
     let _status_sub = match node.predict {
         Some(_) => Some(
-            tilting_net::subscribe_bytes(&session, keys.plant_status(), move |b| n.on_status(b))
-                .await?,
+            tilting_net::subscribe_sourced(&session, keys.plant_status(), move |b, from| {
+                n.on_status(b, from)
+            })
+            .await?,
         ),
         None => None,
     };
@@ -516,7 +580,9 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
     tracing::info!("stopping");
     querier.abort();
     drop(_token);
-    let _ = tilting_net::say_out(
+    // On a full disk or a closed pipe, to a fallback file, said on stderr.
+    let _ = tilting_net::say_summary(
+        "tilting-controller",
         &serde_json::to_string(&node.summary()).context("cannot serialise the summary")?,
     );
     let _ = session.close().await;

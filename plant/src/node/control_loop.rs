@@ -702,6 +702,7 @@ impl Loop {
             torques_received: self.shared.torques.received(),
             torques_dropped: self.shared.torques.dropped(),
             torques_stale: self.shared.stale.load(Ordering::Relaxed),
+            torques_foreign: self.shared.foreign.load(Ordering::Relaxed),
             torques_reordered: self.shared.reordered.load(Ordering::Relaxed),
             torques_late: self.torques_late,
             torques_lost: self.torques_lost,

@@ -29,7 +29,8 @@ use super::summary::LinkEmulation;
 /// A message on its way.
 enum Item {
     State(PlantState),
-    Torque(Vec<u8>),
+    /// The payload and the source the sample named.
+    Torque(Vec<u8>, Option<tilting_proto::SourceId>),
 }
 
 /// A message and when it is due (ns of [`clock::now_ns`]); `order` keeps messages due at the
@@ -147,7 +148,7 @@ impl Emulator {
     }
 
     /// A torque message reaches the plant's end of the torque link.
-    pub(super) fn send_torque(&self, bytes: &[u8]) {
+    pub(super) fn send_torque(&self, bytes: &[u8], source: Option<tilting_proto::SourceId>) {
         let drawn = {
             let mut link = lock(&self.torque_link);
             self.counts.torques_sent.fetch_add(1, Ordering::Relaxed);
@@ -159,8 +160,8 @@ impl Emulator {
         };
         match drawn {
             None => {}
-            Some(d) if d <= 0.0 => self.deliver(Item::Torque(bytes.to_vec())),
-            Some(d) => self.enqueue(d, Item::Torque(bytes.to_vec())),
+            Some(d) if d <= 0.0 => self.deliver(Item::Torque(bytes.to_vec(), source)),
+            Some(d) => self.enqueue(d, Item::Torque(bytes.to_vec(), source)),
         }
     }
 
@@ -181,7 +182,7 @@ impl Emulator {
                     tracing::warn!("cannot publish the state: {e}");
                 }
             }
-            Item::Torque(bytes) => self.shared.on_torque(&bytes),
+            Item::Torque(bytes, source) => self.shared.on_torque(&bytes, source),
         }
     }
 

@@ -2,6 +2,7 @@
 //! thread, which takes them out at each deadline.
 
 use super::*;
+use tilting_proto::{SourceId, SourcePin};
 
 /// State shared by the zenoh callbacks and the pacing thread.
 pub(super) struct Shared {
@@ -28,19 +29,33 @@ pub(super) struct Shared {
     pub(super) stop: AtomicBool,
     /// Torques beyond this magnitude (N m) are refused (`--max-torque`).
     pub(super) max_torque: f64,
+    /// The controller's session, pinned by the first torque believed; it lapses after
+    /// `--watchdog` periods of silence (a restarted controller is a new session).
+    pub(super) controller: Mutex<SourcePin>,
+    /// Plausible torques refused because another session than the controller's sent them.
+    pub(super) foreign: AtomicU64,
+}
+
+/// Where a torque came in.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Ingress {
+    /// Over zenoh, from the source the sample names (`None`: it names none).
+    Zenoh(Option<SourceId>),
+    /// `--ros2`'s `effort_command` (its own checks; no pin).
+    Ros2,
 }
 
 impl Shared {
-    pub(super) fn on_torque(&self, bytes: &[u8]) {
+    pub(super) fn on_torque(&self, bytes: &[u8], source: Option<SourceId>) {
         let Some(cmd) = self.torques.decode::<TorqueCommand>(bytes) else {
             return;
         };
-        self.on_torque_command(cmd);
+        self.on_torque_command(cmd, Ingress::Zenoh(source));
     }
 
     /// A decoded torque (the controller's, or a ROS 2 `effort_command`'s): the plausibility
-    /// rules, then the inbox.
-    pub(super) fn on_torque_command(&self, cmd: TorqueCommand) {
+    /// rules, the source's pin, then the inbox.
+    pub(super) fn on_torque_command(&self, cmd: TorqueCommand, ingress: Ingress) {
         // A torque that decodes can still be a lie: the plausibility rules of
         // `tilting_proto::plausible`, which the recorder of `tilting live` applies too. Beyond
         // the bound it is refused, counted with the malformed ones and logged at a bounded rate;
@@ -56,6 +71,23 @@ impl Shared {
                 self.stale.fetch_add(1, Ordering::Relaxed);
                 return;
             }
+        }
+        // Then its source: the controller's session, where known (`tilting_proto::source`).
+        if let Ingress::Zenoh(source) = ingress {
+            let at = Instant::now();
+            let mut pin = self.controller.lock().unwrap_or_else(|e| e.into_inner());
+            let who = "controller";
+            if let Err(e) =
+                tilting_proto::plausible::foreign(&pin, "TorqueCommand", who, source, at)
+            {
+                drop(pin);
+                let n = self.foreign.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_power_of_two() {
+                    tracing::warn!("torque refused ({n} so far): {e}");
+                }
+                return;
+            }
+            pin.believe(source, at);
         }
         let now = clock::now_ns();
         let mut inbox = self.inbox.lock().unwrap_or_else(|e| e.into_inner());

@@ -48,12 +48,23 @@
 //! The watchdog's count and the safe mode's torque are [`crate::safe`]'s, the rule `tilting
 //! simulate` applies to its loop over links too.
 //!
+//! # Whose torques
+//!
+//! A torque must pass the plausibility rules (`tilting_proto::plausible`: `--max-torque`, a
+//! state already published), and where its source is known (our publishers attach their
+//! zenoh session's id: `tilting_proto::source`), come from the controller's session: the first
+//! torque believed pins it, and torques from another session are refused, counted
+//! (`torques_foreign`) and logged at a bounded rate while it keeps answering; after
+//! `--watchdog` periods of silence the pin lapses (a restarted controller is a new session).
+//!
 //! # End of a run
 //!
 //! After `--duration` plant seconds (status `stopped`, exit code 0), at Ctrl-C/SIGTERM
 //! (`stopped`, 0), or at a fault of the model (fall, contact loss, Zeno, non-finite torque:
 //! the event and a `faulted` status with the reason are published, exit code
-//! [`EXIT_FAULT`]). A JSON summary of the run is printed on stdout.
+//! [`EXIT_FAULT`]). A JSON summary of the run is printed on stdout; if stdout fails (a full
+//! disk, a closed pipe), it goes to `$TMPDIR/tilting-plant-{pid}-summary.json` instead, said on
+//! stderr (`tilting_net::say_summary`).
 
 mod args;
 pub mod clock;
@@ -137,6 +148,10 @@ async fn run_async(
         stop: AtomicBool::new(false),
         max_torque: args.max_torque(),
         reordered: AtomicU64::new(0),
+        controller: Mutex::new(tilting_proto::SourcePin::new(Duration::from_secs_f64(
+            args.safe.watchdog as f64 * args.period(),
+        ))),
+        foreign: AtomicU64::new(0),
     });
     let ros2 = match args.ros2 {
         true => Some(ros2::Ros2::start(&session, &args, shared.clone()).await?),
@@ -163,12 +178,15 @@ async fn run_async(
     };
     let sh = shared.clone();
     let l = link.clone();
-    let _torque_sub =
-        tilting_net::subscribe_bytes(&session, keys.controller_torque(), move |b| match &l {
-            Some(l) => l.send_torque(b),
-            None => sh.on_torque(b),
-        })
-        .await?;
+    let _torque_sub = tilting_net::subscribe_sourced(
+        &session,
+        keys.controller_torque(),
+        move |b, from| match &l {
+            Some(l) => l.send_torque(b, from),
+            None => sh.on_torque(b, from),
+        },
+    )
+    .await?;
     let sh = shared.clone();
     let (_presence, _presence_sub) =
         tilting_net::watch_presence(&session, keys.alive_controller(), move |alive| {
@@ -251,7 +269,9 @@ async fn run_async(
     if let Some(l) = &link {
         l.stop();
     }
-    let _ = tilting_net::say_out(
+    // On a full disk or a closed pipe, to a fallback file, said on stderr.
+    let _ = tilting_net::say_summary(
+        "tilting-plant",
         &serde_json::to_string(&summary).context("cannot serialise the summary")?,
     );
     // Let the last status and event leave before the session closes.

@@ -89,7 +89,10 @@ impl Ros2 {
                     shared.published_wall_ns.load(Ordering::Acquire),
                     period_ns,
                 );
-                shared.on_torque_command(TorqueCommand { seq, tau: cmd.tau });
+                shared.on_torque_command(
+                    TorqueCommand { seq, tau: cmd.tau },
+                    super::inbox::Ingress::Ros2,
+                );
             },
         )
         .await?;

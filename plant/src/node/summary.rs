@@ -111,6 +111,11 @@ pub struct PlantSummary {
     pub torques_dropped: u64,
     /// Valid torques that did not answer the latest state.
     pub torques_stale: u64,
+    /// Plausible torques refused because another zenoh session than the controller's sent
+    /// them (the first torque believed pins the controller's session; see
+    /// `tilting_proto::source`).
+    #[serde(default)]
+    pub torques_foreign: u64,
     /// Valid torques that arrived after a newer one and were dropped.
     #[serde(default)]
     pub torques_reordered: u64,
