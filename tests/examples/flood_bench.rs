@@ -143,6 +143,11 @@ async fn run(secure: bool, flooding: Flood, seconds: f64, tag: &str) -> Outcome 
     let stop = Arc::new(AtomicBool::new(false));
     let sent = Arc::new(AtomicU64::new(0));
     let flooder = if flooding != Flood::None {
+        // Once the plant listens (the secure plant's own endpoint refuses a client before).
+        let t0 = std::time::Instant::now();
+        while !plant.stderr().contains("plant running") && t0.elapsed().as_secs() < 30 {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
         let c = if secure {
             let to = if flooding == Flood::Plant {
                 &plant_ep

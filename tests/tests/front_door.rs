@@ -48,7 +48,7 @@ fn live_with_open_port(
         out.display().to_string(),
     ]
     .into();
-    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
     let t0 = Instant::now();
     while !live.stderr().contains("tilts") {
         assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
