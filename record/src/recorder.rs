@@ -871,7 +871,7 @@ mod tests {
             let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules)).unwrap();
             let tx = rec.sender();
             for k in 0..200u64 {
-                if forge && k >= 50 && k < 60 {
+                if forge && (50..60).contains(&k) {
                     let from = match (copy_id, k % 2) {
                         (true, _) => plant,
                         (false, 0) => other,

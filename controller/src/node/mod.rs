@@ -151,7 +151,7 @@ impl Node {
                 return;
             }
         };
-        if !self.from_plant("PlantState", source, now) {
+        if !self.is_from_plant("PlantState", source, now) {
             return;
         }
         window.believe(&s, now);
@@ -278,7 +278,7 @@ impl Node {
     /// Whether a `message` from `source`, received at `now`, comes from the plant's pinned
     /// session (which it then keeps alive, or pins); a refusal is counted and logged at a
     /// bounded rate.
-    fn from_plant(
+    fn is_from_plant(
         &self,
         message: &'static str,
         source: Option<SourceId>,
@@ -305,7 +305,7 @@ impl Node {
         let Ok(st) = tilting_proto::codec::decode::<Status>(bytes) else {
             return; // the status is advisory here; malformed ones are the logger's business
         };
-        if !self.from_plant("Status", source, std::time::Instant::now()) {
+        if !self.is_from_plant("Status", source, std::time::Instant::now()) {
             return;
         }
         let mut pr = m.lock().unwrap_or_else(|e| e.into_inner());
