@@ -448,20 +448,31 @@ pub const ROTOR_LUMPED: &str = "pi3 alone is not separable from the rotor here: 
 pub const ROTOR_T_MIN: f64 = 3.0;
 
 /// Why the rotor's share is not seen, if the fit cannot tell `pi4` or `pi5` from zero
-/// (within [`ROTOR_T_MIN`] standard errors).
+/// (within [`ROTOR_T_MIN`] standard errors) or its shares fit no rotor (`j_m > 0`, `n_g > 0`).
 fn rotor_unseen(fit: &Fit, cols: &[usize], corr: f64) -> Option<String> {
     let at = |c: usize| cols.iter().position(|&k| k == c);
     let (i4, i5) = (at(3)?, at(4)?);
     let t = |i: usize| fit.x[i].abs() / (fit.se[i] * corr);
-    (t(i4) < ROTOR_T_MIN || t(i5) < ROTOR_T_MIN).then(|| {
+    let (p4, p5) = (fit.x[i4], fit.x[i5]);
+    let (s4, s5) = (fit.se[i4] * corr, fit.se[i5] * corr);
+    if t(i4) < ROTOR_T_MIN || t(i5) < ROTOR_T_MIN {
+        return Some(format!(
+            "the rotor's share is below this recording's noise (pi4 = {p4:.2e} +- {s4:.1e}, \
+             pi5 = {p5:.2e} +- {s5:.1e} kg m^2): left out, its inertia lumped into pi3 (and \
+             i_l); record larger tilts, or less noise, to see it"
+        ));
+    }
+    // Seen above the noise but not a rotor: pi4 = (n_g - 1) j_m and pi5 = (n_g^2 - 1) j_m
+    // with j_m > 0 and n_g > 0 need pi5 / pi4 > 1 and j_m = pi4^2 / (pi5 - 2 pi4) > 0. A fit
+    // that breaks this has traded the rotor's columns against pi1 and pi3 (they are nearly
+    // collinear when the tilts are few or alike), so it is redone without them rather than
+    // keep a pi3 (and m_f) pulled by an impossible rotor.
+    let physical = p5 / p4 > 1.0 && p5 - 2.0 * p4 != 0.0 && p4 * p4 / (p5 - 2.0 * p4) > 0.0;
+    (!physical).then(|| {
         format!(
-            "the rotor's share is below this recording's noise (pi4 = {:.2e} +- {:.1e}, pi5 = \
-             {:.2e} +- {:.1e} kg m^2): left out, its inertia lumped into pi3 (and i_l); \
-             record larger tilts, or less noise, to see it",
-            fit.x[i4],
-            fit.se[i4] * corr,
-            fit.x[i5],
-            fit.se[i5] * corr
+            "the rotor's share fitted no rotor (pi4 = {p4:.2e} +- {s4:.1e}, pi5 = {p5:.2e} +- \
+             {s5:.1e} kg m^2 give no j_m > 0 and n_g > 0): left out, its inertia lumped into \
+             pi3 (and i_l); record larger and more varied tilts to see it"
         )
     })
 }
@@ -593,3 +604,36 @@ fn advice(idx: &[usize]) -> String {
 }
 
 mod derive;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(p4: f64, p5: f64, se: f64) -> Fit {
+        Fit {
+            x: vec![2.0, 1.7, 3.3, p4, p5],
+            se: vec![se; 5],
+            condition: 1.0,
+            residual_rms: 0.0,
+        }
+    }
+
+    /// A rotor with j_m = 0.01 kg m^2 and n_g = 1.2 (pi4 = (n_g - 1) j_m = 0.002, pi5 =
+    /// (n_g^2 - 1) j_m = 0.0044) seen above the noise is kept; the same shares below 3 standard
+    /// errors are lumped; and shares that no j_m > 0, n_g > 0 produce (the recording of a heavy
+    /// arm gave pi4 = 1.951, pi5 = 1.956 at 3.8 standard errors, and m_f 0.106 for 1.15 kg) are
+    /// lumped too.
+    #[test]
+    fn an_impossible_rotor_is_lumped_like_an_unseen_one() {
+        let cols = [0, 1, 2, 3, 4];
+        assert_eq!(rotor_unseen(&fit(0.002, 0.0044, 1e-5), &cols, 1.0), None);
+        let low = rotor_unseen(&fit(0.002, 0.0044, 1e-3), &cols, 1.0).unwrap();
+        assert!(low.contains("below this recording's noise"), "{low}");
+        let bad = rotor_unseen(&fit(1.951, 1.956, 0.51), &cols, 1.0).unwrap();
+        assert!(bad.contains("fitted no rotor"), "{bad}");
+        // pi5 / pi4 > 1 but j_m = pi4^2 / (pi5 - 2 pi4) < 0 (n_g < 1 with j_m < 0).
+        assert!(rotor_unseen(&fit(0.01, 0.015, 1e-5), &cols, 1.0).is_some());
+        // A reduction gear n_g = 0.5 is a rotor: pi4 = -0.5 j_m, pi5 = -0.75 j_m.
+        assert_eq!(rotor_unseen(&fit(-0.005, -0.0075, 1e-5), &cols, 1.0), None);
+    }
+}
