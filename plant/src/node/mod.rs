@@ -128,14 +128,9 @@ pub fn run(args: PlantArgs) -> anyhow::Result<ExitCode> {
     rt.block_on(run_async(args, keys, plant, record))
 }
 
-async fn run_async(
-    args: PlantArgs,
-    keys: Keys,
-    plant: Plant,
-    record: Option<Recording>,
-) -> anyhow::Result<ExitCode> {
-    let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
-    let shared = Arc::new(Shared {
+/// The state the pacing thread shares with the zenoh callbacks, empty at the start.
+fn shared_state(args: &PlantArgs, keys: &Keys) -> Arc<Shared> {
+    Arc::new(Shared {
         inbox: Mutex::new(None),
         cv: Condvar::new(),
         current_seq: AtomicU64::new(0),
@@ -152,7 +147,17 @@ async fn run_async(
             args.safe.watchdog as f64 * args.period(),
         ))),
         foreign: AtomicU64::new(0),
-    });
+    })
+}
+
+async fn run_async(
+    args: PlantArgs,
+    keys: Keys,
+    plant: Plant,
+    record: Option<Recording>,
+) -> anyhow::Result<ExitCode> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
+    let shared = shared_state(&args, &keys);
     let ros2 = match args.ros2 {
         true => Some(ros2::Ros2::start(&session, &args, shared.clone()).await?),
         false => None,
