@@ -28,7 +28,7 @@ Plan:
               problems, stability, sweeps, and what the orbit survives on a network
 
 Look:
-  figures     The paper's Figs. 4 to 8 as PNG files
+  figures     The paper's Figs. 4 to 8, and 8b and 8c, as PNG files
   animate     The plate and the arm, moving, as an animated GIF (from a simulation or a live run)
   echo        Print a robot's topic live, decoded (one line or one JSON object per message)
   hz          Rate, largest gap and message size of a robot's topics
@@ -79,7 +79,8 @@ enum Command {
     /// Plan: the paper's boundary value problems, stability and sweeps
     #[command(subcommand)]
     Plan(Plan),
-    /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png) in a directory
+    /// The paper's Figs. 4 to 8 as PNG files (fig4.png ... fig8.png), and the continued diagram
+    /// with its Lyapunov exponents (fig8b.png) and the stability region (fig8c.png), in a directory
     Figures(figures::FiguresArgs),
     /// The plate and the arm, moving, as an animated GIF (or PNG frames): from a simulated
     /// scenario (the flags of `simulate`) or a live run's directory (--from DIR)
