@@ -83,6 +83,23 @@ pub struct ZenohArgs {
     /// --connect still apply on top of it.
     #[arg(long = "zenoh-config", value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
+    /// This session's zenoh id (1 to 32 hexadecimal digits, not all zero; replaces the
+    /// configuration's `id`) [default: a random one]. Its publishers attach it to every message,
+    /// and a peer told it (`--plant-id`, `--controller-id`) believes only messages naming it.
+    #[arg(long = "zenoh-id", value_name = "HEX", value_parser = parse_source_id)]
+    pub zenoh_id: Option<SourceId>,
+}
+
+/// A `--zenoh-id`, `--plant-id` or `--controller-id` value: a zenoh id as zenoh prints it
+/// ([`SourceId`]'s `FromStr`).
+pub fn parse_source_id(s: &str) -> Result<SourceId, String> {
+    s.parse()
+}
+
+/// A zenoh id drawn at random (as zenoh draws a session's own), for a node whose id is chosen
+/// before it starts (`tilting live` names its plant's and controller's ids to the other nodes).
+pub fn random_source_id() -> SourceId {
+    SourceId(zenoh::session::ZenohId::default().to_le_bytes())
 }
 
 /// Reads a zenoh configuration file (JSON5 or YAML, by its extension) of at most
@@ -136,6 +153,7 @@ impl ZenohArgs {
             listen: listen.iter().map(|s| s.to_string()).collect(),
             connect: connect.iter().map(|s| s.to_string()).collect(),
             zenoh_config: None,
+            zenoh_id: None,
         }
     }
 
@@ -190,6 +208,11 @@ impl ZenohArgs {
                 .map_err(|e| {
                     anyhow::anyhow!("--connect {:?}: {}", self.connect, zenoh_error(&e))
                 })?;
+        }
+        if let Some(id) = self.zenoh_id {
+            // As zenoh writes ids: lowercase, no leading zero (it refuses anything else).
+            cfg.insert_json5("id", &format!("\"{id}\""))
+                .map_err(|e| anyhow::anyhow!("--zenoh-id {id}: {}", zenoh_error(&e)))?;
         }
         Ok(cfg)
     }

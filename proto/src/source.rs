@@ -15,6 +15,8 @@
 use std::fmt;
 use std::time::{Duration, Instant};
 
+use std::str::FromStr;
+
 /// The tag that starts a source attachment.
 pub const ATTACHMENT_TAG: [u8; 4] = *b"TSRC";
 
@@ -46,6 +48,28 @@ impl SourceId {
     }
 }
 
+/// A source as zenoh writes a `ZenohId` (its `id` configuration field, [`fmt::Display`]): 1 to 32
+/// hexadecimal digits, not all zero, read as one little-endian number.
+impl FromStr for SourceId {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || {
+            format!(
+                "invalid zenoh id {s:?}: allowed 1 to 32 hexadecimal digits (0-9, a-f), not all zero"
+            )
+        };
+        if s.is_empty() || s.len() > 32 || !s.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return Err(bad());
+        }
+        let n = u128::from_str_radix(s, 16).map_err(|_| bad())?;
+        if n == 0 {
+            return Err(bad());
+        }
+        Ok(Self(n.to_le_bytes()))
+    }
+}
+
 /// As zenoh prints a `ZenohId`: the id as a hexadecimal number.
 impl fmt::Display for SourceId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -60,8 +84,12 @@ pub fn describe(source: Option<SourceId>) -> String {
 
 /// The source a stream is pinned to, as one receiver believes it.
 ///
-/// - Before any believed message that names a source, every message is admitted (a peer that
-///   attaches no source, e.g. the Python examples, is never pinned: "where known").
+/// - A pin made with [`SourcePin::expect`] holds its source from the start and never lapses:
+///   every message from another source, or naming none, is refused (the source was known
+///   before the first message: `tilting live` chooses its nodes' zenoh ids, and a node started
+///   by hand is told its peer's id with `--plant-id` / `--controller-id`).
+/// - Otherwise, before any believed message that names a source, every message is admitted (a
+///   peer that attaches no source is never pinned: "where known").
 /// - The first believed message that names a source pins it ([`SourcePin::believe`]).
 /// - While pinned, a message from another source, or naming none, is refused
 ///   ([`SourcePin::admits`]), unless the pinned source has said nothing believed for
@@ -73,6 +101,8 @@ pub struct SourcePin {
     pub lapse: Duration,
     /// The pinned source and when it last sent a believed message.
     pinned: Option<(SourceId, Instant)>,
+    /// The source was known in advance ([`SourcePin::expect`]): the pin never lapses.
+    expected: bool,
 }
 
 impl SourcePin {
@@ -81,7 +111,27 @@ impl SourcePin {
         Self {
             lapse,
             pinned: None,
+            expected: false,
         }
+    }
+
+    /// A pin held by `source` from the start, which never lapses and never moves.
+    pub fn expect(source: SourceId) -> Self {
+        Self {
+            lapse: Duration::MAX,
+            pinned: Some((source, Instant::now())),
+            expected: true,
+        }
+    }
+
+    /// An expected pin for `source` if it is known, else an empty pin that lapses after `lapse`.
+    pub fn expect_or_new(source: Option<SourceId>, lapse: Duration) -> Self {
+        source.map_or_else(|| Self::new(lapse), Self::expect)
+    }
+
+    /// Was the source known in advance ([`SourcePin::expect`])?
+    pub fn is_expected(&self) -> bool {
+        self.expected
     }
 
     /// The pinned source, if any.
@@ -94,6 +144,7 @@ impl SourcePin {
     pub fn admits(&self, source: Option<SourceId>, now: Instant) -> Result<(), SourceId> {
         match self.pinned {
             Some((p, _)) if source == Some(p) => Ok(()),
+            Some((p, _)) if self.expected => Err(p),
             Some((p, last)) if now.saturating_duration_since(last) < self.lapse => Err(p),
             _ => Ok(()),
         }
@@ -102,6 +153,10 @@ impl SourcePin {
     /// A message from `source` received at `now` was believed (after [`SourcePin::admits`]
     /// and every other rule): it pins its source, or keeps the pin alive.
     pub fn believe(&mut self, source: Option<SourceId>, now: Instant) {
+        if self.expected {
+            // Only the expected source is ever admitted: nothing to move.
+            return;
+        }
         match (source, self.pinned) {
             (Some(s), _) => self.pinned = Some((s, now)),
             // Admitted without a source: the pin had lapsed.
@@ -160,5 +215,51 @@ mod tests {
         // A lapsed pin and a believed message without a source: unpinned.
         pin.believe(None, ms(400));
         assert_eq!(pin.pinned(), None);
+    }
+
+    #[test]
+    fn an_expected_source_holds_the_pin_before_any_message_and_forever() {
+        let (a, b) = (SourceId([1; 16]), SourceId([2; 16]));
+        let t0 = Instant::now();
+        let mut pin = SourcePin::expect(a);
+        assert!(pin.is_expected());
+        // Before a's first message, b (the rogue that talks first) and "no source" are refused.
+        assert_eq!(pin.admits(Some(b), t0), Err(a));
+        assert_eq!(pin.admits(None, t0), Err(a));
+        // Even if the caller believes them, the pin does not move.
+        pin.believe(Some(b), t0);
+        pin.believe(None, t0);
+        assert_eq!(pin.pinned(), Some(a));
+        // No lapse: an hour of silence from a, b still refused; a admitted.
+        let hour = t0 + Duration::from_secs(3600);
+        assert_eq!(pin.admits(Some(b), hour), Err(a));
+        assert!(pin.admits(Some(a), hour).is_ok());
+        // Without an expected source, the same rogue would have taken the pin.
+        let mut open = SourcePin::expect_or_new(None, Duration::from_millis(500));
+        assert!(open.admits(Some(b), t0).is_ok());
+        open.believe(Some(b), t0);
+        assert_eq!(open.pinned(), Some(b));
+    }
+
+    #[test]
+    fn zenoh_ids_parse_as_zenoh_prints_them() {
+        // Display and FromStr are inverse on random-looking ids (round trip) ...
+        for n in [
+            1u128,
+            0x1ab,
+            u128::MAX,
+            0x0123_4567_89ab_cdef_0011_2233_4455_6677,
+        ] {
+            let id = SourceId(n.to_le_bytes());
+            assert_eq!(id.to_string().parse::<SourceId>(), Ok(id), "{n:x}");
+        }
+        // ... and "1ab" is the little-endian bytes ab 01 00 .. (as zenoh's ZenohId::to_le_bytes).
+        let id: SourceId = "1ab".parse().unwrap();
+        assert_eq!(&id.0[..3], &[0xab, 0x01, 0x00]);
+        assert_eq!("1AB".parse::<SourceId>(), Ok(id));
+        for bad in ["", "0", "000", "xyz", "-1", &"f".repeat(33)] {
+            let e = bad.parse::<SourceId>().unwrap_err();
+            assert!(e.contains("hexadecimal digits"), "{bad}: {e}");
+        }
     }
 }

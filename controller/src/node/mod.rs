@@ -66,6 +66,11 @@ pub struct ControllerArgs {
     /// The state estimator (for states without rates).
     #[command(flatten)]
     pub estimator: EstimatorArgs,
+    /// The plant's zenoh id (its `--zenoh-id`), if known before it starts: states and statuses
+    /// are believed only from that session, from the first one on, and the pin never lapses
+    /// [default: pin the session of the first believed state]
+    #[arg(long, value_name = "HEX", value_parser = tilting_net::parse_source_id)]
+    pub plant_id: Option<SourceId>,
 }
 
 impl ControllerArgs {
@@ -490,7 +495,10 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
             false,
         )),
         states_refused: AtomicU64::new(0),
-        plant: Mutex::new(SourcePin::new(Duration::from_secs_f64(PLANT_PIN_LAPSE))),
+        plant: Mutex::new(SourcePin::expect_or_new(
+            args.plant_id,
+            Duration::from_secs_f64(PLANT_PIN_LAPSE),
+        )),
         states_foreign: AtomicU64::new(0),
         references: DropCounter::new(keys.planner_reference()),
         torques_published: AtomicU64::new(0),

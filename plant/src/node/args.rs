@@ -93,6 +93,11 @@ pub struct PlantArgs {
     /// Start at once instead of waiting for a controller (its liveliness token or an answer)
     #[arg(long)]
     pub no_wait: bool,
+    /// The controller's zenoh id (its `--zenoh-id`), if known before it starts: torques are
+    /// believed only from that session, from the first one on, and the pin never lapses
+    /// [default: pin the session of the first believed torque]
+    #[arg(long, value_name = "HEX", value_parser = tilting_net::parse_source_id)]
+    pub controller_id: Option<tilting_proto::SourceId>,
     /// Publish an extra state at each mode transition (same `seq` as its period, its own time)
     /// and switch to its answer at once (real time: if it comes within half a period)
     #[arg(long)]

@@ -143,9 +143,10 @@ fn shared_state(args: &PlantArgs, keys: &Keys) -> Arc<Shared> {
         stop: AtomicBool::new(false),
         max_torque: args.max_torque(),
         reordered: AtomicU64::new(0),
-        controller: Mutex::new(tilting_proto::SourcePin::new(Duration::from_secs_f64(
-            args.safe.watchdog as f64 * args.period(),
-        ))),
+        controller: Mutex::new(tilting_proto::SourcePin::expect_or_new(
+            args.controller_id,
+            Duration::from_secs_f64(args.safe.watchdog as f64 * args.period()),
+        )),
         foreign: AtomicU64::new(0),
     })
 }
