@@ -46,12 +46,20 @@ pub fn plot_recording(
 mod tests {
     use super::*;
     use tilting_proto::{Keys, PlantState};
+    use tilting_record::Sources;
 
     #[test]
     fn plots_a_recording() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path();
-        let rec = Recorder::create(dir, &Keys::new("t").unwrap(), false, None).unwrap();
+        let rec = Recorder::create(
+            dir,
+            &Keys::new("t").unwrap(),
+            false,
+            None,
+            Sources::default(),
+        )
+        .unwrap();
         let tx = rec.sender();
         for k in 0..100u64 {
             tx.send(Record::State(PlantState {

@@ -4,9 +4,11 @@
 //! torque within the torque bound, answering a state already seen; an event or a status about a
 //! state already seen, on the grid; and where the source is known, from the plant's session
 //! (states, events, statuses) or the controller's (torques), each pinned to the first believed
-//! message's source ([`tilting_proto::source`]). A refused message is counted and never
-//! written, so it changes neither the recording nor anything judged from it (the status line,
-//! the peaks).
+//! message's source ([`tilting_proto::source`]), or to the source known in advance
+//! ([`Sources`]: `tilting live` chooses its nodes' zenoh ids). A refused message is counted and
+//! never written, so it changes neither the recording nor anything judged from it (the status
+//! line, the peaks). Without rules (`tilting record`, which does not know the robot's bounds)
+//! only the sources are checked.
 
 use crate::recorder::Record;
 use std::time::{Duration, Instant};
@@ -40,29 +42,38 @@ pub struct Rules {
     pub from_start: bool,
 }
 
-/// The gate of one recording: the state window of the rules, and the pinned sources of the
-/// plant's and the controller's streams.
+/// The plant's and the controller's zenoh sessions, where known before the first message
+/// (their `--zenoh-id`): each stream is then pinned to its source from the start, and a message
+/// from any other session, or naming none, is refused, however early it comes. An unknown one
+/// is pinned by the first believed message ([`tilting_proto::SourcePin`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Sources {
+    /// The session of the plant's states, events and statuses.
+    pub plant: Option<SourceId>,
+    /// The session of the controller's torques.
+    pub controller: Option<SourceId>,
+}
+
+/// The gate of one recording: the state window of the rules (if any), and the pinned sources
+/// of the plant's and the controller's streams.
 #[derive(Debug)]
 pub(crate) struct Guard {
-    rules: Rules,
-    window: StateWindow,
+    rules: Option<Rules>,
+    window: Option<StateWindow>,
     plant: SourcePin,
     controller: SourcePin,
 }
 
 impl Guard {
-    pub(crate) fn new(rules: Rules) -> Self {
+    pub(crate) fn new(rules: Option<Rules>, sources: Sources) -> Self {
+        let lapse = Duration::from_secs_f64(PIN_LAPSE);
         Self {
             rules,
-            window: StateWindow::new(
-                rules.period,
-                rules.min_period,
-                rules.fall_angle,
-                SLACK,
-                rules.from_start,
-            ),
-            plant: SourcePin::new(Duration::from_secs_f64(PIN_LAPSE)),
-            controller: SourcePin::new(Duration::from_secs_f64(PIN_LAPSE)),
+            window: rules.map(|r| {
+                StateWindow::new(r.period, r.min_period, r.fall_angle, SLACK, r.from_start)
+            }),
+            plant: SourcePin::expect_or_new(sources.plant, lapse),
+            controller: SourcePin::expect_or_new(sources.controller, lapse),
         }
     }
 
@@ -74,31 +85,53 @@ impl Guard {
         source: Option<SourceId>,
     ) -> Result<(), Implausible> {
         let now = Instant::now();
-        let grid = |message, seq, time| match self.rules.period {
+        let plant =
+            |pin: &SourcePin, message| plausible::foreign(pin, message, "plant", source, now);
+        let Some((rules, window)) = self.rules.as_ref().zip(self.window.as_mut()) else {
+            // Sources only.
+            match rec {
+                Record::State(_) => plant(&self.plant, "PlantState")?,
+                Record::Event(_) => plant(&self.plant, "ModeEvent")?,
+                Record::Status(_) => plant(&self.plant, "Status")?,
+                Record::Torque(_) => {
+                    plausible::foreign(
+                        &self.controller,
+                        "TorqueCommand",
+                        "controller",
+                        source,
+                        now,
+                    )?;
+                    self.controller.believe(source, now);
+                    return Ok(());
+                }
+                Record::Reference(_) | Record::Wire(..) => return Ok(()),
+            }
+            self.plant.believe(source, now);
+            return Ok(());
+        };
+        let grid = |message, seq, time| match rules.period {
             Some(p) => plausible::on_grid(message, seq, time, p),
             None => Ok(()),
         };
-        let plant =
-            |pin: &SourcePin, message| plausible::foreign(pin, message, "plant", source, now);
         match rec {
             Record::State(s) => {
-                self.window.test(s, now)?;
+                window.test(s, now)?;
                 plant(&self.plant, "PlantState")?;
-                self.window.believe(s, now);
+                window.believe(s, now);
             }
             Record::Torque(c) => {
-                plausible::torque(c, self.window.newest(now), self.rules.max_torque)?;
+                plausible::torque(c, window.newest(now), rules.max_torque)?;
                 plausible::foreign(&self.controller, "TorqueCommand", "controller", source, now)?;
                 self.controller.believe(source, now);
                 return Ok(());
             }
             Record::Event(e) => {
-                plausible::ahead("ModeEvent", e.seq, self.window.newest(now))?;
+                plausible::ahead("ModeEvent", e.seq, window.newest(now))?;
                 grid("ModeEvent", e.seq, e.time)?;
                 plant(&self.plant, "ModeEvent")?;
             }
             Record::Status(st) => {
-                plausible::ahead("Status", st.seq, self.window.newest(now))?;
+                plausible::ahead("Status", st.seq, window.newest(now))?;
                 grid("Status", st.seq, st.time)?;
                 plant(&self.plant, "Status")?;
             }

@@ -52,7 +52,7 @@ pub mod sink;
 pub mod trace;
 pub mod writer;
 
-pub use guard::Rules;
+pub use guard::{Rules, Sources};
 pub use reader::{read, Entry, ReadError, Recording};
 pub use recorder::{Record, RecordError, RecordSender, RecordView, Recorder};
 pub use tilting_proto::Topic;

@@ -20,7 +20,7 @@
 //! and the view goes on counting what arrives.
 
 use crate::csv::RowWriter;
-use crate::guard::{Guard, Rules};
+use crate::guard::{Guard, Rules, Sources};
 use crate::sink::{Drain, Panicked, Sink, SinkSender};
 use crate::trace::{
     EVENTS_CSV, EVENTS_HEADER, RUN_MCAP, STATE_CSV, STATE_HEADER, TORQUE_CSV, TORQUE_HEADER,
@@ -133,8 +133,13 @@ pub struct Options {
     /// Write a state or a torque only if its `seq` is above the last one's.
     pub skip_repeats: bool,
     /// The plausibility rules a message must pass to be written (none: every message that
-    /// validates is written).
+    /// validates is written, as far as `sources` goes).
     pub rules: Option<Rules>,
+    /// Check the sources: the plant's messages are written only from the plant's session, the
+    /// torques only from the controller's, each known in advance or pinned by its first
+    /// believed message ([`Sources`]); always done with `rules`. `None` without rules: every
+    /// source is written.
+    pub sources: Option<Sources>,
 }
 
 /// Why a recording failed.
@@ -184,18 +189,21 @@ impl RecordSender {
 
 impl Recorder {
     /// The recording of a live run: [`RUN_MCAP`] for `keys`' robot in `dir`, with `csv` the
-    /// three CSV files (with their headers), repeats skipped, and the plausibility `rules`.
+    /// three CSV files (with their headers), repeats skipped, the plausibility `rules` and the
+    /// plant's and controller's `sources` where known.
     pub fn create(
         dir: &Path,
         keys: &Keys,
         csv: bool,
         rules: Option<Rules>,
+        sources: Sources,
     ) -> Result<Self, RecordError> {
         let opts = Options {
             mcap: dir.join(RUN_MCAP),
             csv_dir: csv.then(|| dir.to_path_buf()),
             skip_repeats: true,
             rules,
+            sources: Some(sources),
         };
         Self::with_options(&opts, keys)
     }
@@ -223,7 +231,8 @@ impl Recorder {
             mcap: McapWriter::create(&opts.mcap, keys)?,
             csv,
             skip_repeats: opts.skip_repeats,
-            guard: opts.rules.map(Guard::new),
+            guard: (opts.rules.is_some() || opts.sources.is_some())
+                .then(|| Guard::new(opts.rules, opts.sources.unwrap_or_default())),
             shared: view.clone(),
             local: RecordView::default(),
             pending: 0,
@@ -689,7 +698,8 @@ mod tests {
         // (a peak, though the tilt never lands) or only rises (no peak yet).
         for (turned_back, want) in [(true, 1), (false, 0)] {
             let tmp = tempfile::tempdir().unwrap();
-            let rec = Recorder::create(tmp.path(), &keys(), false, None).unwrap();
+            let rec =
+                Recorder::create(tmp.path(), &keys(), false, None, Sources::default()).unwrap();
             let tx = rec.sender();
             let n = if turned_back { 60 } else { 20 };
             for k in 0..n {
@@ -713,7 +723,7 @@ mod tests {
     fn writes_dedups_and_tracks_peaks() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().to_path_buf();
-        let rec = Recorder::create(&dir, &keys(), true, None).unwrap();
+        let rec = Recorder::create(&dir, &keys(), true, None, Sources::default()).unwrap();
         let tx = rec.sender();
         tx.send(Record::State(state(0, 1, 0.0)));
         tx.send(Record::State(state(0, 1, 0.0))); // re-published
@@ -792,6 +802,7 @@ mod tests {
             csv_dir: None,
             skip_repeats: false,
             rules: None,
+            sources: None,
         };
         let rec = Recorder::with_options(&opts, &keys()).unwrap();
         let tx = rec.sender();
@@ -814,7 +825,8 @@ mod tests {
         let rules = rules();
         let run = |forge: bool| {
             let tmp = tempfile::tempdir().unwrap();
-            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules)).unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules), Sources::default())
+                .unwrap();
             let tx = rec.sender();
             for k in 0..200u64 {
                 if forge && k == 50 {
@@ -868,7 +880,8 @@ mod tests {
         );
         let run = |forge: bool, copy_id: bool| {
             let tmp = tempfile::tempdir().unwrap();
-            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules)).unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules), Sources::default())
+                .unwrap();
             let tx = rec.sender();
             for k in 0..200u64 {
                 if forge && (50..60).contains(&k) {
@@ -918,10 +931,112 @@ mod tests {
         assert_ne!(states, truth);
     }
 
+    /// A rogue session that publishes plausible states and torques *before* the plant and the
+    /// controller start (seq 0..10, alpha 0.3 rad). With the sources unknown, the rogue's first
+    /// state takes the pin and the plant's whole stream is refused (the failure this guards
+    /// against); with the plant's and the controller's ids known in advance ([`Sources`]), every
+    /// rogue message is refused as foreign and the recording is the honest stream's, the same
+    /// bytes as the honest stream recorded alone (the truth).
+    #[test]
+    fn a_rogue_that_talks_first_does_not_take_a_known_pin() {
+        let (plant, ctl, rogue) = (SourceId([1; 16]), SourceId([2; 16]), SourceId([3; 16]));
+        let known = Sources {
+            plant: Some(plant),
+            controller: Some(ctl),
+        };
+        let run = |sources: Sources, with_rogue: bool| {
+            let tmp = tempfile::tempdir().unwrap();
+            let rec = Recorder::create(tmp.path(), &keys(), false, Some(rules()), sources).unwrap();
+            let tx = rec.sender();
+            if with_rogue {
+                for k in 0..10u64 {
+                    tx.send_from(Record::State(state(k, 1, 0.3)), Some(rogue));
+                    let t = TorqueCommand { seq: k, tau: 3.25 };
+                    tx.send_from(Record::Torque(t), Some(rogue));
+                }
+            }
+            for k in 0..100u64 {
+                let s = state(k, 1, 0.03 * (k as f64 * 0.06).sin());
+                tx.send_from(Record::State(s), Some(plant));
+                tx.send_from(
+                    Record::Torque(TorqueCommand { seq: k, tau: 0.5 }),
+                    Some(ctl),
+                );
+            }
+            let v = rec.finish().unwrap();
+            let file = crate::read(&tmp.path().join(RUN_MCAP)).unwrap();
+            let wire: Vec<(Topic, Vec<u8>)> = file.messages().map(|m| (m.topic, m.wire)).collect();
+            (v, wire)
+        };
+        let (_, truth) = run(known, false);
+        let (v, wire) = run(known, true);
+        // Every rogue message refused: its states as foreign, its torques as foreign or as
+        // answering no believed state (that rule comes first).
+        assert_eq!(v.refused, [10, 10, 0, 0, 0], "{v:?}");
+        assert!(v.foreign >= 10, "{v:?}");
+        assert_eq!((v.states, v.torques), (100, 100));
+        assert_eq!(wire, truth);
+        // Unknown sources: the rogue's states pinned the plant's stream and are in the
+        // recording, and honest states were refused.
+        let (v, wire) = run(Sources::default(), true);
+        assert!(v.refused[0] > 0 && v.foreign > 0, "{v:?}");
+        assert_ne!(wire, truth);
+    }
+
+    /// Sources without rules (`tilting record`): a second session's messages are refused as
+    /// foreign and kept out, whatever they say; the pinned sources' messages are all written,
+    /// implausible ones too (no rules). The truth: the honest streams recorded alone.
+    #[test]
+    fn sources_alone_keep_a_foreign_publisher_out() {
+        let (plant, ctl, other) = (SourceId([1; 16]), SourceId([2; 16]), SourceId([3; 16]));
+        let run = |sources: Option<Sources>, foreign: bool| {
+            let tmp = tempfile::tempdir().unwrap();
+            let opts = Options {
+                mcap: tmp.path().join("r.mcap"),
+                csv_dir: None,
+                skip_repeats: false,
+                rules: None,
+                sources,
+            };
+            let rec = Recorder::with_options(&opts, &keys()).unwrap();
+            let tx = rec.sender();
+            for k in 0..50u64 {
+                // An implausible state (alpha beyond the fall angle) from the plant: no rules.
+                let alpha = if k == 7 { 9.0 } else { 0.01 };
+                let s = encode(&state(k, 1, alpha));
+                tx.send_from(Record::Wire(Topic::State, s), Some(plant));
+                let t = encode(&TorqueCommand { seq: k, tau: 0.5 });
+                tx.send_from(Record::Wire(Topic::Torque, t), Some(ctl));
+                if foreign && k % 5 == 0 {
+                    let s = encode(&state(k + 1, 1, 0.2));
+                    tx.send_from(Record::Wire(Topic::State, s), Some(other));
+                    let t = encode(&TorqueCommand { seq: k, tau: 2.0 });
+                    tx.send_from(Record::Wire(Topic::Torque, t), None);
+                }
+            }
+            let v = rec.finish().unwrap();
+            let file = crate::read(&opts.mcap).unwrap();
+            let wire: Vec<(Topic, Vec<u8>)> = file.messages().map(|m| (m.topic, m.wire)).collect();
+            (v, wire)
+        };
+        let (_, truth) = run(None, false);
+        let (v, wire) = run(Some(Sources::default()), true);
+        assert_eq!((v.refused, v.foreign), ([10, 10, 0, 0, 0], 20), "{v:?}");
+        assert_eq!((v.states, v.torques), (50, 50));
+        assert_eq!(wire, truth);
+        // Without sources, everything is the recording (the foreign messages too).
+        let (v, wire) = run(None, true);
+        assert_eq!(
+            (v.refused, v.foreign, v.states, v.torques),
+            ([0; 5], 0, 60, 60)
+        );
+        assert_ne!(wire, truth);
+    }
+
     #[test]
     fn a_full_queue_drops_without_blocking() {
         let tmp = tempfile::tempdir().unwrap();
-        let rec = Recorder::create(tmp.path(), &keys(), false, None).unwrap();
+        let rec = Recorder::create(tmp.path(), &keys(), false, None, Sources::default()).unwrap();
         let tx = rec.sender();
         for k in 0..(4 * QUEUE as u64) {
             tx.send(Record::Torque(TorqueCommand { seq: k, tau: 0.0 }));

@@ -35,10 +35,27 @@ pub struct RecordArgs {
         allow_negative_numbers = true
     )]
     pub wait: f64,
+    /// The plant's zenoh id (its `--zenoh-id`; `tilting live` prints the ids of its nodes): its
+    /// states, events and statuses are recorded only from that session
+    /// [default: pin the session of the first state, event or status]
+    #[arg(long, value_name = "HEX", value_parser = tilting_net::parse_source_id)]
+    pub plant_id: Option<tilting_proto::SourceId>,
+    /// The controller's zenoh id: its torques are recorded only from that session [default:
+    /// pin the session of the first torque]
+    #[arg(long, value_name = "HEX", value_parser = tilting_net::parse_source_id)]
+    pub controller_id: Option<tilting_proto::SourceId>,
+    /// Record every message whatever session sent it (a recording of the network, a second
+    /// plant or a forger included), as `record` did before it checked sources
+    #[arg(long, conflicts_with_all = ["plant_id", "controller_id"])]
+    pub any_source: bool,
 }
 
 /// `tilting record`: subscribes to the five topics of a robot and writes every message that
-/// decodes and validates into an MCAP file, until Ctrl-C or `--seconds`.
+/// decodes and validates into an MCAP file, until Ctrl-C or `--seconds`. The plant's topics are
+/// recorded only from the plant's session and the torques only from the controller's
+/// (`--plant-id`, `--controller-id`, or each pinned by its first message, as `tilting live`'s
+/// recorder does); messages from any other session are counted as foreign, reported, and not
+/// recorded (`--any-source` records them).
 pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn");
     check_seconds("--seconds", args.seconds)?;
@@ -49,8 +66,13 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
         mcap: args.out.clone(),
         csv_dir: None,
         skip_repeats: false,
-        // Every message as received: a recording of the network, lies included.
+        // Every message as received (no plausibility rules: `record` does not know the robot's
+        // period or bounds), but only from the plant's and the controller's sessions.
         rules: None,
+        sources: (!args.any_source).then_some(tilting_record::Sources {
+            plant: args.plant_id,
+            controller: args.controller_id,
+        }),
     };
     let rec = Recorder::with_options(&opts, &keys)
         .map_err(|e| CommandError::Failed(anyhow!("--out {e}")))?;
@@ -64,9 +86,9 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
             let n = received.clone();
             let key = topic.key(&keys).to_owned();
             subs.push(
-                tilting_net::subscribe_bytes(&session, &key, move |bytes| {
+                tilting_net::subscribe_sourced(&session, &key, move |bytes, from| {
                     n.fetch_add(1, Ordering::Relaxed);
-                    tx.send(Record::Wire(topic, bytes.to_vec()));
+                    tx.send_from(Record::Wire(topic, bytes.to_vec()), from);
                 })
                 .await?,
             );
@@ -119,16 +141,37 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
             .collect();
         eprintln!();
         print_stdout(&format!(
-            "recorded {} into {}: {}; invalid {}, dropped {dropped}\n",
+            "recorded {} into {}: {}; invalid {}, dropped {dropped}, foreign {}\n{}",
             keys.robot(),
             args.out.display(),
             counts.join(", "),
             view.invalid,
+            view.foreign,
+            foreign_line(&view),
         ))
         .map_err(|e| anyhow!("{e}"))?;
         anyhow::Ok(())
     })
     .map_err(CommandError::Failed)
+}
+
+/// What `record` refused, in words, if anything: per topic, and the first refusal (which names
+/// the foreign session and the pinned one).
+fn foreign_line(view: &tilting_record::RecordView) -> String {
+    if view.refused_total() == 0 {
+        return String::new();
+    }
+    let per: Vec<String> = Topic::ALL
+        .iter()
+        .filter(|t| view.refused[t.index()] > 0)
+        .map(|&t| format!("{} {t}", view.refused[t.index()]))
+        .collect();
+    format!(
+        "not recorded, from a foreign source: {} ({}); first: {}\n",
+        view.foreign,
+        per.join(", "),
+        view.first_refusal.as_deref().unwrap_or("?")
+    )
 }
 
 fn endpoints(z: &ZenohArgs) -> String {

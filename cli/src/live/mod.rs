@@ -187,6 +187,10 @@ struct Job<'a> {
     impairment: Option<Impairment>,
     /// The output directory.
     dir: PathBuf,
+    /// The zenoh ids the plant and the controller are started with (`--zenoh-id`), drawn at
+    /// random before either starts: each node, the recorder and the status line believe the
+    /// other's messages only from that session, from the first message on.
+    ids: tilting_record::Sources,
 }
 
 impl Job<'_> {
@@ -312,6 +316,10 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
         reference,
         impairment,
         dir,
+        ids: tilting_record::Sources {
+            plant: Some(tilting_net::random_source_id()),
+            controller: Some(tilting_net::random_source_id()),
+        },
     })
 }
 
@@ -326,6 +334,12 @@ fn announce(job: &Job) {
         job.reference
     );
     eprintln!("live: recording to {}", job.dir.display());
+    if let (Some(p), Some(c)) = (job.ids.plant, job.ids.controller) {
+        eprintln!(
+            "live: zenoh ids: plant {p}, controller {c} (messages from other sessions are \
+             refused; `tilting record --plant-id {p} --controller-id {c}` records this run)"
+        );
+    }
     if let Some(imp) = &job.impairment {
         eprintln!(
             "live: the plant emulates the link: states {}; torques {}; seed {}, --max-age {}",
@@ -346,7 +360,13 @@ async fn live(
 ) -> anyhow::Result<report::Ending> {
     let force = signals.force();
     let mut topo = Topology::ports(job)?;
-    let recorder = Recorder::create(&job.dir, &job.keys, job.args.csv, Some(job.rules()))?;
+    let recorder = Recorder::create(
+        &job.dir,
+        &job.keys,
+        job.args.csv,
+        Some(job.rules()),
+        job.ids,
+    )?;
     announce(job);
     let (scenario, check) =
         orbit::nominal(&job.reference, job.args.rate, job.args.duration).await?;

@@ -184,6 +184,11 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
     let args = job.args;
     let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
     v.extend(topo.session_flags("plant", topo.plant_port, &[]));
+    v.extend(id_flags(
+        job.ids.plant,
+        "--controller-id",
+        job.ids.controller,
+    ));
     v.extend([
         "--rate".into(),
         args.rate.to_string(),
@@ -222,11 +227,29 @@ fn controller_args(job: &Job, topo: &Topology) -> Vec<String> {
     let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
     let peers = [topo.plant_port, topo.my_port];
     v.extend(topo.session_flags("controller", topo.ctl_port, &peers));
+    v.extend(id_flags(job.ids.controller, "--plant-id", job.ids.plant));
     v.extend(job.reference.to_args());
     v.extend(job.args.predict.to_args());
     v.extend(job.args.estimator.to_args());
     if let Some(p) = job.args.params_files().1 {
         v.extend(["--params".into(), p.display().to_string()]);
+    }
+    v
+}
+
+/// A node's own zenoh id (`--zenoh-id`) and its peer's (`peer_flag`), chosen by `live` before
+/// either starts, so that each believes the other's messages only from the first on.
+fn id_flags(
+    own: Option<tilting_proto::SourceId>,
+    peer_flag: &str,
+    peer: Option<tilting_proto::SourceId>,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    if let Some(id) = own {
+        v.extend(["--zenoh-id".into(), id.to_string()]);
+    }
+    if let Some(id) = peer {
+        v.extend([peer_flag.into(), id.to_string()]);
     }
     v
 }
@@ -322,5 +345,14 @@ mod tests {
         assert_eq!(ctl.estimator, live.estimator);
         assert_eq!(plant.imperfect, live.imperfect);
         assert_eq!(ctl.control_config().unwrap().law, job.reference);
+        // Each node runs with the id `live` chose and pins the other's (and so does the
+        // recorder, with `job.ids`); the two ids differ.
+        let (p, c) = (job.ids.plant.unwrap(), job.ids.controller.unwrap());
+        assert_ne!(p, c);
+        assert_eq!(
+            (plant.zenoh.zenoh_id, plant.controller_id),
+            (Some(p), Some(c))
+        );
+        assert_eq!((ctl.zenoh.zenoh_id, ctl.plant_id), (Some(c), Some(p)));
     }
 }
