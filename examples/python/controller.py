@@ -29,6 +29,8 @@ import sys
 import threading
 import time
 
+import tilting_source
+
 # ---------------------------------------------------------------------------------------------
 # Wire format (docs/protocol.md): little-endian, no padding, no header.
 
@@ -295,13 +297,21 @@ def run(args):
         "states_dropped": 0,
         "torques_published": 0,
         "torques_not_finite": 0,
+        "states_foreign": 0,
     }
+    # --plant-id: states are believed only from that session (docs/protocol.md).
+    plant_id = tilting_source.id_bytes(args.plant_id) if args.plant_id else None
     lock = threading.Lock()
     log_bad = RateLimitedLog(f"{prefix}/plant/state")
     done = threading.Event()
 
-    session = zenoh.open(session_config(zenoh, args.listen, args.connect))
-    publisher = session.declare_publisher(
+    cfg = session_config(zenoh, args.listen, args.connect)
+    if args.zenoh_id:
+        cfg.insert_json5("id", json.dumps(args.zenoh_id))
+    session = zenoh.open(cfg)
+    # Every put names this session (the TSRC attachment of docs/protocol.md).
+    publisher = tilting_source.SourcedPublisher(
+        session,
         f"{prefix}/controller/torque",
         congestion_control=zenoh.CongestionControl.BLOCK,
         priority=zenoh.Priority.REAL_TIME,
@@ -309,6 +319,12 @@ def run(args):
     )
 
     def on_state(sample):
+        if plant_id is not None and tilting_source.source_of(sample) != plant_id:
+            with lock:
+                counters["states_received"] += 1
+                counters["states_foreign"] += 1
+            log_bad(f"PlantState from a foreign source, not --plant-id {args.plant_id}")
+            return
         try:
             seq, _t, x, mode = unpack_plant_state(sample.payload.to_bytes())
         except ValueError as e:
@@ -382,6 +398,16 @@ def main(argv=None):
         type=float,
         default=19.963439703027,
         help="E_av, J (default 19.963439703027, the stabilised orbit)",
+    )
+    ap.add_argument(
+        "--zenoh-id",
+        type=tilting_source.zenoh_id_arg,
+        help="this session's zenoh id, 1 to 32 hex digits (default random); attached to every put",
+    )
+    ap.add_argument(
+        "--plant-id",
+        type=tilting_source.zenoh_id_arg,
+        help="believe states only from this zenoh session (default: from any)",
     )
     ap.add_argument("--self-test", action="store_true", help="check encodings and law, then exit")
     args = ap.parse_args(argv)

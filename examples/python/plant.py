@@ -39,6 +39,8 @@ import sys
 import threading
 import time
 
+import tilting_source
+
 # ---------------------------------------------------------------------------------------------
 # Wire format (docs/protocol.md): little-endian, no padding, no header.
 
@@ -669,6 +671,11 @@ class Node:
             torques_stale=0,
             deadline_misses=0,
             watchdog_trips=0,
+            torques_foreign=0,
+        )
+        # --controller-id: torques are believed only from that session (docs/protocol.md).
+        self.controller_id = (
+            tilting_source.id_bytes(args.controller_id) if args.controller_id else None
         )
         self.status_state = STARTING
         self.fault = ""
@@ -678,6 +685,12 @@ class Node:
 
     def on_torque(self, sample):
         now = time.monotonic()
+        if self.controller_id is not None and tilting_source.source_of(sample) != self.controller_id:
+            with self.cv:
+                self.c["torques_received"] += 1
+                self.c["torques_foreign"] += 1
+            self.log_bad(f"TorqueCommand from a foreign source, not --controller-id {self.args.controller_id}")
+            return
         try:
             seq, tau = unpack_torque(sample.payload.to_bytes())
             if abs(tau) > self.args.max_torque:
@@ -810,12 +823,17 @@ class Node:
 
     def run(self, sim):
         z, a = self.zenoh, self.args
-        session = z.open(session_config(z, a.listen, a.connect))
+        cfg = session_config(z, a.listen, a.connect)
+        if a.zenoh_id:
+            cfg.insert_json5("id", json.dumps(a.zenoh_id))
+        session = z.open(cfg)
         rt = dict(congestion_control=z.CongestionControl.BLOCK, priority=z.Priority.REAL_TIME)
         data = dict(congestion_control=z.CongestionControl.BLOCK, priority=z.Priority.DATA)
-        self.pub_state = session.declare_publisher(f"{self.prefix}/plant/state", express=True, **rt)
-        self.pub_event = session.declare_publisher(f"{self.prefix}/plant/event", **data)
-        self.pub_status = session.declare_publisher(f"{self.prefix}/plant/status", **data)
+        # Every put names this session (the TSRC attachment of docs/protocol.md).
+        pub = tilting_source.SourcedPublisher
+        self.pub_state = pub(session, f"{self.prefix}/plant/state", express=True, **rt)
+        self.pub_event = pub(session, f"{self.prefix}/plant/event", **data)
+        self.pub_status = pub(session, f"{self.prefix}/plant/status", **data)
         sub = session.declare_subscriber(f"{self.prefix}/controller/torque", self.on_torque)
         watch = session.liveliness().declare_subscriber(
             f"{self.prefix}/alive/controller", self.on_controller_alive, history=True
@@ -973,6 +991,16 @@ def main(argv=None):
     ap.add_argument("--safe-kd", type=float, default=10.0)
     ap.add_argument("--record", help="CSV of every sample: seq,t,mode,alpha,beta,alpha_dot,beta_dot,tau")
     ap.add_argument("--no-wait", action="store_true", help="start without waiting for a controller")
+    ap.add_argument(
+        "--zenoh-id",
+        type=tilting_source.zenoh_id_arg,
+        help="this session's zenoh id, 1 to 32 hex digits (default random); attached to every put",
+    )
+    ap.add_argument(
+        "--controller-id",
+        type=tilting_source.zenoh_id_arg,
+        help="believe torques only from this zenoh session (default: from any)",
+    )
     ap.add_argument("--self-test", action="store_true", help="check encodings and model, then exit")
     args = ap.parse_args(argv)
     if args.self_test:

@@ -1,7 +1,9 @@
 //! The wire protocol is language-neutral: `tilting-plant` in lockstep against the stand-alone
 //! Python controller `examples/python/controller.py` (eclipse-zenoh, `struct`, the law written
 //! again in Python from the model notes) reproduces the offline sampled loop computed here with
-//! the Rust libraries.
+//! the Rust libraries. Each side is told the other's zenoh id (`--plant-id`, `--controller-id`)
+//! and believes only messages whose TSRC attachment names it: the Python controller's torques
+//! carry a source the Rust plant accepts (`torques_foreign: 0`, no watchdog trip).
 //!
 //! Needs `python3` with the `zenoh` module (`.ci/run` installs `eclipse-zenoh`); without it the
 //! tests print a SKIP line and pass.
@@ -32,7 +34,12 @@ struct PyControllerSummary {
     states_dropped: u64,
     torques_not_finite: u64,
     torques_published: u64,
+    states_foreign: u64,
 }
+
+/// The zenoh ids of the Rust plant and the Python controller, chosen before either starts.
+const PLANT_ID: &str = "9a17c0de0000000000000000000000c3";
+const CONTROLLER_ID: &str = "7e417201000000000000000000000d4";
 
 #[test]
 fn python_controller_self_test() {
@@ -85,6 +92,10 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
                 "1",
                 "--record",
                 csv.to_str().unwrap(),
+                "--zenoh-id",
+                PLANT_ID,
+                "--controller-id",
+                CONTROLLER_ID,
             ],
         ),
         dir.path(),
@@ -102,6 +113,10 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
             "500",
             "--energy-avg",
             "19.963439703027",
+            "--zenoh-id",
+            CONTROLLER_ID,
+            "--plant-id",
+            PLANT_ID,
         ],
     ));
     let mut ctl = Proc::spawn(
@@ -125,6 +140,8 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
     assert_eq!(summary.torques_dropped, 0, "{summary:?}");
     assert_eq!(summary.torques_stale, 0, "{summary:?}");
     assert_eq!(summary.watchdog_trips, 0, "{summary:?}");
+    // Every torque named the Python controller's session, as the plant was told to expect.
+    assert_eq!(summary.torques_foreign, 0, "{summary:?}");
     let c_status = ctl.interrupt(Duration::from_secs(10));
     assert!(c_status.success(), "{}", ctl.logs());
     let c_summary: PyControllerSummary =
@@ -132,6 +149,7 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
     eprintln!("controller.py summary: {c_summary:?}");
     assert_eq!(c_summary.states_dropped, 0, "{c_summary:?}");
     assert_eq!(c_summary.torques_not_finite, 0, "{c_summary:?}");
+    assert_eq!(c_summary.states_foreign, 0, "{c_summary:?}");
     assert!(c_summary.torques_published >= 1000, "{c_summary:?}");
 
     let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());

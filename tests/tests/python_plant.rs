@@ -2,7 +2,10 @@
 //! docs/protocol.md only) speaks the plant's topics: our Rust `tilting-controller` drives it in
 //! lockstep, and the run reproduces the offline sampled loop computed here with the Rust
 //! libraries (DOP853, event location on its dense output), sample by sample, with the same
-//! mode transitions.
+//! mode transitions. Each side is told the other's zenoh id (`--controller-id`, `--plant-id`)
+//! and believes only messages whose TSRC attachment names it: the Python plant's states carry
+//! a source the Rust controller accepts (`states_foreign: 0`, every state answered), and the
+//! Rust controller's torques one the Python plant accepts.
 //!
 //! Needs `python3` with the `zenoh` module (`.ci/run` installs `eclipse-zenoh`); without it the
 //! tests print a SKIP line and pass.
@@ -49,7 +52,12 @@ struct PyPlantSummary {
     torques_dropped: u64,
     torques_stale: u64,
     watchdog_trips: u64,
+    torques_foreign: u64,
 }
+
+/// The zenoh ids of the Python plant and the Rust controller, chosen before either starts.
+const PLANT_ID: &str = "5a17c0de0000000000000000000000a1";
+const CONTROLLER_ID: &str = "c0417201000000000000000000000b2";
 
 #[test]
 fn python_plant_self_test() {
@@ -99,6 +107,10 @@ async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
             &DURATION.to_string(),
             "--record",
             csv.to_str().unwrap(),
+            "--zenoh-id",
+            PLANT_ID,
+            "--controller-id",
+            CONTROLLER_ID,
         ],
     ));
     let mut plant = Proc::spawn(
@@ -149,7 +161,11 @@ async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
     let mut ctl = Proc::spawn(
         "controller",
         &ctl_bin,
-        &peer_args(&robot, port, &[]),
+        &peer_args(
+            &robot,
+            port,
+            &["--zenoh-id", CONTROLLER_ID, "--plant-id", PLANT_ID],
+        ),
         dir.path(),
     );
     let status = plant.expect_exit(Duration::from_secs(120));
@@ -171,12 +187,15 @@ async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
         summary.torques_dropped,
         summary.torques_stale,
         summary.watchdog_trips,
+        summary.torques_foreign,
     ];
-    assert_eq!(counters, [0; 4], "{summary:?}");
+    assert_eq!(counters, [0; 5], "{summary:?}");
     let c_status = ctl.interrupt(Duration::from_secs(10));
     assert!(c_status.success(), "{}", ctl.logs());
     let c_summary = ctl.controller_summary();
     assert_eq!(c_summary.states_dropped, 0, "{c_summary:?}");
+    // Every state named the Python plant's session, as the controller was told to expect.
+    assert_eq!(c_summary.states_foreign, 0, "{c_summary:?}");
     assert!(c_summary.torques_published >= n, "{c_summary:?}");
 
     // Sample by sample against the offline Rust loop.
