@@ -22,6 +22,7 @@
 //! `docs/protocol.md`; the flags (`--law`), the scenario key (`law`), the wire conversion and
 //! the summaries follow from the spec.
 
+use crate::excite::{GovernedExcitation, GovernorStatus};
 use crate::robust::{RobustLaw, RobustStatus};
 use crate::{ComputedTorque, ControlConfig, Trajectory};
 use serde::{Deserialize, Serialize};
@@ -79,6 +80,10 @@ pub enum Controller {
     /// a memory of the states it answered, so it must be called once per sample, in time
     /// order ([`crate::robust`]).
     Robust(RobustLaw),
+    /// [`LawKind::ComputedTorque`] on the excitation: its amplitude follows the arm's holding
+    /// torque ([`crate::excite`]); it keeps a memory of the states it answered, so it must be
+    /// called once per sample, in time order.
+    Excitation(Box<GovernedExcitation>),
 }
 
 impl Controller {
@@ -86,7 +91,12 @@ impl Controller {
     pub fn new(cfg: ControlConfig) -> Result<Self, ConfigError> {
         Ok(match (cfg.law.law, cfg.law.orbit_peak) {
             (LawKind::ComputedTorque, None) => {
-                Controller::ComputedTorque(ComputedTorque::new(cfg)?)
+                let law = ComputedTorque::new(cfg)?;
+                if matches!(cfg.law.reference, Trajectory::Excitation { .. }) {
+                    Controller::Excitation(Box::new(GovernedExcitation::new(law)))
+                } else {
+                    Controller::ComputedTorque(law)
+                }
             }
             (LawKind::ComputedTorque, Some(p)) => {
                 Controller::Robust(RobustLaw::new(ComputedTorque::new(cfg)?, p))
@@ -99,13 +109,23 @@ impl Controller {
         match self {
             Controller::ComputedTorque(c) => c.config(),
             Controller::Robust(c) => c.law().config(),
+            Controller::Excitation(c) => c.law().config(),
+        }
+    }
+
+    /// What the excitation's amplitude governor has found so far (`None` on another
+    /// reference).
+    pub fn excitation_status(&self) -> Option<GovernorStatus> {
+        match self {
+            Controller::Excitation(c) => Some(c.status()),
+            _ => None,
         }
     }
 
     /// What the robust option has done so far (`None` without it).
     pub fn robust_status(&self) -> Option<RobustStatus> {
         match self {
-            Controller::ComputedTorque(_) => None,
+            Controller::ComputedTorque(_) | Controller::Excitation(_) => None,
             Controller::Robust(c) => Some(c.status()),
         }
     }
@@ -123,6 +143,7 @@ impl TorqueLaw for Controller {
         match self {
             Controller::ComputedTorque(c) => c.torque(t, mode, x),
             Controller::Robust(c) => c.torque(t, mode, x),
+            Controller::Excitation(c) => c.torque(t, mode, x),
         }
     }
 
@@ -131,6 +152,7 @@ impl TorqueLaw for Controller {
         match self {
             Controller::ComputedTorque(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
             Controller::Robust(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
+            Controller::Excitation(c) => c.torque(t, mode, x),
         }
     }
 }
@@ -268,8 +290,8 @@ impl std::fmt::Display for LawSpec {
             // torque clipped below the one that lifts the plate.
             write!(
                 f,
-                "{}, K_P = {}, K_D = {}, no energy adaptation, torque clipped below the \
-                 plate's lift-off, torque limit ",
+                "{}, K_P = {}, K_D = {}, no energy adaptation, amplitude governed by the \
+                 arm's holding torque, torque clipped below the plate's lift-off, torque limit ",
                 self.reference, self.kp, self.kd
             )?;
         }

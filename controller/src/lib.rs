@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod estimate;
+pub mod excite;
 pub mod law;
 #[cfg(feature = "node")]
 pub mod node;
@@ -68,8 +69,10 @@ pub const EXCITATION_TORQUE_SHARE: f64 = 0.7;
 
 /// The excitation's torque limit (N m): [`EXCITATION_TORQUE_SHARE`] of `f (m_f + m_l) g`, the
 /// torque that moves the zero moment point of the model at rest to the plate's edge (docs/
-/// model.md, flat: `r_z = f + tau / F_y`). Below it the plate stays flat however far the
-/// model is off by up to 30 % in its masses: the excitation cannot tip the robot.
+/// model.md, flat: `r_z = f + tau / F_y`). Below it a plate at rest stays flat however far
+/// the model is off by up to 30 % in its masses; an arm whose gravity torque passes it cannot
+/// be held and falls, unloading the plate, which the amplitude governor
+/// ([`crate::excite`]) prevents.
 pub fn excitation_torque_limit(p: &tilting_plant::Params) -> f64 {
     EXCITATION_TORQUE_SHARE * p.f * (p.m_f + p.m_l) * p.g
 }
@@ -142,9 +145,25 @@ impl ComputedTorque {
         torque_for_beta_ddot_t(&self.cfg.params, mode, x, tr, v)
     }
 
+    /// The clipped torque (N m) for the reference `(beta_d, beta_d_dot, beta_d_ddot)` given
+    /// instead of the law's own (the excitation's amplitude governor scales it): the same PD
+    /// (without the energy adaptation), inverse dynamics and clips as [`ComputedTorque::torque`].
+    pub(crate) fn torque_for_reference(&self, mode: Mode, x: &State, r: (f64, f64, f64)) -> f64 {
+        let tr = Terms::new(&self.cfg.params, mode, x);
+        let law = &self.cfg.law;
+        let v = r.2 + law.kd * (r.1 - x[3]) + law.kp * (r.0 - x[1]);
+        let tau = torque_for_beta_ddot_t(&self.cfg.params, mode, x, &tr, v);
+        self.clip(tau)
+    }
+
     #[inline(always)]
     fn torque_t(&self, t: f64, mode: Mode, x: &State, tr: &Terms) -> f64 {
-        let tau = self.unclipped_t(t, mode, x, tr);
+        self.clip(self.unclipped_t(t, mode, x, tr))
+    }
+
+    /// The torque limit, then (for the excitation) the excitation's clip.
+    #[inline(always)]
+    fn clip(&self, tau: f64) -> f64 {
         let tau = match self.cfg.law.torque_limit {
             Some(l) => tau.clamp(-l, l),
             None => tau,

@@ -13,10 +13,12 @@
 //! rate `<= A w sum c_k n_k` and its acceleration `<= A w^2 sum c_k n_k^2` (plus the ramp's
 //! share). `e(t)` ramps from 0 to 1 over the first period `2 pi / w` with zero rate and
 //! acceleration at both ends (a quintic), so the motion starts from the arm at rest upright.
-//! The law runs it without the energy adaptation ([`Trajectory::adapts`]) and clips its torque
+//! The law runs it without the energy adaptation ([`Trajectory::adapts`]), clips its torque
 //! to 70 % of the torque that lifts the plate (`tilting_controller::excitation_torque_limit`),
-//! so the plate stays flat: the excitation shows the arm's equation (`m_l l_c`, the arm's
-//! inertia about the joint, friction); tilts (an orbit run) show `m_f`.
+//! and scales its amplitude down on an arm too heavy for it, measured on line
+//! (`tilting_controller::excite`), so the plate stays flat: the excitation shows the arm's
+//! equation (`m_l l_c`, the arm's inertia about the joint, friction); tilts (an orbit run)
+//! show `m_f`.
 
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
@@ -41,9 +43,11 @@ pub const HARMONICS: [(f64, f64, f64); 4] = [
 /// The default excitation `excitation` (`excitation:0.3,0.6`): at most 0.3 rad about
 /// upright, base frequency 0.6 rad/s (period 10.5 s; rates up to about 0.4 rad/s,
 /// accelerations up to about 1 rad/s^2). With the law's torque clipped below the torque that
-/// lifts the plate (`tilting_controller::excitation_torque_limit`) the paper's robot, and
-/// robots 20 % off it, follow it flat: the arm's gravity torque at 0.3 rad is 30 % of the
-/// paper's limit. See [`Trajectory::Excitation`].
+/// lifts the plate (`tilting_controller::excitation_torque_limit`) the paper's robot follows
+/// it flat (saturating at its turning points: the arm's gravity torque at its largest
+/// excursion is 81 % of the clip); a heavier arm gets a smaller amplitude from the governor
+/// (`tilting_controller::excite`: 0.25 rad for a 20 % heavier one), so every robot 20 % off
+/// the paper's stays flat (docs/identify.md). See [`Trajectory::Excitation`].
 pub const EXCITATION_DEFAULT: Trajectory = Trajectory::Excitation {
     amplitude: 0.3,
     omega: 0.6,
@@ -64,7 +68,8 @@ pub enum Trajectory {
     },
     /// The identification's excitation (module docs): `beta_d = pi/2 + A e(t) s(w t)`, a
     /// finite Fourier series ramped in over the first period, tracked without the energy
-    /// adaptation. `|beta_d - pi/2| <= |A|`.
+    /// adaptation. `|beta_d - pi/2| <= |A|`; the law may scale `A` down
+    /// (`tilting_controller::excite`).
     Excitation {
         /// Amplitude bound `A` (rad).
         amplitude: f64,
@@ -103,6 +108,32 @@ impl Trajectory {
         }
     }
 
+    /// The excitation with its amplitude scaled by a time-varying factor `r(t)` given with its
+    /// first two time derivatives `(r, r_dot, r_ddot)` (1, 1/s, 1/s^2): `beta_d = pi/2 + A r(t)
+    /// e(t) s(w t)` and its exact rate and acceleration (rad, rad/s, rad/s^2). With `r = (1, 0,
+    /// 0)` it is [`Trajectory::at`]; any other trajectory ignores `r`. The amplitude governor
+    /// of [`crate::excite`] scales the excitation this way.
+    #[inline(always)]
+    pub fn at_scaled(&self, t: f64, r: (f64, f64, f64)) -> (f64, f64, f64) {
+        let Trajectory::Excitation { amplitude, omega } = *self else {
+            return self.at(t);
+        };
+        let (s, ds, dds) = series(omega * t);
+        let (e, de, dde) = ramp(omega * t / std::f64::consts::TAU);
+        let (ds, dds) = (omega * ds, omega * omega * dds);
+        let w = omega / std::f64::consts::TAU;
+        let (de, dde) = (w * de, w * w * dde);
+        // g = r e, the scaled ramp, and its derivatives.
+        let g = r.0 * e;
+        let dg = r.1 * e + r.0 * de;
+        let ddg = r.2 * e + 2.0 * r.1 * de + r.0 * dde;
+        (
+            FRAC_PI_2 + amplitude * g * s,
+            amplitude * (dg * s + g * ds),
+            amplitude * (ddg * s + 2.0 * dg * ds + g * dds),
+        )
+    }
+
     /// Whether the law adapts its stiffness to the energy on this trajectory: not on the
     /// excitation, whose motion is the trajectory's own, not an orbit's (an energy target
     /// would fight it).
@@ -133,7 +164,7 @@ impl Trajectory {
 
 /// The excitation's series `s(theta)` and its first two derivatives in `theta`.
 #[inline(always)]
-fn series(theta: f64) -> (f64, f64, f64) {
+pub(crate) fn series(theta: f64) -> (f64, f64, f64) {
     let mut out = (0.0, 0.0, 0.0);
     for (n, c, phi) in HARMONICS {
         let (s, co) = (n * theta + phi).sin_cos();
@@ -147,7 +178,7 @@ fn series(theta: f64) -> (f64, f64, f64) {
 /// The ramp `e(u) = 10 u^3 - 15 u^4 + 6 u^5` on `u` in `[0, 1]` (0 before, 1 after) and its
 /// first two derivatives in `u`: 0 and 1 with zero slope and curvature at the ends.
 #[inline(always)]
-fn ramp(u: f64) -> (f64, f64, f64) {
+pub(crate) fn ramp(u: f64) -> (f64, f64, f64) {
     if u <= 0.0 {
         return (0.0, 0.0, 0.0);
     }
@@ -266,6 +297,38 @@ mod tests {
         let weights: f64 = HARMONICS.iter().map(|h| h.1).sum();
         assert!((weights - 1.0).abs() < 1e-12);
         assert!(!tr.adapts() && Trajectory::Hold.adapts());
+    }
+
+    /// The scaled excitation's rate and acceleration are the derivatives of its angle for a
+    /// scale that moves (`r(t) = 0.8 + 0.2 cos(0.7 t)`, given with its exact derivatives;
+    /// central differences as above), and with `r = (1, 0, 0)` it is the excitation itself,
+    /// to the bit.
+    #[test]
+    fn scaled_excitation_is_consistent_and_unscaled_is_the_excitation() {
+        let tr = Trajectory::Excitation {
+            amplitude: 0.3,
+            omega: 0.9,
+        };
+        let r = |t: f64| {
+            let (s, c) = (0.7 * t).sin_cos();
+            (0.8 + 0.2 * c, -0.14 * s, -0.098 * c)
+        };
+        let h = 1e-4;
+        for i in 1..3000 {
+            let t = i as f64 * 7e-3;
+            assert_eq!(tr.at_scaled(t, (1.0, 0.0, 0.0)), tr.at(t));
+            let (_, dq, ddq) = tr.at_scaled(t, r(t));
+            let (qp, dqp, _) = tr.at_scaled(t + h, r(t + h));
+            let (qm, dqm, _) = tr.at_scaled(t - h, r(t - h));
+            let fd = (qp - qm) / (2.0 * h);
+            let fdd = (dqp - dqm) / (2.0 * h);
+            assert!((fd - dq).abs() < 1e-6, "t = {t}: rate {dq} vs {fd}");
+            assert!((fdd - ddq).abs() < 1e-5, "t = {t}: {ddq} vs {fdd}");
+        }
+        assert_eq!(
+            Trajectory::Hold.at_scaled(3.0, r(3.0)),
+            Trajectory::Hold.at(3.0)
+        );
     }
 
     #[test]

@@ -128,6 +128,10 @@ pub struct SimulationReport {
     /// The robot's imperfections, for a run with any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub imperfections: Option<Imperfections>,
+    /// What the excitation's amplitude governor found (`tilting_controller::excite`), for a
+    /// run on the excitation: the amplitude's scale and the arm's estimated gravity torque.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub excitation: Option<tilting_controller::excite::GovernorStatus>,
     /// The trajectory, if recorded (not serialised).
     #[serde(skip)]
     pub samples: Vec<Sample>,
@@ -334,7 +338,9 @@ pub fn simulate_with_progress(
 ) -> Result<SimulationReport, ScenarioError> {
     sc.validate()?;
     let ctrl = sc.controller()?;
-    simulate_law(sc, opts, &ctrl, progress)
+    let mut report = simulate_law(sc, opts, &ctrl, progress)?;
+    report.excitation = ctrl.excitation_status();
+    Ok(report)
 }
 
 /// [`simulate_with_progress`] with the scenario's controller `ctrl` given (wrapped by
@@ -499,6 +505,7 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
             controller_samples,
             wall_time_s: wall,
         },
+        excitation: None,
         samples: rec.samples.unwrap_or_default(),
     })
 }
@@ -521,7 +528,8 @@ pub fn law_line(law: &tilting_controller::LawSpec, params: &tilting_plant::Param
         )
     } else {
         format!(
-            "{}, K_P = {}, K_D = {}, no energy adaptation, torque clipped to {:.3} N m",
+            "{}, K_P = {}, K_D = {}, no energy adaptation, amplitude governed by the arm's \
+             holding torque, torque clipped to {:.3} N m",
             law.reference,
             law.kp,
             law.kd,
@@ -577,6 +585,14 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
             .as_ref()
             .map_or_else(|| "none (ran to the end)".to_owned(), Fault::to_string)
     );
+    if let Some(e) = &r.excitation {
+        let _ = writeln!(
+            s,
+            "excitation: amplitude scale {:.3} at the end (smallest {:.3}); the arm's gravity \
+             torque estimated m_l l_c g = {:.3} N m, its inertia about the joint {:.3} kg m^2",
+            e.scale, e.min_scale, e.gravity, e.inertia
+        );
+    }
     if let Some(n) = &r.network {
         let max_age = n.age_histogram.len().saturating_sub(1);
         let _ = writeln!(

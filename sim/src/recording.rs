@@ -111,6 +111,7 @@ pub fn simulate_logged(
         ..opts
     };
     let mut report = crate::closed_loop::simulate_law(sc, opts, &law, progress)?;
+    report.excitation = ctrl.excitation_status();
     let (read, tau) = law.log.into_inner();
     // The state a recording holds is the one the plant publishes: what its sensors measured
     // (noise, encoder, absent rates), not what the controller's estimator made of it (the
