@@ -22,8 +22,16 @@ torque) by "apply the torque to the motor, wait for the next sample, read the en
 report mode transitions": everything around it (the wire format, lockstep waiting, safe mode,
 status, summary) stays as it is.
 
+The model has the hardware terms of docs/model.md: the arm's centre of mass and inertia, a geared
+rotor, viscous and Coulomb joint friction (`--params`), the latter with the Rust plant's stick/slip
+treatment (the joint's phase, located like the mode transitions). `--measure angles` publishes
+the angles only (`measured = 3`, protocol 2), with the Rust plant's encoder and noise flags
+(`--encoder-counts`, `--noise-alpha` ..., `--seed`; Python's random stream, not the Rust one):
+the controller then estimates the rates.
+
 `--self-test` checks the encodings and the model without zenoh (energy conservation, mirror
-symmetry, angular momentum across the impact, the zero moment point at rest). At the end it
+symmetry, angular momentum across the impact, the zero moment point at rest);
+examples/python/tests/test_plant.py (pytest) checks the friction and the sensors. At the end it
 prints one JSON summary on stdout; the exit code is 0 (duration reached or Ctrl-C), 3 (a model
 fault: fall, contact loss, Zeno, non-finite torque) or 1 (bad arguments).
 """
@@ -44,9 +52,11 @@ import tilting_source
 # ---------------------------------------------------------------------------------------------
 # Wire format (docs/protocol.md): little-endian, no padding, no header.
 
-# Protocol 2: seq, time, alpha, beta, alpha_dot, beta_dot, mode, measured (15: all four fields;
-# this plant always measures the rates).
+# Protocol 2: seq, time, alpha, beta, alpha_dot, beta_dot, mode, measured (which fields carry a
+# measurement: bit 0 alpha, bit 1 beta, bit 2 alpha_dot, bit 3 beta_dot; 15 all four, 3 the
+# angles only, `--measure angles`: an absent rate's slot holds +0.0 and must not be read).
 PLANT_STATE = struct.Struct("<Q5d2B")
+MEASURED_FULL, MEASURED_ANGLES = 15, 3
 TORQUE = struct.Struct("<Qd")  # seq, tau
 MODE_EVENT = struct.Struct("<Qd2B8d")  # seq, time, from, to, x_before[4], x_after[4]
 STATUS_HEAD = struct.Struct("<QdBB7Q5d3Q3dQ")  # ... then `fault` length n, n bytes of UTF-8
@@ -59,8 +69,11 @@ STARTING, RUNNING, SAFE, FAULTED, STOPPED = 0, 1, 2, 3, 4
 MAX_FAULT_BYTES = 1024
 
 
-def pack_state(seq, t, mode, x):
-    return PLANT_STATE.pack(seq, t, x[0], x[1], x[2], x[3], mode, 15)
+def pack_state(seq, t, mode, x, measured=MEASURED_FULL):
+    """A PlantState; with measured = MEASURED_ANGLES the rates of x are left out (+0.0)."""
+    if measured == MEASURED_ANGLES:
+        return PLANT_STATE.pack(seq, t, x[0], x[1], 0.0, 0.0, mode, measured)
+    return PLANT_STATE.pack(seq, t, x[0], x[1], x[2], x[3], mode, measured)
 
 
 def pack_event(seq, ev):
@@ -98,18 +111,29 @@ def unpack_torque(payload):
 
 class Params:
     """The paper's point masses, plus the hardware terms of docs/model.md ("A plant that looks
-    like hardware"): the arm's centre of mass at l_c (None: the tip) with its inertia i_l, a
-    rotor j_m behind the gear ratio n_g, viscous friction b_v. Coulomb friction (tau_c) is not
-    in this example: it needs stick/slip events (the Rust plant has them)."""
+    like hardware"): the arm's centre of mass at l_c (m; None: the tip) with its inertia i_l
+    (kg m^2), a rotor j_m (kg m^2) behind the gear ratio n_g, viscous friction b_v (N m s/rad)
+    and Coulomb friction tau_c (N m) at the joint, the latter with stick/slip phases (`Joint`)."""
 
-    KEYS = ("m_f", "m_l", "l", "f", "g", "l_c", "i_l", "j_m", "n_g", "b_v")
+    KEYS = ("m_f", "m_l", "l", "f", "g", "l_c", "i_l", "j_m", "n_g", "b_v", "tau_c")
 
     def __init__(
-        self, m_f=1.0, m_l=1.0, l=2.0, f=0.5, g=9.81, l_c=None, i_l=0.0, j_m=0.0, n_g=1.0, b_v=0.0
+        self,
+        m_f=1.0,
+        m_l=1.0,
+        l=2.0,
+        f=0.5,
+        g=9.81,
+        l_c=None,
+        i_l=0.0,
+        j_m=0.0,
+        n_g=1.0,
+        b_v=0.0,
+        tau_c=0.0,
     ):
         self.m_f, self.m_l, self.l, self.f, self.g = m_f, m_l, l, f, g
         self.lc = l if l_c is None else l_c
-        self.i_l, self.j_m, self.n_g, self.b_v = i_l, j_m, n_g, b_v
+        self.i_l, self.j_m, self.n_g, self.b_v, self.tau_c = i_l, j_m, n_g, b_v, tau_c
         self.has_inertia = i_l != 0.0 or j_m != 0.0
         # The spins' share of the mass matrix (kg m^2): the arm turns with alpha + beta, the
         # rotor with alpha + n_g beta.
@@ -133,7 +157,7 @@ class Params:
             v = getattr(p, k)
             if not (math.isfinite(v) and v > 0.0):
                 raise SystemExit(f"--params {path}: {k} = {v}; allowed: finite and > 0")
-        for k in ("i_l", "j_m", "b_v"):
+        for k in ("i_l", "j_m", "b_v", "tau_c"):
             v = getattr(p, k)
             if not (math.isfinite(v) and v >= 0.0):
                 raise SystemExit(f"--params {path}: {k} = {v}; allowed: finite and >= 0")
@@ -169,15 +193,74 @@ def bias(p, mode, x):
     return h1, h2
 
 
-def net_torque(p, bd, tau):
-    """The net joint torque on the arm: the motor's tau less the viscous friction b_v beta_dot."""
-    return tau - p.b_v * bd if p.b_v != 0.0 else tau
+# The joint's Coulomb-friction phase (docs/model.md, "Coulomb friction and sticking"): free (no
+# Coulomb friction), sliding forward (beta_dot > 0, friction -tau_c on the arm), sliding backward
+# (beta_dot < 0, friction +tau_c), or stuck (beta_dot = 0: the arm and the plate move as one
+# body, the friction supplying whatever torque in [-tau_c, tau_c] that takes). The phase is part
+# of the discrete state beside the mode; it is not on the wire.
+FREE, FORWARD, BACKWARD, STUCK = 0, 1, 2, 3
+JOINT_NAMES = {FREE: "free", FORWARD: "forward", BACKWARD: "backward", STUCK: "stuck"}
 
 
-def accelerations(p, mode, x, motor_tau):
-    """Forward dynamics: (alpha_ddot, beta_ddot) under the motor torque (N m), friction included."""
+def rigid_torque(p, mode, x, v):
+    """The net joint torque (N m) that gives beta_ddot = v (rad/s^2): the rigid-body inverse
+    dynamics, no friction. Tilted, alpha_ddot is eliminated with the plate's (unactuated) row."""
+    if mode == FLAT:
+        if p.has_inertia:
+            return mass_matrix(p, FLAT, x[1])[2] * v + p.m_l * p.lc * p.g * math.cos(x[1])
+        return p.m_l * p.lc * (p.lc * v + p.g * math.cos(x[1]))
+    m11, m12, m22 = mass_matrix(p, mode, x[1])
+    h1, h2 = bias(p, mode, x)
+    alpha_ddot = -(m12 * v + h1) / m11
+    return m12 * alpha_ddot + m22 * v + h2
+
+
+def hold_torque(p, mode, x):
+    """The net joint torque (N m) that holds the arm still relative to the plate (beta_ddot = 0):
+    what a stuck joint transmits. Flat m_l g l_c cos(beta), tilted h2 - M12 h1 / M11."""
+    return rigid_torque(p, mode, x, 0.0)
+
+
+def joint_of(p, mode, x, tau):
+    """The joint's phase at state x under the motor torque tau (N m), Karnopp's rule: sliding the
+    way beta_dot points; at beta_dot = 0 stuck while |tau - tau_h| < tau_c (tau_h the hold
+    torque), else sliding the way tau - tau_h pushes."""
+    if p.tau_c == 0.0:
+        return FREE
+    if x[3] > 0.0:
+        return FORWARD
+    if x[3] < 0.0:
+        return BACKWARD
+    excess = tau - hold_torque(p, mode, x)
+    if abs(excess) < p.tau_c:
+        return STUCK
+    return FORWARD if excess > 0.0 else BACKWARD
+
+
+def net_torque(p, bd, tau, joint=FREE):
+    """The net joint torque on the sliding (or free) arm (N m): the motor's tau less the viscous
+    friction b_v beta_dot and less the Coulomb friction tau_c the way it slides."""
+    if p.b_v != 0.0:
+        tau = tau - p.b_v * bd
+    if joint == FORWARD:
+        return tau - p.tau_c
+    if joint == BACKWARD:
+        return tau + p.tau_c
+    return tau
+
+
+def accelerations(p, mode, x, motor_tau, joint=None):
+    """Forward dynamics: (alpha_ddot, beta_ddot) (rad/s^2) under the motor torque (N m), friction
+    included, in the joint phase `joint` (None: the phase Karnopp's rule gives at x). Stuck, the
+    arm and the plate move as one body: flat nothing moves, tilted M11 alpha_ddot = -h1."""
+    if joint is None:
+        joint = joint_of(p, mode, x, motor_tau)
     beta = x[1]
-    tau = net_torque(p, x[3], motor_tau)
+    if joint == STUCK:
+        if mode == FLAT:
+            return 0.0, 0.0
+        return -bias(p, mode, x)[0] / mass_matrix(p, mode, beta)[0], 0.0
+    tau = net_torque(p, x[3], motor_tau, joint)
     if mode == FLAT:
         # tau = M22 beta_ddot + m_l g l_c cos beta, the plate does not move.
         if p.has_inertia:
@@ -190,9 +273,9 @@ def accelerations(p, mode, x, motor_tau):
     return (m22 * -h1 - m12 * (tau - h2)) / det, (m11 * (tau - h2) + m12 * h1) / det
 
 
-def rhs(p, mode, x, tau):
-    """dx/dt."""
-    add, bdd = accelerations(p, mode, x, tau)
+def rhs(p, mode, x, tau, joint=None):
+    """dx/dt in the joint phase `joint` (None: Karnopp's rule at x)."""
+    add, bdd = accelerations(p, mode, x, tau, joint)
     return (x[2], x[3], add, bdd)
 
 
@@ -240,19 +323,20 @@ def impact_gain(p, law, mode, beta):
 
 
 def torque_for_beta_ddot(p, mode, x, v):
-    """Computed torque: the motor torque that makes beta_ddot = v in `mode` (safe mode),
-    friction compensated."""
-    if mode == FLAT:
-        if p.has_inertia:
-            tau = mass_matrix(p, FLAT, x[1])[2] * v + p.m_l * p.lc * p.g * math.cos(x[1])
-        else:
-            tau = p.m_l * p.lc * (p.lc * v + p.g * math.cos(x[1]))
-    else:
-        m11, m12, m22 = mass_matrix(p, mode, x[1])
-        h1, h2 = bias(p, mode, x)
-        alpha_ddot = -(m12 * v + h1) / m11
-        tau = m12 * alpha_ddot + m22 * v + h2
-    return tau + p.b_v * x[3] if p.b_v != 0.0 else tau
+    """Computed torque: the motor torque (N m) that makes beta_ddot = v in `mode` (safe mode),
+    friction compensated: + b_v beta_dot, and + tau_c sign(beta_dot) while sliding, + tau_c
+    sign(v) from rest (the excess over the hold torque is then outside the band), nothing at rest
+    with v = 0 (it sticks)."""
+    tau = rigid_torque(p, mode, x, v)
+    if p.b_v != 0.0:
+        tau += p.b_v * x[3]
+    if p.tau_c != 0.0:
+        s = x[3] if x[3] != 0.0 else v
+        if s > 0.0:
+            return tau + p.tau_c
+        if s < 0.0:
+            return tau - p.tau_c
+    return tau
 
 
 def plate_torque(p, beta, bdd):
@@ -278,23 +362,34 @@ class Transition:
         self.x_before, self.x_after = tuple(x_before), tuple(x_after)
 
 
-def rk4(p, mode, tau, x, dt, k1):
-    """One classical Runge-Kutta step of length dt from x, with k1 = rhs(x) given. As a function
-    of dt it is a polynomial: a continuous fourth-order solution on the whole step, which is
-    what the event location bisects on."""
+def rk4(p, mode, tau, x, dt, k1, joint=FREE):
+    """One classical Runge-Kutta step of length dt from x, with k1 = rhs(x) given, in the joint
+    phase `joint` (fixed over the step: its vector field is smooth). As a function of dt it is a
+    polynomial: a continuous fourth-order solution on the whole step, which is what the event
+    location bisects on."""
     h2 = 0.5 * dt
-    k2 = rhs(p, mode, [x[i] + h2 * k1[i] for i in range(4)], tau)
-    k3 = rhs(p, mode, [x[i] + h2 * k2[i] for i in range(4)], tau)
-    k4 = rhs(p, mode, [x[i] + dt * k3[i] for i in range(4)], tau)
+    k2 = rhs(p, mode, [x[i] + h2 * k1[i] for i in range(4)], tau, joint)
+    k3 = rhs(p, mode, [x[i] + h2 * k2[i] for i in range(4)], tau, joint)
+    k4 = rhs(p, mode, [x[i] + dt * k3[i] for i in range(4)], tau, joint)
     return tuple(x[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) for i in range(4))
 
 
 # Event slots. Each event function is positive inside its mode and fires when it reaches zero
 # from above (docs/model.md, trap 1): a tilt starts at alpha = alpha_dot = 0, so its landing
 # function starts at exactly 0 and cannot fire before alpha has left 0.
-EV_A, EV_B, EV_CONTACT, EV_FALL = 0, 1, 2, 3
+EV_A, EV_B, EV_CONTACT, EV_FALL, EV_JOINT = 0, 1, 2, 3, 4
+NEV = 5
 # Flat:   A = left support margin f F_y + tau,  B = right margin f F_y - tau.
 # Tilted: A = landing (s alpha),  B = extreme of alpha (s alpha_dot; not terminal: a tilt peak).
+# Every mode: JOINT = the end of the joint's phase: sliding s beta_dot (s = +1 forward, -1
+# backward), stuck tau_c - |tau - tau_h|, free the constant 1.
+
+
+def fires(i, g0, g1):
+    """Did event i fire over a step? It reached 0 from above; the joint's event also fires on a
+    slide that starts at rest (g0 = 0) and at once turns the other way (g1 < 0): the slide ends
+    there instead of the friction pushing the arm (docs/model.md)."""
+    return (g0 > 0.0 and g1 <= 0.0) or (i == EV_JOINT and g0 == 0.0 and g1 < 0.0)
 
 
 class HybridPlant:
@@ -318,6 +413,14 @@ class HybridPlant:
         self.impact = impact
         self.h_max, self.event_tol, self.fall_angle = h_max, event_tol, fall_angle
         self.t, self.mode, self.x = 0.0, mode, tuple(float(v) for v in x0)
+        # The joint's phase from the sign of beta_dot (at rest: stuck until the first torque
+        # decides, at the start of the first advance).
+        if self.p.tau_c == 0.0:
+            self.joint = FREE
+        else:
+            self.joint = FORWARD if self.x[3] > 0.0 else BACKWARD if self.x[3] < 0.0 else STUCK
+        self.joint_events = 0  # stick/slip changes so far
+        self.joint_changes = []  # (t, from, to, x) of the current advance() call
         if mode == FLAT and (self.x[0] != 0.0 or self.x[2] != 0.0):
             raise ValueError("mode flat needs alpha = alpha_dot = 0")
         if (mode == LEFT and self.x[0] < 0.0) or (mode == RIGHT and self.x[0] > 0.0):
@@ -334,16 +437,28 @@ class HybridPlant:
     def sign(self):
         return 1.0 if self.mode == LEFT else -1.0
 
+    def joint_event(self, x, tau):
+        """The joint's event function at x under the held motor torque tau."""
+        if self.joint == FREE:
+            return 1.0
+        if self.joint == FORWARD:
+            return x[3]
+        if self.joint == BACKWARD:
+            return -x[3]
+        return self.p.tau_c - abs(tau - hold_torque(self.p, self.mode, x))
+
     def events(self, x, xd, tau):
-        """The four event functions at x with derivative xd = rhs(x) in the current mode."""
+        """The five event functions at x with derivative xd = rhs(x) in the current mode and
+        joint phase."""
         p = self.p
         fy = vertical_force(p, self.mode, x, xd[2], xd[3])
+        gj = self.joint_event(x, tau)
         if self.mode == FLAT:
-            if p.has_inertia or p.b_v != 0.0:
+            if p.has_inertia or p.b_v != 0.0 or p.tau_c != 0.0:
                 tau = plate_torque(p, x[1], xd[3])  # what the plate feels (docs/model.md)
-            return (p.f * fy + tau, p.f * fy - tau, fy, 1.0)
+            return (p.f * fy + tau, p.f * fy - tau, fy, 1.0, gj)
         s = self.sign()
-        return (s * x[0], s * x[2], fy, self.fall_angle - s * x[0])
+        return (s * x[0], s * x[2], fy, self.fall_angle - s * x[0], gj)
 
     # -- discrete transitions ---------------------------------------------------------------
 
@@ -352,6 +467,10 @@ class HybridPlant:
         if self.mode == FLAT and to != FLAT:
             self.tilts += 1
         self.mode, self.x = to, tuple(x_after)
+        self.count_for_zeno()
+
+    def count_for_zeno(self):
+        """Counts a transition or a joint event at the current time for the Zeno guard."""
         if len(self.recent) == self.recent.maxlen and self.t - self.recent[0] < self.zeno_window:
             raise Fault(
                 f"Zeno guard at t = {self.t:.9f} s: {self.recent.maxlen} transitions within "
@@ -359,12 +478,25 @@ class HybridPlant:
             )
         self.recent.append(self.t)
 
+    def settle_joint(self, tau):
+        """With Coulomb friction: the joint's phase at the current state under the held torque
+        (Karnopp's rule), recorded when it changes. Called wherever the torque or the state
+        jumps: at each advance's start, after every transition and joint event."""
+        if self.p.tau_c == 0.0:
+            return
+        to = joint_of(self.p, self.mode, self.x, tau)
+        if to != self.joint:
+            self.joint_changes.append((self.t, self.joint, to, self.x))
+            self.joint, self.joint_events = to, self.joint_events + 1
+            self.count_for_zeno()
+
     def start_tilt(self, to, tau):
         """Flat -> tilted: the state is continuous, alpha = alpha_dot = 0. A tilt whose
         acceleration points into the ground is not one: it lands at once (trap 2)."""
         self.extreme = None
         self.record(to, (0.0, self.x[1], 0.0, self.x[3]))
-        add, _ = accelerations(self.p, self.mode, self.x, tau)
+        self.settle_joint(tau)
+        add, _ = accelerations(self.p, self.mode, self.x, tau, self.joint)
         if self.sign() * add < -1e-9:  # below this it is round-off at a located switch
             self.land()
 
@@ -383,8 +515,9 @@ class HybridPlant:
         """Flat: check the support margins directly, not only by watching for a crossing: the
         held torque jumps at every sample and the zero moment point with it (trap 3). Tilts at
         once if the zero moment point lies outside the support; a contact loss is a fault."""
+        self.settle_joint(tau)
         while self.mode == FLAT:
-            xd = rhs(self.p, FLAT, self.x, tau)
+            xd = rhs(self.p, FLAT, self.x, tau, self.joint)
             g = self.events(self.x, xd, tau)
             if g[EV_CONTACT] <= 0.0:
                 raise Fault(
@@ -397,6 +530,7 @@ class HybridPlant:
                 self.start_tilt(RIGHT, tau)
             else:
                 break
+            self.settle_joint(tau)
 
     def check_tilt_direction(self, tau):
         """A tilted state at alpha = 0 moving (or accelerating) into the ground lands at once."""
@@ -408,7 +542,7 @@ class HybridPlant:
         if self.x[2] != 0.0:
             into_ground = s * self.x[2] < 0.0
         else:
-            into_ground = s * accelerations(self.p, self.mode, self.x, tau)[0] < 0.0
+            into_ground = s * accelerations(self.p, self.mode, self.x, tau, self.joint)[0] < 0.0
         if into_ground:
             self.land()
             self.settle(tau)
@@ -423,8 +557,8 @@ class HybridPlant:
             mid = 0.5 * (lo + hi)
             if mid <= lo or mid >= hi:
                 break
-            xm = rk4(self.p, self.mode, tau, x0, mid, k1)
-            gm = self.events(xm, rhs(self.p, self.mode, xm, tau), tau)[i]
+            xm = rk4(self.p, self.mode, tau, x0, mid, k1, self.joint)
+            gm = self.events(xm, rhs(self.p, self.mode, xm, tau, self.joint), tau)[i]
             if gm > 0.0:
                 lo = mid
             else:
@@ -433,23 +567,23 @@ class HybridPlant:
 
     def advance(self, tau, t_target):
         """Integrates from self.t to t_target with tau held; returns the transitions."""
-        self.transitions = []
+        self.transitions, self.joint_changes = [], []
         if not math.isfinite(tau):
             raise Fault(f"non-finite torque {tau} at t = {self.t:.9f} s")
         self.settle(tau)
         self.check_tilt_direction(tau)
         p = self.p
         while self.t < t_target:
-            mode = self.mode
+            mode, joint = self.mode, self.joint
             x0 = self.x
-            k1 = rhs(p, mode, x0, tau)
+            k1 = rhs(p, mode, x0, tau, joint)
             g0 = self.events(x0, k1, tau)
             rest = t_target - self.t
             n = max(1, math.ceil(rest / self.h_max * (1.0 - 1e-12)))
             dt = rest / n
-            x1 = rk4(p, mode, tau, x0, dt, k1)
-            g1 = self.events(x1, rhs(p, mode, x1, tau), tau)
-            fired = [i for i in range(4) if g0[i] > 0.0 and g1[i] <= 0.0]
+            x1 = rk4(p, mode, tau, x0, dt, k1, joint)
+            g1 = self.events(x1, rhs(p, mode, x1, tau, joint), tau)
+            fired = [i for i in range(NEV) if fires(i, g0[i], g1[i])]
             if not fired:
                 self.t = t_target if n == 1 else self.t + dt
                 self.x = x1
@@ -458,7 +592,7 @@ class HybridPlant:
             terminal = next(((r, i) for r, i in roots if mode == FLAT or i != EV_B), None)
             for r, i in roots:
                 if mode != FLAT and i == EV_B and (terminal is None or r <= terminal[0]):
-                    a = rk4(p, mode, tau, x0, r, k1)[0]
+                    a = rk4(p, mode, tau, x0, r, k1, joint)[0]
                     if self.extreme is None or abs(a) > abs(self.extreme[1]):
                         self.extreme = (self.t + r, a)
             if terminal is None:
@@ -467,7 +601,14 @@ class HybridPlant:
                 continue
             r, i = terminal
             self.t = min(self.t + r, t_target)
-            self.x = rk4(p, mode, tau, x0, r, k1)
+            self.x = rk4(p, mode, tau, x0, r, k1, joint)
+            if i == EV_JOINT:
+                if joint != STUCK:
+                    # A sliding arm came to rest: located to round-off, like a landing.
+                    self.x = (self.x[0], self.x[1], self.x[2], 0.0)
+                self.settle(tau)  # Karnopp's rule decides the next phase, then the margins
+                self.check_tilt_direction(tau)
+                continue
             if i == EV_CONTACT:
                 raise Fault(
                     f"contact loss at t = {self.t:.9f} s in mode {MODE_NAMES[mode]}: vertical "
@@ -485,6 +626,68 @@ class HybridPlant:
     def peak_in_progress(self):
         """The peak of a tilt that has not landed yet, if alpha has already turned back."""
         return self.extreme if self.mode != FLAT else None
+
+
+# ---------------------------------------------------------------------------------------------
+# The sensors (the flags of `tilting-plant`: --measure, --noise-*, --encoder-counts, --seed).
+
+NOISE_FLAGS = ("--noise-alpha", "--noise-beta", "--noise-alpha-dot", "--noise-beta-dot")
+MAX_SIGMA = 10.0  # rad or rad/s
+COUNTS_RANGE = (2, 1 << 32)
+
+
+class Sensor:
+    """What the controller sees of the true state, as the Rust plant's `imperfect::Sensor`
+    defines it: the angles y = round((x + sigma n) / q) q with n standard normal and q = 2 pi /
+    counts the encoder's resolution (no rounding without an encoder), the rates y = x + sigma n
+    (a separate rate sensor, not derived from the quantised angles). Four normals are drawn per
+    sample, in state order, whenever any deviation is positive. With `angles_only` the rates are
+    not sent (`measured = 3`). The stream is Python's `random.Random(seed)`, not the Rust plant's
+    ChaCha8: the same statistics, not the same numbers."""
+
+    def __init__(self, noise=(0.0, 0.0, 0.0, 0.0), encoder_counts=None, seed=0, angles_only=False):
+        import random
+
+        self.sigma = tuple(float(v) for v in noise)
+        self.quantum = None if encoder_counts is None else 2.0 * math.pi / encoder_counts
+        self.angles_only = angles_only
+        self.measured = MEASURED_ANGLES if angles_only else MEASURED_FULL
+        self.rng = random.Random(seed)
+
+    def measure(self, x):
+        """All four measured quantities of the true state x (draws one sample of the noise)."""
+        y = list(x)
+        if any(s > 0.0 for s in self.sigma):
+            for i, s in enumerate(self.sigma):
+                n = self.rng.gauss(0.0, 1.0)
+                if s > 0.0:
+                    y[i] += s * n
+        if self.quantum is not None:
+            for i in (0, 1):
+                y[i] = round_half_away(y[i] / self.quantum) * self.quantum
+        return tuple(y)
+
+
+def round_half_away(v):
+    """The nearest integer, halves away from zero (Rust's f64::round; Python's round() takes
+    halves to even)."""
+    a = abs(v)
+    r = math.floor(a)
+    if a - r >= 0.5:
+        r += 1.0
+    return math.copysign(r, v)
+
+
+def state_for_safe_mode(y, angles_only, t, previous):
+    """The safe mode's state from the measurement y: the measured rates, or with the angles only
+    the backward difference of the measured angles over the last sample interval (zero at the
+    first sample), as the Rust plant does; `previous` is (t, alpha, beta) of the sample before."""
+    if not angles_only:
+        return y
+    if previous is not None and t > previous[0]:
+        dt = t - previous[0]
+        return (y[0], y[1], (y[0] - previous[1]) / dt, (y[1] - previous[2]) / dt)
+    return (y[0], y[1], 0.0, 0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -680,6 +883,16 @@ class Node:
         self.status_state = STARTING
         self.fault = ""
         self.log_bad = RateLimitedLog(f"{self.prefix}/controller/torque")
+        self.sensor = Sensor(
+            noise=(args.noise_alpha, args.noise_beta, args.noise_alpha_dot, args.noise_beta_dot),
+            encoder_counts=args.encoder_counts,
+            seed=args.seed,
+            angles_only=args.measure == "angles",
+        )
+        # What was measured for a seq (measured once: a re-publication sends the same numbers):
+        # (seq, t, y, payload), and (t, alpha, beta) of the sample before (the safe mode's rates).
+        self.sample = None
+        self.previous_angles = None
 
     # -- callbacks (zenoh threads) ------------------------------------------------------------
 
@@ -758,6 +971,17 @@ class Node:
             self.fault,
         )
 
+    def measured(self, seq, sim):
+        """(y, payload): what the sensors measured for `seq` (measured at its first use)."""
+        if self.sample is None or self.sample[0] != seq:
+            if self.sample is not None:
+                _, t0, y0, _ = self.sample
+                self.previous_angles = (t0, y0[0], y0[1])
+            y = self.sensor.measure(sim.x)
+            payload = pack_state(seq, sim.t, sim.mode, y, self.sensor.measured)
+            self.sample = (seq, sim.t, y, payload)
+        return self.sample[2], self.sample[3]
+
     def publish_state(self, seq, sim):
         """Publishes state `seq`; from now on only a torque answering it is taken (set before
         the put, so that an answer arriving at once is not mistaken for a stale one)."""
@@ -765,7 +989,7 @@ class Node:
             self.waiting_for = seq
             self.published.setdefault(seq, time.monotonic())
             self.published.pop(seq - 2, None)
-        self.pub_state.put(pack_state(seq, sim.t, sim.mode, sim.x))
+        self.pub_state.put(self.measured(seq, sim)[1])
 
     def set_state(self, state, sim, seq):
         """Changes Status.state and publishes the status at once."""
@@ -796,7 +1020,7 @@ class Node:
                 if now >= next_repub:
                     self.cv.release()
                     try:
-                        self.pub_state.put(pack_state(seq, sim.t, sim.mode, sim.x))
+                        self.pub_state.put(self.measured(seq, sim)[1])
                     finally:
                         self.cv.acquire()
                     next_repub = now + 0.1
@@ -817,9 +1041,12 @@ class Node:
     def safe_torque(self, sim):
         if self.args.safe_mode == "zero":
             return 0.0
-        # A critically damped computed-torque PD towards beta = pi/2, beta_dot = 0.
-        v = self.args.safe_kp * (math.pi / 2 - sim.x[1]) - self.args.safe_kd * sim.x[3]
-        return torque_for_beta_ddot(sim.p, sim.mode, sim.x, v)
+        # A critically damped computed-torque PD towards beta = pi/2, beta_dot = 0, on the
+        # measured state (rates by a backward difference when only the angles are measured).
+        y = self.measured(self.waiting_for, sim)[0]
+        x = state_for_safe_mode(y, self.sensor.angles_only, sim.t, self.previous_angles)
+        v = self.args.safe_kp * (math.pi / 2 - x[1]) - self.args.safe_kd * x[3]
+        return torque_for_beta_ddot(sim.p, sim.mode, x, v)
 
     def run(self, sim):
         z, a = self.zenoh, self.args
@@ -842,7 +1069,7 @@ class Node:
         token = session.liveliness().declare_token(f"{self.prefix}/alive/plant")
         print(
             f"plant.py: robot {a.robot}, lockstep, period {a.period} s, duration {a.duration} s, "
-            f"RK4 step {a.step} s; listen {a.listen}",
+            f"RK4 step {a.step} s, measure {a.measure}; listen {a.listen}",
             file=sys.stderr,
             flush=True,
         )
@@ -935,6 +1162,9 @@ class Node:
             x=list(sim.x),
             steps=seq,
             tilts=sim.tilts,
+            joint_events=sim.joint_events,
+            joint=JOINT_NAMES[sim.joint],
+            measure=a.measure,
             **c,
             latency_us=dict(
                 p50=percentile(lat, 0.5),
@@ -981,8 +1211,24 @@ def main(argv=None):
     )
     ap.add_argument("--impact", choices=["paper", "striking-edge"], default="paper")
     ap.add_argument(
-        "--params", help="TOML file with m_f, m_l, l, f, g, l_c, i_l, j_m, n_g, b_v (default the paper's)"
+        "--params",
+        help="TOML file with m_f, m_l, l, f, g, l_c, i_l, j_m, n_g, b_v, tau_c (default the paper's)",
     )
+    ap.add_argument(
+        "--measure",
+        choices=["full", "angles"],
+        default="full",
+        help="what the state carries: full (angles and rates, measured = 15) or angles (the "
+        "angles only, measured = 3: encoders, no velocity sensor; the controller estimates them)",
+    )
+    for flag, unit in zip(NOISE_FLAGS, ("rad", "rad", "rad/s", "rad/s")):
+        ap.add_argument(
+            flag, type=float, default=0.0, help=f"sensor noise standard deviation, {unit} (default 0)"
+        )
+    ap.add_argument(
+        "--encoder-counts", type=int, help="encoder resolution of both angles, counts per turn"
+    )
+    ap.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
     ap.add_argument("--step", type=float, default=1e-4, help="largest RK4 step, s (default 1e-4)")
     ap.add_argument("--max-torque", type=float, default=116.5, help="refuse |tau| above, N m")
     ap.add_argument("--lockstep-timeout-ms", type=float, default=1000.0)
@@ -1016,6 +1262,18 @@ def main(argv=None):
         ap.error(f"--step {args.step}: allowed > 0 and at most the period")
     if not (1.0 <= args.lockstep_timeout_ms <= 60000.0):
         ap.error("--lockstep-timeout-ms: allowed 1 to 60000")
+    for flag in NOISE_FLAGS:
+        v = getattr(args, flag[2:].replace("-", "_"))
+        if not (math.isfinite(v) and 0.0 <= v <= MAX_SIGMA):
+            unit = "rad/s" if flag.endswith("-dot") else "rad"
+            ap.error(f"{flag} {v}: allowed a standard deviation in {unit} in [0, {MAX_SIGMA:g}]")
+    if args.encoder_counts is not None and not (
+        COUNTS_RANGE[0] <= args.encoder_counts <= COUNTS_RANGE[1]
+    ):
+        ap.error(
+            f"--encoder-counts {args.encoder_counts}: allowed counts per revolution in "
+            f"[{COUNTS_RANGE[0]}, {COUNTS_RANGE[1]}]"
+        )
     args.listen = args.listen or ["tcp/127.0.0.1:7447"]
     args.connect = args.connect or []
     mode = {"flat": FLAT, "left": LEFT, "right": RIGHT}[args.mode]
