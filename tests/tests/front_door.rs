@@ -265,6 +265,123 @@ fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
     }
 }
 
+/// A rogue that talks first: as soon as the plant's port opens, before `live` has started the
+/// controller, an outside peer publishes plausible torques answering the plant's newest state
+/// and plausible states one period ahead, naming a made-up session, and goes on until the run
+/// tilts. `live` chose its nodes' zenoh ids before starting them and pinned them in the plant,
+/// the controller and its recorder, so the rogue's early messages take no pin: none is
+/// recorded (marker `beta`, `tau`), the plant refuses its torques as foreign, the orbit holds.
+/// (With pins taken by the first message, the rogue's torques pinned the plant's inbox before
+/// the controller existed, and the recorder's.)
+#[test]
+fn a_rogue_that_talks_before_the_controller_takes_no_pin() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::Arc;
+    use tilting_proto::SourceId;
+    const MARK_BETA: f64 = 1.234567;
+    const MARK_TAU: f64 = 3.25;
+    let _turn = realtime_turn();
+    let dir = Scratch::new("early-rogue");
+    let out = dir.path().join("out");
+    let robot = robot("early_rogue");
+    let port = free_port();
+    let args: Vec<String> = [
+        "live",
+        "--duration",
+        "5",
+        "--robot",
+        &robot,
+        "--port",
+        &port.to_string(),
+        "--out",
+        out.to_str().unwrap(),
+    ]
+    .map(String::from)
+    .into();
+    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let t0 = Instant::now();
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (sent, _rogue) = rt.block_on(async {
+        let rogue = Client::open(&robot, None, Some(port)).await;
+        let newest = Arc::new(AtomicU64::new(0));
+        let n = newest.clone();
+        let _sub = tilting_net::subscribe_decoded(
+            &rogue.session,
+            Arc::new(tilting_net::DropCounter::new(rogue.keys.plant_state())),
+            move |s: PlantState| {
+                n.fetch_max(s.seq, Ordering::Relaxed);
+            },
+        )
+        .await
+        .unwrap();
+        let made_up = SourceId([0xee; 16]).attachment().to_vec();
+        let (sk, tk) = (rogue.keys.plant_state(), rogue.keys.controller_torque());
+        let mut sent = 0u64;
+        let mut after = 0;
+        while after < 200 && t0.elapsed() < Duration::from_secs(30) {
+            let seq = newest.load(Ordering::Relaxed);
+            let lie = PlantState {
+                seq: seq + 1,
+                time: (seq + 1) as f64 * 1e-3,
+                alpha: 0.3,
+                beta: MARK_BETA,
+                alpha_dot: Some(0.0),
+                beta_dot: Some(0.0),
+                mode: 1,
+            };
+            let torque = TorqueCommand { seq, tau: MARK_TAU };
+            let s = &rogue.session;
+            s.put(tk, codec::encode(&torque))
+                .attachment(made_up.clone())
+                .await
+                .unwrap();
+            s.put(sk, codec::encode(&lie))
+                .attachment(made_up.clone())
+                .await
+                .unwrap();
+            sent += 1;
+            if live.stderr().contains("tilts") {
+                after += 1;
+            }
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+        (sent, rogue)
+    });
+    let status = live.expect_exit(Duration::from_secs(60));
+    assert!(status.success(), "{status}\n{}", live.logs());
+    let s = live_summary(&out);
+    let plant = s.plant.as_ref().expect("the plant's summary");
+    eprintln!(
+        "{sent} early rogue states and torques: front door refused {:?} ({} foreign), plant {} \
+         foreign, watchdog trips {}",
+        s.record.refused, s.record.foreign, plant.torques_foreign, plant.watchdog_trips
+    );
+    // Nothing of the rogue's in the recording, though it talked first.
+    let run = tilting_record::read(&out.join("run.mcap")).unwrap();
+    let mut marked = 0;
+    for m in run.messages() {
+        marked += match m.topic {
+            Topic::State => {
+                u32::from(codec::decode::<PlantState>(&m.wire).unwrap().beta == MARK_BETA)
+            }
+            Topic::Torque => {
+                u32::from(codec::decode::<TorqueCommand>(&m.wire).unwrap().tau == MARK_TAU)
+            }
+            _ => 0,
+        };
+    }
+    assert_eq!(marked, 0, "rogue messages in the recording");
+    // Its messages reached the front door and the plant (over the link to the plant's port)
+    // and were refused as foreign there.
+    assert!(s.record.foreign > 0, "{:?}", s.record);
+    assert!(plant.torques_foreign > 0, "{plant:?}");
+    assert_eq!(s.orbit.as_ref().map(|o| o.state), Some(OrbitState::Holds));
+}
+
 /// A file that never ends, given as parameters or a scenario, is refused at the size limit
 /// with the flag's file named; a recording that is not one is refused at its first bytes.
 #[test]
