@@ -19,8 +19,11 @@
 //!
 //! Zenoh applies ACL in the session that holds the configuration, on the messages crossing
 //! its own links. Peers that find each other by gossip talk directly and never cross the
-//! ACL of a third peer, so the rules are enforced at a **router**, and the nodes connect to it
-//! as **clients** (which only ever talk to their router) with scouting off.
+//! ACL of a third peer, so no session scouts, and every session that accepts links holds
+//! rules: the router's for its **clients** (the planner, loggers, outside peers), and in the
+//! direct topology of `live --secure` each **peer**'s own ([`node_acl`]): the plant's, the
+//! controller's and the recorder's ([`RECORDER`]), which take the loop's messages from each
+//! other on links of their own, so that the router relays none of them.
 
 use crate::CommandError;
 use anyhow::{anyhow, Context as _};
@@ -138,7 +141,9 @@ pub fn certs(args: &CertsArgs) -> Result<(), CommandError> {
 /// `{node}.pem` and `{node}.key` for each of [`NODES`] and `extra`, a client configuration
 /// `{node}.json5` for each node (mode client, scouting off, TLS with its certificate, connect to
 /// `router_endpoint`), `router.json5` (mode router, TLS with mTLS, the ACL of the module
-/// documentation) and [`MANIFEST`]. File paths inside the configurations are absolute.
+/// documentation), `{node}-direct.json5` for each of [`DIRECT`] (the plant, the controller and
+/// the recorder of `live --secure`, [`direct_config`]) and [`MANIFEST`]. File paths inside the
+/// configurations are absolute.
 pub fn generate(
     keys: &Keys,
     out: &Path,
@@ -178,8 +183,10 @@ pub fn generate(
     for node in &nodes {
         let mut sans: Vec<String> = Vec::new();
         // The router's and the plant's certificates name their host: the nodes dial the router,
-        // the controller dials the plant (the direct loop), and both check the name. The plant
-        // runs on the router's host ("Three hosts" in the README).
+        // the controller and the recorder dial the plant (the direct loop), and each checks the
+        // name. The plant runs on the router's host ("Three hosts" in the README). The
+        // logger's names the loopback host: `live --secure`'s recorder listens with it and the
+        // controller dials it ([`RECORDER`]).
         if node == "router" || node == "plant" {
             sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
             for h in router_hosts {
@@ -187,6 +194,8 @@ pub fn generate(
                     sans.push(h.clone());
                 }
             }
+        } else if node == RECORDER {
+            sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
         }
         let mut p = CertificateParams::new(sans)?;
         p.distinguished_name
@@ -313,25 +322,39 @@ pub fn client_config(dir: &Path, node: &str, router_endpoint: &str) -> Value {
     })
 }
 
-/// The nodes of the direct loop: the plant listens, the controller dials it.
-pub const DIRECT: [&str; 2] = ["plant", "controller"];
+/// The nodes of the direct loop: the plant listens, the controller dials it, and the front
+/// door's recorder ([`RECORDER`]) listens and dials the plant; the controller dials it.
+pub const DIRECT: [&str; 3] = ["plant", "controller", RECORDER];
+
+/// The identity of `tilting live --secure`'s recorder (and status line) when it takes the loop's
+/// messages straight from the plant and the controller (`logger-direct.json5`), so that the
+/// router relays none of them: a logger, which may only listen.
+pub const RECORDER: &str = "logger";
 
 /// The session flags of `node` in the deployed secure topology, from the certificate directory
 /// `certs`: the plant and the controller run the direct loop with their own access control
 /// (`{node}-direct.json5`: the plant `--listen`s on `plant_endpoint`, the controller
 /// `--connect`s to it), and both `--connect` to the router at `router_endpoint`; every other
-/// node is a client of the router (`{node}.json5`). Certificates without the
-/// `{node}-direct.json5` files (made before the direct loop) run the loop through the router.
-/// The one place these flags are made: `tilting live --secure`, the flood benchmark and the
-/// network-namespace test all start their nodes with them.
+/// node is a client of the router (`{node}.json5`). With `recorder_endpoint` (`tilting live
+/// --secure`'s recorder, identity [`RECORDER`]), the recorder `--listen`s there and
+/// `--connect`s to the plant only, and the controller `--connect`s to it too: the loop's
+/// messages reach the recorder on links of their own and the router relays none of them.
+/// Certificates without the `{node}-direct.json5` files (made before the direct loop, or
+/// before the direct recorder) run that part through the router. The one place these flags
+/// are made: `tilting live --secure`, the flood benchmark and the network-namespace test all
+/// start their nodes with them.
 pub fn session_flags(
     certs: &Path,
     node: &str,
     plant_endpoint: &str,
     router_endpoint: &str,
+    recorder_endpoint: Option<&str>,
 ) -> Vec<String> {
     let direct = certs.join(format!("{node}-direct.json5"));
-    if !DIRECT.contains(&node) || !direct.is_file() {
+    if !DIRECT.contains(&node)
+        || !direct.is_file()
+        || (node == RECORDER && recorder_endpoint.is_none())
+    {
         let client = certs.join(format!("{node}.json5"));
         return vec![
             "--zenoh-config".into(),
@@ -341,6 +364,11 @@ pub fn session_flags(
         ];
     }
     let mut v = vec!["--zenoh-config".into(), direct.display().to_string()];
+    if let (RECORDER, Some(rec)) = (node, recorder_endpoint) {
+        v.extend(["--listen".into(), rec.into()]);
+        v.extend(["--connect".into(), plant_endpoint.into()]);
+        return v;
+    }
     let to_plant = if node == "plant" {
         "--listen"
     } else {
@@ -348,7 +376,16 @@ pub fn session_flags(
     };
     v.extend([to_plant.into(), plant_endpoint.into()]);
     v.extend(["--connect".into(), router_endpoint.into()]);
+    if let Some(rec) = recorder_endpoint.filter(|_| node == "controller" && direct_recorder(certs))
+    {
+        v.extend(["--connect".into(), rec.into()]);
+    }
     v
+}
+
+/// Whether `certs` has the direct recorder's configuration (`{RECORDER}-direct.json5`).
+pub fn direct_recorder(certs: &Path) -> bool {
+    certs.join(format!("{RECORDER}-direct.json5")).is_file()
 }
 
 /// The zenoh configuration of `node` (one of [`DIRECT`]) in the direct loop (`{node}-direct.json5`,
@@ -447,7 +484,10 @@ fn listen_rules(all: &str) -> [Value; 2] {
 ///   identity**, so only on the direct link (the router's copies are refused);
 /// - the controller accepts states, events, statuses and the plant's token only from the
 ///   plant's identity, and the reference (puts, replies, queryable, the planner's token) only
-///   from the router's, which let only the planner's identity publish it.
+///   from the router's, which let only the planner's identity publish it;
+/// - the recorder ([`RECORDER`]) accepts states, events, statuses and the plant's token only
+///   from the plant's identity, torques and the controller's token only from the controller's,
+///   and nothing else (it takes the reference from its own planner session).
 pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
     let robot = keys.robot();
     let all = format!("tilting/{robot}/**");
@@ -467,7 +507,33 @@ pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
         &["listen", "receive"],
         &["robot"],
     )];
-    if node == "plant" {
+    let states = rule(
+        "states",
+        &["ingress"],
+        &["put", "liveliness_token"],
+        vec![
+            keys.plant_state(),
+            keys.plant_event(),
+            keys.plant_status(),
+            keys.alive_plant(),
+        ],
+    );
+    if node == RECORDER {
+        rules.push(states);
+        rules.push(rule(
+            "torques",
+            &["ingress"],
+            &["put", "liveliness_token"],
+            vec![keys.controller_torque(), keys.alive_controller()],
+        ));
+        subjects.push(subject("plant", vec![common_name(robot, "plant")]));
+        subjects.push(subject(
+            "controller",
+            vec![common_name(robot, "controller")],
+        ));
+        policies.push(policy("plant", &["states"], &["plant"]));
+        policies.push(policy("controller", &["torques"], &["controller"]));
+    } else if node == "plant" {
         rules.push(rule(
             "torques",
             &["ingress"],
@@ -480,17 +546,7 @@ pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
         ));
         policies.push(policy("controller", &["torques"], &["controller"]));
     } else {
-        rules.push(rule(
-            "states",
-            &["ingress"],
-            &["put", "liveliness_token"],
-            vec![
-                keys.plant_state(),
-                keys.plant_event(),
-                keys.plant_status(),
-                keys.alive_plant(),
-            ],
-        ));
+        rules.push(states);
         rules.push(rule(
             "reference",
             &["ingress"],
@@ -774,5 +830,133 @@ mod tests {
         }
         assert!(read_manifest(dir.path(), "unit").is_ok());
         assert!(read_manifest(dir.path(), "other").is_err());
+    }
+
+    /// Whether `acl` (an `access_control` block) lets the certificate `cn` send `message` on
+    /// `key` in `flow`: an allow rule of a policy whose subject names `cn` covers it (our rules
+    /// use exact keys and `prefix/**` only); default deny otherwise.
+    fn allows(acl: &Value, cn: &str, flow: &str, message: &str, key: &str) -> bool {
+        let has = |v: &Value, x: &str| v.as_array().unwrap().iter().any(|e| e == x);
+        let covers = |v: &Value| {
+            v.as_array().unwrap().iter().any(|k| {
+                let k = k.as_str().unwrap();
+                k == key || k.strip_suffix("**").is_some_and(|p| key.starts_with(p))
+            })
+        };
+        let subjects: Vec<&str> = acl["subjects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| has(&s["cert_common_names"], cn))
+            .map(|s| s["id"].as_str().unwrap())
+            .collect();
+        acl["policies"].as_array().unwrap().iter().any(|p| {
+            subjects.iter().any(|s| has(&p["subjects"], s))
+                && acl["rules"].as_array().unwrap().iter().any(|r| {
+                    has(&p["rules"], r["id"].as_str().unwrap())
+                        && has(&r["flows"], flow)
+                        && has(&r["messages"], message)
+                        && covers(&r["key_exprs"])
+                })
+        })
+    }
+
+    /// Each session of the direct topology takes each of the loop's topics from exactly the
+    /// identity the module's table says publishes it (and the recorder takes no reference, as
+    /// it never dials the router), and every identity of the robot may subscribe at each.
+    /// Checked by evaluating the generated rules, against the table written out here.
+    #[test]
+    fn each_direct_session_takes_each_topic_from_its_publisher_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let keys = Keys::new("unit").unwrap();
+        let m = generate(
+            &keys,
+            dir.path(),
+            &[],
+            DEFAULT_ROUTER_ENDPOINT,
+            &["rogue".into()],
+        )
+        .unwrap();
+        let topics = [
+            (keys.plant_state(), "plant"),
+            (keys.plant_event(), "plant"),
+            (keys.plant_status(), "plant"),
+            (keys.controller_torque(), "controller"),
+            (keys.planner_reference(), "router"),
+        ];
+        // Which topics each session takes at all (the ones it subscribes to).
+        let takes = |node: &str, key: &str| match node {
+            "plant" => key == keys.controller_torque(),
+            "controller" => key != keys.controller_torque(),
+            _ => key != keys.planner_reference(),
+        };
+        for node in DIRECT {
+            let acl = direct_config(&keys, dir.path(), node, &m.nodes)["access_control"].clone();
+            for cn in &m.nodes {
+                let id = common_name("unit", cn);
+                for (key, from) in topics {
+                    let want = takes(node, key) && cn == from;
+                    assert_eq!(
+                        allows(&acl, &id, "ingress", "put", key),
+                        want,
+                        "{node} taking a put on {key} from {id}"
+                    );
+                }
+                let listens = cn != "rogue";
+                assert_eq!(
+                    allows(
+                        &acl,
+                        &id,
+                        "ingress",
+                        "declare_subscriber",
+                        keys.plant_state()
+                    ),
+                    listens,
+                    "{node}: {id} subscribing"
+                );
+            }
+        }
+    }
+
+    /// The flags of the direct topology: the recorder listens on its endpoint and dials the
+    /// plant only (no link to the router), the controller dials the plant, the router and the
+    /// recorder; without `logger-direct.json5` (older certificates) the recorder is a client
+    /// of the router and the controller does not dial it.
+    #[test]
+    fn the_recorder_dials_the_plant_and_the_controller_dials_the_recorder() {
+        let dir = tempfile::tempdir().unwrap();
+        let keys = Keys::new("unit").unwrap();
+        generate(&keys, dir.path(), &[], DEFAULT_ROUTER_ENDPOINT, &[]).unwrap();
+        let (plant, router, rec) = ("tls/p:1", "tls/r:2", "tls/l:3");
+        let flags = |node| session_flags(dir.path(), node, plant, router, Some(rec));
+        let pairs = |v: Vec<String>| -> Vec<(String, String)> {
+            v.chunks(2)
+                .filter(|c| c[0] != "--zenoh-config")
+                .map(|c| (c[0].clone(), c[1].clone()))
+                .collect()
+        };
+        let p = |a: &str, b: &str| (a.to_owned(), b.to_owned());
+        assert_eq!(
+            pairs(flags(RECORDER)),
+            [p("--listen", rec), p("--connect", plant)]
+        );
+        assert_eq!(
+            pairs(flags("controller")),
+            [
+                p("--connect", plant),
+                p("--connect", router),
+                p("--connect", rec)
+            ]
+        );
+        assert_eq!(
+            pairs(flags("plant")),
+            [p("--listen", plant), p("--connect", router)]
+        );
+        std::fs::remove_file(dir.path().join("logger-direct.json5")).unwrap();
+        assert_eq!(pairs(flags(RECORDER)), [p("--connect", router)]);
+        assert_eq!(
+            pairs(flags("controller")),
+            [p("--connect", plant), p("--connect", router)]
+        );
     }
 }

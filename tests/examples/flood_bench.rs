@@ -116,8 +116,9 @@ async fn run(secure: bool, flooding: Flood, seconds: f64, tag: &str) -> Outcome 
         router = Some(start_router(dir.path(), &certs, &ep));
         let flags = |node: &str| -> Vec<String> {
             let mut v = robot_flags.to_vec();
+            // No front door here: the loop's two nodes and the router.
             v.extend(tilting::security::session_flags(
-                &certs, node, &plant_ep, &ep,
+                &certs, node, &plant_ep, &ep, None,
             ));
             v
         };

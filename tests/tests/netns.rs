@@ -143,8 +143,9 @@ async fn three_namespaces_through_a_secure_router() {
     .expect("certificates");
     let ep = |i: usize| format!("tls/10.77.{i}.2:7447");
     // The flags of `live --secure`, with this topology's endpoints.
-    let flags =
-        |node: &str, router: &str| tilting::security::session_flags(&certs, node, plant_ep, router);
+    let flags = |node: &str, router: &str| {
+        tilting::security::session_flags(&certs, node, plant_ep, router, None)
+    };
     let mut router = start_router_with(
         dir.path(),
         &certs,

@@ -26,9 +26,12 @@
 //! writes what was recorded, and exits with code 1.
 //!
 //! With `--secure` (and optionally `--certs DIR` of `tilting certs`; by default certificates are
-//! made in `OUT/certs`), a `tilting-router` child enforces mutual TLS and the robot's access
-//! control, and the plant, the controller and the in-process planner (with the planner's
-//! identity) are its clients ([`crate::security`]).
+//! made in `OUT/certs`), every link is mutual TLS and each session that accepts links holds
+//! access control ([`crate::security`]): the plant listens on its own TLS endpoint, the
+//! controller dials it, the recorder (a session of its own with the logger's identity) listens
+//! on another and dials the plant, and the controller dials it too; a `tilting-router` child
+//! carries the rest (the in-process planner, with the planner's identity, is its client) and
+//! none of the loop's messages.
 //!
 //! The topology without `--secure`: the plant listens on its port; the in-process planner session listens on its
 //! own port and connects to the plant; the controller listens on a third port and connects to
@@ -382,8 +385,15 @@ async fn live(
     let mut fox =
         crate::foxglove::LiveServer::start(&job.args.foxglove, &job.keys, job.plant_params()).await;
     let mut plant = nodes::spawn_plant(job, &topo, bins)?;
-    let zargs = topo.planner_session(job.keys.robot());
-    let tap = Tap::open(&zargs, &job.keys, &recorder, job.reference.to_wire()).await?;
+    let (record, planner) = topo.front_door_sessions(job.keys.robot())?;
+    let tap = Tap::open(
+        &record,
+        planner.as_ref(),
+        &job.keys,
+        &recorder,
+        job.reference.to_wire(),
+    )
+    .await?;
     fox.attach(tap.session(), &job.keys).await?;
     let early_end = monitor::wait_for_first_state(&recorder, &mut plant, &signals).await;
     let mut controller = match early_end {

@@ -110,13 +110,27 @@ impl Topology {
         format!("tls/127.0.0.1:{}", self.plant_port)
     }
 
+    /// The front door's recorder's TLS endpoint (`--secure` with certificates that have
+    /// `logger-direct.json5`): it listens there with the logger's identity and the controller
+    /// dials it, so the loop's messages reach it without the router.
+    fn recorder_tls(&self) -> Option<String> {
+        let s = self.secure.as_ref()?;
+        security::direct_recorder(&s.certs).then(|| format!("tls/127.0.0.1:{}", self.my_port))
+    }
+
     /// The session flags of child `node`: its certificate, its own access control and the
-    /// direct loop (the plant listens on its port, the controller dials it) beside the router;
-    /// or loopback peers. Certificates of a `tilting certs` without the `{node}-direct.json5`
-    /// files run the loop through the router, as clients.
+    /// direct loop (the plant listens on its port, the controller dials it and the recorder)
+    /// beside the router; or loopback peers. Certificates of a `tilting certs` without the
+    /// `{node}-direct.json5` files run the loop through the router, as clients.
     fn session_flags(&self, node: &str, listen: u16, connect: &[u16]) -> Vec<String> {
         match &self.secure {
-            Some(s) => security::session_flags(&s.certs, node, &self.plant_tls(), &s.endpoint),
+            Some(s) => security::session_flags(
+                &s.certs,
+                node,
+                &self.plant_tls(),
+                &s.endpoint,
+                self.recorder_tls().as_deref(),
+            ),
             None => {
                 let mut v = vec!["--listen".into(), endpoint(listen)];
                 for c in connect {
@@ -127,19 +141,51 @@ impl Topology {
         }
     }
 
-    /// The in-process planner's session.
-    pub(super) fn planner_session(&self, robot: &str) -> ZenohArgs {
-        match &self.secure {
-            Some(s) => ZenohArgs {
-                zenoh_config: Some(s.certs.join("planner.json5")),
-                ..ZenohArgs::new(robot, &[], &[&s.endpoint])
-            },
-            None => ZenohArgs::new(
+    /// The front door's sessions: the recorder's (which also watches the nodes' tokens) and,
+    /// if it is another one, the in-process planner's. Open: one session, a loopback peer.
+    /// `--secure`: the recorder is a peer with the logger's identity that listens on its own
+    /// TLS endpoint and dials the plant's ([`security::session_flags`]), and the planner a
+    /// client of the router with the planner's identity; with certificates made before the
+    /// direct recorder, one session, the planner's, records through the router.
+    pub(super) fn front_door_sessions(
+        &self,
+        robot: &str,
+    ) -> anyhow::Result<(ZenohArgs, Option<ZenohArgs>)> {
+        let Some(s) = &self.secure else {
+            let open = ZenohArgs::new(
                 robot,
                 &[&endpoint(self.my_port)],
                 &[&endpoint(self.plant_port)],
-            ),
+            );
+            return Ok((open, None));
+        };
+        let planner = ZenohArgs {
+            zenoh_config: Some(s.certs.join("planner.json5")),
+            ..ZenohArgs::new(robot, &[], &[&s.endpoint])
+        };
+        let Some(rec) = self.recorder_tls() else {
+            return Ok((planner, None));
+        };
+        #[derive(clap::Parser)]
+        struct Flags {
+            #[command(flatten)]
+            zenoh: ZenohArgs,
         }
+        let flags = security::session_flags(
+            &s.certs,
+            security::RECORDER,
+            &self.plant_tls(),
+            &s.endpoint,
+            Some(&rec),
+        );
+        let argv = ["recorder", "--robot", robot]
+            .into_iter()
+            .map(String::from)
+            .chain(flags);
+        let record = <Flags as clap::Parser>::try_parse_from(argv)
+            .context("the recorder's session flags")?
+            .zenoh;
+        Ok((record, Some(planner)))
     }
 
     /// The endpoints as the summary records them.
@@ -148,7 +194,7 @@ impl Topology {
             Some(s) => Endpoints {
                 plant: self.plant_tls(),
                 controller: String::new(),
-                planner: String::new(),
+                planner: self.recorder_tls().unwrap_or_default(),
                 router: Some(s.endpoint.clone()),
             },
             None => Endpoints {

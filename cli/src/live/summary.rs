@@ -100,10 +100,12 @@ pub struct Endpoints {
     pub plant: String,
     /// Where the controller listens.
     pub controller: String,
-    /// Where the in-process planner listens.
+    /// Where the in-process planner listens (`--secure`: where the front door's recorder
+    /// listens, with the logger's identity, for the controller to dial; empty with
+    /// certificates made before the direct recorder).
     pub planner: String,
-    /// `--secure`: the router every node connects to (then only the plant listens, on its TLS
-    /// endpoint of the direct loop; the two other fields above are empty).
+    /// `--secure`: the router (the plant listens on its TLS endpoint of the direct loop, the
+    /// controller nowhere: its field above is empty).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub router: Option<String>,
 }

@@ -1,8 +1,11 @@
-//! The in-process planner's session of a live run: it subscribes to the five topics for the
-//! recording (with the source each message names: the recorder applies the plant's
-//! plausibility rules and the pinned sources before it believes a message,
-//! and the status line reads the plant's latest status from it), watches the plant's and the
-//! controller's liveliness tokens, then publishes the reference.
+//! The front door's sessions of a live run: the recording session subscribes to the five
+//! topics for the recording (with the source each message names: the recorder applies the
+//! plant's plausibility rules and the pinned sources before it believes a message, and the
+//! status line reads the plant's latest status from it) and watches the plant's and the
+//! controller's liveliness tokens; the planner's publishes the reference. Open, they are one
+//! session. With `--secure` they are two: the recorder's (the logger's identity, linked
+//! directly to the plant and the controller, so that the router relays none of the loop's
+//! messages) and the planner's (a client of the router), where the reference is recorded.
 
 use super::summary::PlannerCounts;
 use crate::record::{Record, Recorder};
@@ -17,7 +20,10 @@ use zenoh::Session;
 /// The planner's session: the recorder's subscribers, the reference publisher and the
 /// presence of the plant and the controller.
 pub(super) struct Tap {
+    /// The recording session.
     session: Session,
+    /// The planner's session, if it is not the recording session.
+    planner: Option<Session>,
     subscribers: Vec<Subscriber<()>>,
     publisher: ReferencePublisher,
     /// Undecodable messages per topic.
@@ -38,15 +44,22 @@ pub(super) struct Closed {
 }
 
 impl Tap {
-    /// Opens the session, subscribes the recorder to the five topics (subscribers first), then
-    /// starts publishing `reference`.
+    /// Opens the recording session (`zargs`) and the planner's (`planner`, or the same),
+    /// subscribes the recorder to the five topics (subscribers first; the reference on the
+    /// planner's session), then starts publishing `reference`.
     pub(super) async fn open(
         zargs: &ZenohArgs,
+        planner: Option<&ZenohArgs>,
         keys: &Keys,
         recorder: &Recorder,
         reference: Reference,
     ) -> anyhow::Result<Self> {
         let session = tilting_net::open_session(zargs, Role::Peer).await?;
+        let planner = match planner {
+            Some(p) => Some(tilting_net::open_session(p, Role::Peer).await?),
+            None => None,
+        };
+        let publishing = planner.as_ref().unwrap_or(&session);
         let counters = [
             keys.plant_state(),
             keys.controller_torque(),
@@ -86,7 +99,7 @@ impl Tap {
         );
         let tx = recorder.sender();
         subscribers.push(
-            subscribe_decoded_from(&session, refs, move |m: Reference, from| {
+            subscribe_decoded_from(publishing, refs, move |m: Reference, from| {
                 tx.send_from(Record::Reference(m), from)
             })
             .await?,
@@ -105,9 +118,10 @@ impl Tap {
         let presence = presence
             .try_into()
             .map_err(|_| anyhow::anyhow!("two tokens"))?;
-        let publisher = ReferencePublisher::start(&session, keys, reference).await?;
+        let publisher = ReferencePublisher::start(publishing, keys, reference).await?;
         Ok(Self {
             session,
+            planner,
             subscribers,
             publisher,
             counters,
@@ -115,7 +129,7 @@ impl Tap {
         })
     }
 
-    /// The session (for the Foxglove server's subscribers).
+    /// The recording session (for the Foxglove server's subscribers).
     pub(super) fn session(&self) -> &Session {
         &self.session
     }
@@ -145,6 +159,9 @@ impl Tap {
         };
         drop((self.subscribers, self.publisher));
         let _ = self.session.close().await;
+        if let Some(p) = self.planner {
+            let _ = p.close().await;
+        }
         Closed {
             planner,
             invalid: self.counters.iter().map(|c| c.dropped()).sum(),
