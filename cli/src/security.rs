@@ -695,15 +695,17 @@ pub struct RouterArgs {
 /// Default nice value of `tilting-router` (`--nice`): 0, the priority it was started with.
 ///
 /// The router carries no message of the control loop (the plant and the controller talk over
-/// their direct link), but with a recorder, a planner or a logger attached it decrypts, routes
-/// and re-encrypts every state and torque at the very moment the controller wakes up for that
-/// state, and on a host it shares with the loop it competes with the controller for the CPU:
-/// that is the secure loop's extra latency (README, "Cost"). `--nice 19` removes it (loop
-/// latency p99 0.6-0.9x the open loop's instead of 1.0-1.5x, at load 9-11 on 2 cores), but it
-/// is not the default: on a saturated host (load 11-12 on 2 cores) 3 of 3 runs with the router
-/// at nice 19 had 6 to 11 safe-mode entries, against 0 of 4 at nice 0. The loop's publishers
-/// use blocking congestion control, so a router starved of CPU back-pressures the plant and
-/// the controller.
+/// their direct link, and `live --secure`'s recorder takes them on links of its own), but with
+/// an outside client subscribed to the loop's topics (a logger, `tilting echo`) it decrypts,
+/// routes and re-encrypts every state and torque at the very moment the controller wakes up
+/// for that state, and on a host it shares with the loop it competes with the controller for
+/// the CPU (README, "Cost"). `--nice 19` removes that cost (when the recorder of `live` was
+/// such a client: loop latency p99 0.6-0.9x the open loop's instead of 1.0-1.5x, at load 9-11
+/// on 2 cores), but it is not the default: on a saturated host (load 11-12 on 2 cores) 3 of 3
+/// such runs with the router at nice 19 had 6 to 11 safe-mode entries, against 0 of 4 at nice
+/// 0. The loop's publishers use blocking congestion control, so a router starved of CPU that
+/// has subscribers of the loop's topics back-pressures the plant and the controller. With
+/// none (`live --secure` today) the router has nothing to do for the loop, at any priority.
 pub const ROUTER_NICE: i32 = 0;
 
 /// Lowers the calling thread's priority to nice `nice` if it is higher than the current one
