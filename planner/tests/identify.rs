@@ -378,8 +378,8 @@ fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent
 /// needs 5.5 N m, 80 % of the excitation's torque limit; the default's 0.3 rad at 0.6 rad/s
 /// leaves the viscous column under the noise). Four noise seeds, each 300 s of excitation
 /// (flat throughout: asserted) + 30 s of robust orbit, identified as above: every parameter
-/// within 3 % of the hidden robot (measured: `b_v` +2.0, -0.8, +1.8, -2.6 % with the amplitude governor, which leaves this light arm at scale 1; `tau_c` within
-/// 0.5 %, `m_f` 1.0 %, `l_c` 0.01 %, the arm's inertia about the joint 0.03 %). Not for a heavy
+/// within 3 % of the hidden robot (measured: `b_v` +2.0, -0.8, +1.8, -2.6 % with the
+/// amplitude governor, which leaves this light arm at scale 1; `tau_c` within 0.5 %, `m_f` 1.0 %, `l_c` 0.01 %, the arm's inertia about the joint 0.03 %). Not for a heavy
 /// arm: the README's robot (`m_l l_c` 1 % above the paper's) falls over at 0.35 rad (docs/
 /// identify.md).
 #[test]
