@@ -45,16 +45,7 @@ fn identified_robot_keeps_its_planned_orbit_over_a_50_ms_round_trip() {
     let path = |n: &str| dir.path().join(n).to_str().unwrap().to_owned();
     std::fs::write(path("robot.toml"), ROBOT).unwrap();
     std::fs::write(path("prior.toml"), "m_l = 1.1\n").unwrap();
-    let noise = [
-        "--measure",
-        "angles",
-        "--noise-alpha",
-        "0.001",
-        "--noise-beta",
-        "0.001",
-        "--encoder-counts",
-        "4096",
-    ];
+    let noise = common::MEASURED_AS_HARDWARE;
     let robot = path("robot.toml");
     let (exc, orbit) = (path("exc.mcap"), path("orbit.mcap"));
     let mut a = vec![

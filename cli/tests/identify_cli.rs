@@ -217,16 +217,7 @@ fn says_the_rotor_is_lumped_under_noise_and_reports_the_sum() {
     let truth = robot();
     let plant = dir.path().join("robot.toml");
     std::fs::write(&plant, toml(&truth)).unwrap();
-    let noise = [
-        "--measure",
-        "angles",
-        "--noise-alpha",
-        "0.001",
-        "--noise-beta",
-        "0.001",
-        "--encoder-counts",
-        "4096",
-    ];
+    let noise = common::MEASURED_AS_HARDWARE;
     let (exc, orbit) = (dir.path().join("exc.mcap"), dir.path().join("orbit.mcap"));
     for (file, extra, secs) in [
         (&exc, ["--reference", "excitation"], "60"),

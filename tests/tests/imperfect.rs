@@ -83,27 +83,20 @@ fn lockstep_with_imperfections_equals_simulate_with_the_same_flags() {
 /// state, and the run differs from the one with measured rates.
 #[test]
 fn lockstep_measuring_angles_equals_simulate_with_the_same_flags() {
-    let flags = [
-        "--measure",
-        "angles",
-        "--noise-alpha",
-        "0.001",
-        "--noise-beta",
-        "0.001",
-        "--encoder-counts",
-        "4096",
+    let mut flags = MEASURED_AS_HARDWARE.to_vec();
+    flags.extend([
         "--mass-error",
         "0.05",
         "--seed",
         "5",
         "--torque-delay",
         "0.001",
-    ];
+    ]);
     // No loss: in lockstep the controller still sees (and estimates from) a state the
     // emulated link loses, which `simulate`'s controller never sees.
     let dir = Scratch::new("lockstep-angles");
     let mut extra = vec!["--clock", "lockstep", "--duration", "2"];
-    extra.extend(flags);
+    extra.extend(&flags);
     let (summary, ctl) = run_loop(dir.path(), &robot("lockang"), free_port(), &extra, &[]);
     assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
     let want = simulate_final(&flags);
