@@ -369,9 +369,9 @@ pub struct LawArgs {
     )]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub torque_limit: Option<f64>,
-    /// Robust option: hold tilt peaks |alpha| of this size (rad) by trimming E_av once per
-    /// tilt, and re-enter the orbit when the plate has come to rest; 0 = off (the paper's
-    /// law). The paper's orbit at 1 kHz peaks at 0.0413 [default: 0]
+    /// Robust option: hold tilt peaks |alpha| of this size (rad) by trimming a scale of the
+    /// torque once per tilt, and re-enter the orbit when the plate has come to rest; 0 = off
+    /// (the paper's law). The paper's orbit at 1 kHz peaks at 0.0413 [default: 0]
     #[cfg_attr(
         feature = "clap",
         arg(long, value_name = "RAD", allow_negative_numbers = true)
