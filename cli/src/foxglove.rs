@@ -99,11 +99,14 @@ pub async fn start(opts: &Options, who: &str) -> Result<Server, StartError> {
     Ok(server)
 }
 
-/// Subscribes to the five topics of `keys` on `session` and hands every payload to `feed`
-/// (never blocking: the feed drops its oldest message when full), counting them in
-/// `received`.
+/// Subscribes to the four loop topics of `keys` on `session` and to the reference on
+/// `reference` (the same session, except in `live --secure`, where the recording session links
+/// only to the plant and the controller and the reference comes through the router), and hands
+/// every payload to `feed` (never blocking: the feed drops its oldest message when full),
+/// counting them in `received`.
 pub async fn subscribe(
     session: &Session,
+    reference: &Session,
     keys: &Keys,
     feed: &Feed,
     received: &Arc<AtomicU64>,
@@ -112,8 +115,13 @@ pub async fn subscribe(
     for topic in Topic::ALL {
         let feed = feed.clone();
         let n = received.clone();
+        let on = if topic == Topic::Reference {
+            reference
+        } else {
+            session
+        };
         subs.push(
-            tilting_net::subscribe_bytes(session, topic.key(keys), move |bytes| {
+            tilting_net::subscribe_bytes(on, topic.key(keys), move |bytes| {
                 n.fetch_add(1, Ordering::Relaxed);
                 feed.send_wire(topic, bytes.to_vec())
             })
@@ -162,11 +170,17 @@ impl LiveServer {
         }
     }
 
-    /// Feeds the server from the run's session (the planner's).
-    pub async fn attach(&mut self, session: &Session, keys: &Keys) -> anyhow::Result<()> {
+    /// Feeds the server from the run's sessions: the recording session's loop topics and the
+    /// planner's reference (see [`subscribe`]).
+    pub async fn attach(
+        &mut self,
+        session: &Session,
+        reference: &Session,
+        keys: &Keys,
+    ) -> anyhow::Result<()> {
         if let Some(s) = &self.server {
             let n = Arc::default();
-            self.subscribers = subscribe(session, keys, &s.feed(), &n).await?;
+            self.subscribers = subscribe(session, reference, keys, &s.feed(), &n).await?;
         }
         Ok(())
     }
@@ -241,7 +255,7 @@ pub fn view(args: &ViewArgs) -> Result<(), CommandError> {
         let run = async {
             let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
             let received = Arc::default();
-            let subs = subscribe(&session, &keys, &server.feed(), &received).await?;
+            let subs = subscribe(&session, &session, &keys, &server.feed(), &received).await?;
             watch(args, &keys, &received).await;
             drop(subs);
             let _ = session.close().await;

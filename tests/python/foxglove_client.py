@@ -88,6 +88,7 @@ def session(ws, a, deadline):
         f"{base}/scene": "scene",
         f"{base}/tf": "tf",
         f"{base}/log": "log",
+        f"{base}/planner/reference": "reference",
     }
     out = {
         "subprotocol": ws.subprotocol,
@@ -98,6 +99,7 @@ def session(ws, a, deadline):
         "scene_updates": 0,
         "scene_entity_ids": [],
         "logs": [],
+        "references": 0,
         "statuses": [],
         "invalid": [],
     }
@@ -186,6 +188,8 @@ def session(ws, a, deadline):
                     out["scene_entity_ids"].append(e.id)
         elif kind == "log":
             out["logs"].append({"level": m.level, "message": m.message})
+        elif kind == "reference":
+            out["references"] += 1
         else:
             out["other"] = out.get("other", 0) + 1
     out["subscribed"] = subscribed

@@ -13,6 +13,8 @@
 //!   and leaves mid-run; the run completes and `live` says the client left;
 //! - `replay run.mcap --foxglove` plays that recording into the same scene (>= 90 % of the
 //!   states, with their plant-time log times);
+//! - `live --secure --foxglove`: the client gets the states (the recorder's direct links) and
+//!   the reference (the planner's session, through the router);
 //! - bad input: a port in use (live goes on without Foxglove, `view` refuses), an address that
 //!   is not loopback without --foxglove-any (refused before anything starts).
 
@@ -155,6 +157,8 @@ fn a_foxglove_client_sees_the_live_robot() {
     let got: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&main_json).unwrap()).unwrap();
     assert_eq!(got["subprotocol"], "foxglove.sdk.v1");
+    // The reference is put again once a second: a 3 s run shows it at least once.
+    assert!(got["references"].as_u64().unwrap() >= 1, "{}", text(&o));
     assert_eq!(
         got["invalid"].as_array().unwrap().len(),
         0,
@@ -330,6 +334,46 @@ fn a_foxglove_client_sees_the_live_robot() {
             Some(tilting_foxglove::scene::nanos(r.time))
         );
     }
+}
+
+/// Under `--secure` the recording session links only to the plant and the controller; the
+/// reference comes through the router on the planner's session, and Foxglove must show both.
+#[test]
+fn a_foxglove_client_of_a_secure_run_gets_the_loop_and_the_reference() {
+    if !client_ready("a_foxglove_client_of_a_secure_run_gets_the_loop_and_the_reference") {
+        return;
+    }
+    bin("tilting-router");
+    let _turn = realtime_turn();
+    let dir = Scratch::new("foxglove-secure");
+    let out = dir.path().join("out");
+    let robot = robot("foxsec");
+    let port = free_port();
+    let json = dir.path().join("client.json");
+    let mut viewer = client(&format!("ws://127.0.0.1:{port}"), &robot, 60.0, &json, &[]);
+    let o = Command::new(bin("tilting"))
+        .args(["live", "--secure", "--duration", "3", "--robot", &robot])
+        .args(["--foxglove", &format!("127.0.0.1:{port}"), "--out"])
+        .arg(&out)
+        .output()
+        .expect("cannot run tilting live --secure");
+    assert!(viewer.wait().unwrap().success(), "client\n{}", text(&o));
+    assert!(o.status.success(), "live --secure failed\n{}", text(&o));
+    let got: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(
+        got["invalid"].as_array().unwrap().len(),
+        0,
+        "{}",
+        got["invalid"]
+    );
+    // States come over the recorder's direct links, the reference through the router.
+    assert!(
+        got["states"].as_array().unwrap().len() > 1000,
+        "{}",
+        text(&o)
+    );
+    assert!(got["references"].as_u64().unwrap() >= 1, "{}", text(&o));
 }
 
 #[test]

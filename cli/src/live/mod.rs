@@ -394,7 +394,8 @@ async fn live(
         job.reference.to_wire(),
     )
     .await?;
-    fox.attach(tap.session(), &job.keys).await?;
+    fox.attach(tap.session(), tap.planner_session(), &job.keys)
+        .await?;
     let early_end = monitor::wait_for_first_state(&recorder, &mut plant, &signals).await;
     let mut controller = match early_end {
         None => Some(nodes::spawn_controller(job, &topo, bins)?),

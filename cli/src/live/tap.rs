@@ -134,6 +134,12 @@ impl Tap {
         &self.session
     }
 
+    /// The planner's session, where the reference is published (the recording session when
+    /// the run is open).
+    pub(super) fn planner_session(&self) -> &Session {
+        self.planner.as_ref().unwrap_or(&self.session)
+    }
+
     /// Puts the reference again (once a second while the run goes).
     pub(super) fn repeat(&self) {
         if let Err(e) = self.publisher.repeat() {
