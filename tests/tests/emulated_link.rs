@@ -126,7 +126,12 @@ fn a_delay_on_the_wall_clock_ages_torques_like_the_emulator() {
     // Hardly anything on time (age 0): only a pacing thread that stalls for more than the
     // 2 ms round trip right after publishing a state (a loaded machine) finds that state's
     // answer in before its next deadline; at most 2 % of the applied torques.
-    assert!(s.torques_applied > 2500, "{s:?}");
+    // Nearly every torque arrives (the link loses none). How many are applied depends on the
+    // pacing: on a loaded machine (2,999 deadline misses in a run beside a build) the plant
+    // applied 2,263 of 2,998 and skipped 735 sequence numbers (a newer torque was in first), so
+    // only a floor that load does not break is asserted on the applied count.
+    assert!(s.torques_received > 2500, "{s:?}");
+    assert!(s.torques_applied * 2 > s.torques_received, "{s:?}");
     let on_time = s.torques_applied - s.torques_late;
     assert!(
         on_time * 50 <= s.torques_applied,
