@@ -212,6 +212,8 @@ def probe(robot, port, domain):
             result[name] = {
                 "count": len(seqs),
                 "consecutive": all(b == a + 1 for a, b in zip(seqs, seqs[1:])),
+                "unique": len(set(seqs)) == len(seqs),
+                "span": (max(seqs) - min(seqs) + 1) if seqs else 0,
                 "first_seq": seqs[0] if seqs else None,
                 "gids": sorted({g[2].hex() for g in got[name]}),
             }
