@@ -468,3 +468,25 @@ pub fn python_runs(code: &str) -> bool {
         .status()
         .is_ok_and(|s| s.success())
 }
+
+/// The arm angle (rad) that marks a rogue's forged states in the front-door and recorder tests.
+pub const ROGUE_MARK_BETA: f64 = 1.234567;
+/// The torque (N m) that marks a rogue's forged torques in the same tests.
+pub const ROGUE_MARK_TAU: f64 = 3.25;
+
+/// How many states and torques of `run` carry the rogue's mark ([`ROGUE_MARK_BETA`],
+/// [`ROGUE_MARK_TAU`]): what the recording believed of a forger.
+pub fn rogue_marked(run: &tilting_record::Recording) -> u64 {
+    use tilting_proto::{codec, PlantState, Topic, TorqueCommand};
+    run.messages()
+        .map(|m| match m.topic {
+            Topic::State => {
+                u64::from(codec::decode::<PlantState>(&m.wire).unwrap().beta == ROGUE_MARK_BETA)
+            }
+            Topic::Torque => {
+                u64::from(codec::decode::<TorqueCommand>(&m.wire).unwrap().tau == ROGUE_MARK_TAU)
+            }
+            _ => 0,
+        })
+        .sum()
+}

@@ -142,8 +142,6 @@ fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
     use std::sync::atomic::{AtomicU64, Ordering};
     use std::sync::Arc;
     use tilting_proto::SourceId;
-    const MARK_BETA: f64 = 1.234567;
-    const MARK_TAU: f64 = 3.25;
     let _turn = realtime_turn();
     let dir = Scratch::new("foreign");
     let duration = 6.0;
@@ -180,12 +178,15 @@ fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
                 seq: seq + 1,
                 time: (seq + 1) as f64 * 1e-3,
                 alpha: 0.3,
-                beta: MARK_BETA,
+                beta: ROGUE_MARK_BETA,
                 alpha_dot: Some(0.0),
                 beta_dot: Some(0.0),
                 mode: 1,
             };
-            let torque = TorqueCommand { seq, tau: MARK_TAU };
+            let torque = TorqueCommand {
+                seq,
+                tau: ROGUE_MARK_TAU,
+            };
             let (state, torque) = (codec::encode(&lie), codec::encode(&torque));
             if i % 2 == 0 {
                 state_pub.put(state).await.unwrap();
@@ -234,18 +235,7 @@ fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
     );
     // The recording: none of the lies, one state per period, no gap.
     let run = tilting_record::read(&out.join("run.mcap")).unwrap();
-    let mut marked = 0;
-    for m in run.messages() {
-        marked += match m.topic {
-            Topic::State => {
-                u32::from(codec::decode::<PlantState>(&m.wire).unwrap().beta == MARK_BETA)
-            }
-            Topic::Torque => {
-                u32::from(codec::decode::<TorqueCommand>(&m.wire).unwrap().tau == MARK_TAU)
-            }
-            _ => 0,
-        };
-    }
+    let marked = rogue_marked(&run);
     assert_eq!(marked, 0, "lies in the recording");
     let states = run.count(Topic::State);
     let want = (duration * 1000.0) as u64 + 1;
@@ -278,8 +268,6 @@ fn a_rogue_that_talks_before_the_controller_takes_no_pin() {
     use std::sync::atomic::{AtomicU64, Ordering};
     use std::sync::Arc;
     use tilting_proto::SourceId;
-    const MARK_BETA: f64 = 1.234567;
-    const MARK_TAU: f64 = 3.25;
     let _turn = realtime_turn();
     let dir = Scratch::new("early-rogue");
     let out = dir.path().join("out");
@@ -328,12 +316,15 @@ fn a_rogue_that_talks_before_the_controller_takes_no_pin() {
                 seq: seq + 1,
                 time: (seq + 1) as f64 * 1e-3,
                 alpha: 0.3,
-                beta: MARK_BETA,
+                beta: ROGUE_MARK_BETA,
                 alpha_dot: Some(0.0),
                 beta_dot: Some(0.0),
                 mode: 1,
             };
-            let torque = TorqueCommand { seq, tau: MARK_TAU };
+            let torque = TorqueCommand {
+                seq,
+                tau: ROGUE_MARK_TAU,
+            };
             let s = &rogue.session;
             s.put(tk, codec::encode(&torque))
                 .attachment(made_up.clone())
@@ -362,18 +353,7 @@ fn a_rogue_that_talks_before_the_controller_takes_no_pin() {
     );
     // Nothing of the rogue's in the recording, though it talked first.
     let run = tilting_record::read(&out.join("run.mcap")).unwrap();
-    let mut marked = 0;
-    for m in run.messages() {
-        marked += match m.topic {
-            Topic::State => {
-                u32::from(codec::decode::<PlantState>(&m.wire).unwrap().beta == MARK_BETA)
-            }
-            Topic::Torque => {
-                u32::from(codec::decode::<TorqueCommand>(&m.wire).unwrap().tau == MARK_TAU)
-            }
-            _ => 0,
-        };
-    }
+    let marked = rogue_marked(&run);
     assert_eq!(marked, 0, "rogue messages in the recording");
     // Its messages reached the front door and the plant (over the link to the plant's port)
     // and were refused as foreign there.

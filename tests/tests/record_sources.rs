@@ -21,8 +21,6 @@ use tilting_proto::{codec, PlantState, SourceId, Topic, TorqueCommand};
 use tilting_tests::*;
 use zenoh::Wait as _;
 
-const MARK_BETA: f64 = 1.234567;
-const MARK_TAU: f64 = 3.25;
 const PLANT_ID: &str = "9a5e11d0000000000000000000000e1";
 const CONTROLLER_ID: &str = "c0de0000000000000000000000000e2";
 
@@ -37,12 +35,15 @@ fn burst(rogue: &Client, n: u64, first_seq: u64) {
             seq,
             time: seq as f64 * 1e-3,
             alpha: 0.3,
-            beta: MARK_BETA,
+            beta: ROGUE_MARK_BETA,
             alpha_dot: Some(0.0),
             beta_dot: Some(0.0),
             mode: 1,
         };
-        let torque = TorqueCommand { seq, tau: MARK_TAU };
+        let torque = TorqueCommand {
+            seq,
+            tau: ROGUE_MARK_TAU,
+        };
         let (state, torque) = (codec::encode(&lie), codec::encode(&torque));
         let (sk, tk) = (rogue.keys.plant_state(), rogue.keys.controller_torque());
         if i % 2 == 0 {
@@ -61,18 +62,7 @@ fn burst(rogue: &Client, n: u64, first_seq: u64) {
 /// Messages of `file` carrying the rogue's marker, and its states.
 fn marked_and_states(file: &std::path::Path) -> (u64, u64) {
     let run = tilting_record::read(file).unwrap();
-    let mut marked = 0;
-    for m in run.messages() {
-        marked += match m.topic {
-            Topic::State => {
-                u64::from(codec::decode::<PlantState>(&m.wire).unwrap().beta == MARK_BETA)
-            }
-            Topic::Torque => {
-                u64::from(codec::decode::<TorqueCommand>(&m.wire).unwrap().tau == MARK_TAU)
-            }
-            _ => 0,
-        };
-    }
+    let marked = rogue_marked(&run);
     (marked, run.count(Topic::State))
 }
 
