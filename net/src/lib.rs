@@ -20,13 +20,32 @@
 //!   connected and their declarations received, and waits at most that long for them;
 //! - connect retries start after 100 ms and back off to 1 s, so a node started before its
 //!   peer connects within a second of the peer's start;
-//! - timestamping off.
+//! - timestamping off;
+//! - the real-time queues hold [`REAL_TIME_QUEUE_BATCHES`] batches per link and a droppable
+//!   message waits at most [`WAIT_BEFORE_DROP_US`] for room (see "Never blocking the loop").
 //!
 //! With `--zenoh-config FILE` the file is the whole configuration (zenoh's JSON5 format); only
-//! explicit `--listen`/`--connect` flags are applied on top of it. The secure deployment works
+//! explicit `--listen`/`--connect` flags are applied on top of it, and the two queue settings
+//! above where the file leaves them at zenoh's defaults. The secure deployment works
 //! this way: `tilting certs` writes one file per node that makes the session a TLS client (with
 //! the node's own certificate) of a `tilting-router` that enforces the access control (see the
 //! `tilting` crate's `security` module and docs/protocol.md).
+//!
+//! # Never blocking the loop
+//!
+//! A zenoh put pushes the message into the transmit queue of every link with a matching
+//! subscriber. With `CongestionControl::Block` a link whose peer stops reading (a slow recorder,
+//! a script that sleeps in its callback, a stalled or hostile subscriber) fills its queue and
+//! the put waits, up to zenoh's `wait_before_close` (5 s), on the thread that made it: for the
+//! plant that is the pacing thread, for the controller the state callback. Measured before this
+//! rule: one Python subscriber that blocked in its callback for 75 s stalled the plant's pacing
+//! thread 5.0 s once its link's buffers had filled (after about 30 s), and the orbit was lost.
+//! So every message a node publishes from its loop ([`Qos::Control`], [`Qos::Telemetry`]) is
+//! droppable: on a congested link it waits at most [`WAIT_BEFORE_DROP_US`], then is dropped on
+//! that link only (zenoh marks the queue congested, and later messages for it are dropped at
+//! once until it drains); the other links are not touched. The receivers see a drop as a gap
+//! (the plant's lost torques, the recorder's missing states). Only messages sent off the loop
+//! and rarely ([`Qos::Data`]: the planner's reference) block.
 
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -55,6 +74,26 @@ pub const DEFAULT_PEER_LISTEN: &str = "tcp/127.0.0.1:0";
 
 /// Longest time (ms) `open` waits for the configured peers to connect (`scouting/delay`).
 pub const OPEN_WAIT_MS: u64 = 1000;
+
+/// Batches per link in the real-time priority queue (zenoh's default is 2, its maximum 16).
+/// Each loop message is sent at once in its own batch (express), so this is how many messages
+/// a link may have waiting before the next is dropped: 16 periods at 1 kHz, more than the
+/// plant's default `--max-age` of 10, so no message that would still be used is dropped.
+pub const REAL_TIME_QUEUE_BATCHES: usize = 16;
+
+/// Longest wait (µs) of a droppable message for room in a full queue before it is dropped
+/// (zenoh's default is 1,000 µs, a whole period of the 1 kHz loop).
+pub const WAIT_BEFORE_DROP_US: i64 = 50;
+
+/// The queue settings of "Never blocking the loop": (key, our value, zenoh's default).
+const QUEUE_SETTINGS: [(&str, &str, &str); 2] = [
+    ("transport/link/tx/queue/size/real_time", "16", "2"),
+    (
+        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+        "50",
+        "1000",
+    ),
+];
 
 /// Which node opens the session: selects the default endpoints.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -209,6 +248,15 @@ impl ZenohArgs {
                     anyhow::anyhow!("--connect {:?}: {}", self.connect, zenoh_error(&e))
                 })?;
         }
+        for (key, ours, zenoh_default) in QUEUE_SETTINGS {
+            // A file's own choice stands; zenoh's default (or no file) gets ours.
+            let current = cfg.get_json(key).unwrap_or_default();
+            if current.trim() == zenoh_default {
+                cfg.insert_json5(key, ours).map_err(|e| {
+                    anyhow::anyhow!("zenoh config {key} = {ours}: {}", zenoh_error(&e))
+                })?;
+            }
+        }
         if let Some(id) = self.zenoh_id {
             // As zenoh writes ids: lowercase, no leading zero (it refuses anything else).
             cfg.insert_json5("id", &format!("\"{id}\""))
@@ -355,26 +403,31 @@ pub fn source_of(sample: &Sample) -> Option<SourceId> {
     SourceId::from_attachment(&a.to_bytes())
 }
 
-/// Quality of service of a publisher.
+/// Quality of service of a publisher (see "Never blocking the loop" in the crate docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Qos {
     /// The control loop (state, torque): real-time priority, sent at once (express, no
-    /// batching), blocking rather than dropping when the link is congested.
+    /// batching), dropped on a congested link rather than waited for.
     Control,
-    /// Events and status: data priority, blocking rather than dropping.
+    /// What a node publishes from its loop besides the loop itself (the plant's events and
+    /// status): data priority, dropped on a congested link rather than waited for.
+    Telemetry,
+    /// Rare messages sent off the loop (the planner's reference): data priority, blocking
+    /// rather than dropping when the link is congested.
     Data,
 }
 
 impl RawPublisher {
     /// Declares a publisher on `key` with the given quality of service.
     pub async fn declare(session: &Session, key: &str, qos: Qos) -> anyhow::Result<Self> {
-        let (priority, express) = match qos {
-            Qos::Control => (Priority::RealTime, true),
-            Qos::Data => (Priority::Data, false),
+        let (priority, express, congestion) = match qos {
+            Qos::Control => (Priority::RealTime, true, CongestionControl::Drop),
+            Qos::Telemetry => (Priority::Data, false, CongestionControl::Drop),
+            Qos::Data => (Priority::Data, false, CongestionControl::Block),
         };
         let publisher = session
             .declare_publisher(key.to_owned())
-            .congestion_control(CongestionControl::Block)
+            .congestion_control(congestion)
             .priority(priority)
             .express(express)
             .await
@@ -783,6 +836,42 @@ mod tests {
             .get_json("connect/endpoints")
             .unwrap()
             .contains("7447\""));
+    }
+
+    #[test]
+    fn queue_settings_apply_unless_a_file_chose_its_own() {
+        let wait = "transport/link/tx/queue/congestion_control/drop/wait_before_drop";
+        let size = "transport/link/tx/queue/size/real_time";
+        // The built-in configuration gets ours (zenoh's defaults are 1000 us and 2 batches).
+        let cfg = ZenohArgs::new("demo", &[], &[])
+            .config(Role::Plant)
+            .unwrap();
+        assert_eq!(cfg.get_json(wait).unwrap(), WAIT_BEFORE_DROP_US.to_string());
+        assert_eq!(
+            cfg.get_json(size).unwrap(),
+            REAL_TIME_QUEUE_BATCHES.to_string()
+        );
+        // A file that says nothing of them gets ours; a file's own values stand.
+        let dir = std::env::temp_dir().join(format!("tilting-net-queue-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("c.json5");
+        let with = |text: &str| {
+            std::fs::write(&file, text).unwrap();
+            let mut args = ZenohArgs::new("demo", &[], &[]);
+            args.zenoh_config = Some(file.clone());
+            args.config(Role::Peer).unwrap()
+        };
+        let cfg = with(r#"{ mode: "peer" }"#);
+        assert_eq!(cfg.get_json(wait).unwrap(), "50");
+        assert_eq!(cfg.get_json(size).unwrap(), "16");
+        let cfg = with(
+            r#"{ mode: "peer", transport: { link: { tx: { queue: {
+                size: { real_time: 4 },
+                congestion_control: { drop: { wait_before_drop: 300 } } } } } } }"#,
+        );
+        assert_eq!(cfg.get_json(wait).unwrap(), "300");
+        assert_eq!(cfg.get_json(size).unwrap(), "4");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -303,6 +303,7 @@ async fn replay_async(
     for &t in topics {
         let qos = match t {
             Topic::State | Topic::Torque => Qos::Control,
+            Topic::Event | Topic::Status => Qos::Telemetry,
             _ => Qos::Data,
         };
         pubs[t.index()] = Some(RawPublisher::declare(&session, t.key(keys), qos).await?);

@@ -165,8 +165,8 @@ async fn run_async(
     };
     let pubs = Arc::new(Publishers {
         state: TypedPublisher::declare(&session, keys.plant_state(), Qos::Control).await?,
-        event: TypedPublisher::declare(&session, keys.plant_event(), Qos::Data).await?,
-        status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Data).await?,
+        event: TypedPublisher::declare(&session, keys.plant_event(), Qos::Telemetry).await?,
+        status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Telemetry).await?,
         ros2: ros2.as_ref().map(|r| r.mirror.clone()),
     });
     let ros_domain = args.ros_domain;
