@@ -264,6 +264,9 @@ def session_config(zenoh, listen, connect):
         ("connect/retry", "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}"),
         ("listen/endpoints", json.dumps(listen)),
         ("connect/endpoints", json.dumps(connect)),
+        # A link whose peer stops reading drops loop messages instead of stalling the loop.
+        ("transport/link/tx/queue/size/real_time", "16"),
+        ("transport/link/tx/queue/congestion_control/drop/wait_before_drop", "50"),
     ):
         cfg.insert_json5(key, value)
     return cfg
@@ -313,7 +316,8 @@ def run(args):
     publisher = tilting_source.SourcedPublisher(
         session,
         f"{prefix}/controller/torque",
-        congestion_control=zenoh.CongestionControl.BLOCK,
+        # Dropped on a link whose peer stops reading, never waited for (docs/protocol.md).
+        congestion_control=zenoh.CongestionControl.DROP,
         priority=zenoh.Priority.REAL_TIME,
         express=True,
     )

@@ -825,6 +825,9 @@ def session_config(zenoh, listen, connect):
         ("connect/retry", "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}"),
         ("listen/endpoints", json.dumps(listen)),
         ("connect/endpoints", json.dumps(connect)),
+        # A link whose peer stops reading drops loop messages instead of stalling the loop.
+        ("transport/link/tx/queue/size/real_time", "16"),
+        ("transport/link/tx/queue/congestion_control/drop/wait_before_drop", "50"),
     ):
         cfg.insert_json5(key, value)
     return cfg
@@ -1054,6 +1057,8 @@ class Node:
         if a.zenoh_id:
             cfg.insert_json5("id", json.dumps(a.zenoh_id))
         session = z.open(cfg)
+        # Lockstep: a state must arrive (it is re-sent after 100 ms without an answer anyway), so
+        # these block; a real-time plant's drop on a congested link (docs/protocol.md).
         rt = dict(congestion_control=z.CongestionControl.BLOCK, priority=z.Priority.REAL_TIME)
         data = dict(congestion_control=z.CongestionControl.BLOCK, priority=z.Priority.DATA)
         # Every put names this session (the TSRC attachment of docs/protocol.md).
