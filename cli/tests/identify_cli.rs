@@ -271,8 +271,7 @@ fn says_the_rotor_is_lumped_under_noise_and_reports_the_sum() {
         "{pi3}"
     );
     let sum = base.iter().find(|e| e["name"] == "pi3+pi5").unwrap();
-    let joint = |p: &Params| p.m_l * p.lc() * p.lc() + p.i_l + p.n_g * p.n_g * p.j_m;
-    let want = joint(&truth);
+    let want = truth.joint_inertia();
     let got = sum["value"].as_f64().unwrap();
     assert!(
         ((got - want) / want).abs() < 0.03,
@@ -291,7 +290,7 @@ fn says_the_rotor_is_lumped_under_noise_and_reports_the_sum() {
     );
     let p = Params::from_toml_file(&out).unwrap();
     assert_eq!(p.j_m, 0.0);
-    assert!(((joint(&p) - want) / want).abs() < 0.03, "{p:?}");
+    assert!(((p.joint_inertia() - want) / want).abs() < 0.03, "{p:?}");
     // The human summary says it too.
     let h = tilting(&args);
     let text = String::from_utf8_lossy(&h.stdout);

@@ -131,8 +131,7 @@ impl GovernedExcitation {
             .collect();
         let s_max = table.iter().fold(0.0f64, |m, &(s, _)| m.max(s.abs()));
         let p = law.config().params;
-        let (_, _, m22) = p.inertia();
-        let j = p.m_l * p.lc() * p.lc() + m22;
+        let j = p.joint_inertia();
         let g = p.m_l * p.lc() * p.g;
         let prior = [j, g, p.b_v, p.tau_c];
         let mut ata = [[0.0; 4]; 4];

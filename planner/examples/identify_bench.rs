@@ -144,7 +144,6 @@ fn noisy(robot: &Params) {
         window: 2.0,
         ..Options::default()
     };
-    let joint = |p: &Params| p.m_l * p.lc() * p.lc() + p.i_l + p.n_g * p.n_g * p.j_m;
     for reference in [
         EXCITATION_DEFAULT,
         "excitation:0.3,0.8".parse().expect("valid"),
@@ -166,7 +165,7 @@ fn noisy(robot: &Params) {
                 "{seed:<6} {:+.2}  {:+.3}  {:+.3}         {:+.2}  {:+.1}  {ms:.0}  {}",
                 e(p.m_f, robot.m_f),
                 e(p.lc(), robot.lc()),
-                e(joint(&p), joint(robot)),
+                e(p.joint_inertia(), robot.joint_inertia()),
                 e(p.tau_c, robot.tau_c),
                 e(p.b_v, robot.b_v),
                 if id.base[3].value.is_some() {

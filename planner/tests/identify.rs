@@ -324,14 +324,13 @@ fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent
     };
     let id = identify(&rec.trace, &rec.tau, &opts).unwrap();
     let p = id.params;
-    let joint = |p: &Params| p.m_l * p.lc() * p.lc() + p.i_l + p.n_g * p.n_g * p.j_m;
     for (name, got, w, tol) in [
         ("m_f", p.m_f, truth.m_f, 0.03),
         ("l_c", p.lc(), truth.lc(), 0.03),
         (
             "arm inertia about the joint",
-            joint(&p),
-            joint(&truth),
+            p.joint_inertia(),
+            truth.joint_inertia(),
             0.03,
         ),
         ("tau_c", p.tau_c, truth.tau_c, 0.03),
@@ -418,7 +417,6 @@ fn a_larger_excitation_gets_b_v_within_three_percent_on_a_light_arm() {
         window: 2.0,
         ..Options::default()
     };
-    let joint = |p: &Params| p.m_l * p.lc() * p.lc() + p.i_l + p.n_g * p.n_g * p.j_m;
     for seed in [3, 13, 23, 33] {
         let mut rec = record_noisy(excitation.clone(), seed);
         rec.append(record_noisy(orbit.clone(), seed + 1));
@@ -426,7 +424,11 @@ fn a_larger_excitation_gets_b_v_within_three_percent_on_a_light_arm() {
         for (name, got, w) in [
             ("m_f", p.m_f, truth.m_f),
             ("l_c", p.lc(), truth.lc()),
-            ("arm inertia about the joint", joint(&p), joint(&truth)),
+            (
+                "arm inertia about the joint",
+                p.joint_inertia(),
+                truth.joint_inertia(),
+            ),
             ("tau_c", p.tau_c, truth.tau_c),
             ("b_v", p.b_v, truth.b_v),
         ] {

@@ -193,6 +193,18 @@ impl Params {
         self.i_l != 0.0 || self.j_m != 0.0
     }
 
+    /// The actuated joint's total inertia `J = m_l l_c^2 + i_l + n_g^2 j_m` (kg m^2) about the
+    /// joint axis, with the plate held still: the arm's mass at `l_c`, the arm's own rotational
+    /// inertia and the rotor reflected through the gear. It is the mass matrix entry `M22` (in
+    /// every mode; flat, `tau_j = J beta_ddot + m_l g l_c cos(beta)`) and the curvature
+    /// `d^2 T / d beta_dot^2` of the kinetic energy; the identification's arm inertia about the
+    /// joint (`pi3 + pi5`).
+    #[inline(always)]
+    pub fn joint_inertia(&self) -> f64 {
+        let lc = self.lc();
+        self.m_l * lc * lc + self.inertia().2
+    }
+
     /// The rotational inertias' share of the mass matrix `(I11, I12, I22)` (kg m^2): the arm's
     /// `i_l` turns with `alpha + beta`, the rotor's `j_m` with `alpha + n_g beta`, so
     /// `I11 = i_l + j_m`, `I12 = i_l + n_g j_m`, `I22 = i_l + n_g^2 j_m`.

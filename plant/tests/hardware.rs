@@ -84,6 +84,67 @@ fn mass_matrix_is_the_hessian_of_the_kinetic_energy() {
     assert!((m22 - (1.4 * 1.4 + 0.25 + 81.0 * 0.002)).abs() < 1e-14);
 }
 
+/// `Params::joint_inertia` against two truths it does not use: the curvature
+/// `d^2 T / d beta_dot^2` of the geometric kinetic energy (`kinematics`, a second difference in
+/// `beta_dot` at `alpha_dot = 0`) and the mass matrix's `M22`, in every mode, at random angles,
+/// for point masses, an offset centre of mass, an arm inertia, a direct-drive rotor and a
+/// geared one.
+#[test]
+fn joint_inertia_is_the_kinetic_energys_curvature_in_beta_dot_and_m22() {
+    let robots = [
+        Params::default(),
+        Params {
+            l_c: Some(1.4),
+            ..Params::default()
+        },
+        Params {
+            i_l: 0.3,
+            ..Params::default()
+        },
+        Params {
+            j_m: 0.05,
+            ..Params::default()
+        },
+        hw(),
+        Params {
+            m_l: 2.5,
+            l: 1.0,
+            l_c: Some(0.45),
+            i_l: 0.07,
+            j_m: 3e-4,
+            n_g: 50.0,
+            ..Params::default()
+        },
+    ];
+    let mut rng = Rng(0x1e27);
+    for p in robots {
+        let j = p.joint_inertia();
+        for mode in [Mode::Flat, Mode::Left, Mode::Right] {
+            for _ in 0..20 {
+                let x = random_state(&mut rng, mode);
+                let (a, b) = (x[0], x[1]);
+                // T(h) - 2 T(0) + T(-h) = J h^2 exactly for a quadratic form (T(0) = 0):
+                // h = 1 rad/s; differences of energies of up to ~60 J: rounding ~1e-14 J.
+                let curvature =
+                    kinetic(&p, mode, a, b, 0.0, 1.0) + kinetic(&p, mode, a, b, 0.0, -1.0);
+                assert!(
+                    (curvature - j).abs() < 1e-12 * j,
+                    "{p:?} {mode}: d2T/dbd2 = {curvature} vs J = {j}"
+                );
+                let (_, _, m22) = mass_matrix(&p, mode, b);
+                assert!(
+                    (m22 - j).abs() < 1e-14 * j,
+                    "{p:?} {mode}: M22 = {m22} vs J = {j}"
+                );
+            }
+        }
+    }
+    // The rotor counts through the gear squared: 81 j_m for hw()'s 9:1, 0.162 of 2.372 kg m^2.
+    let p = hw();
+    let rotorless = Params { j_m: 0.0, ..p }.joint_inertia();
+    assert!((p.joint_inertia() - rotorless - 81.0 * p.j_m).abs() < 1e-14);
+}
+
 #[test]
 fn bias_terms_follow_from_lagranges_equations_by_finite_differences() {
     // h = M_dot q_dot - dT/dq + dV/dq, every term by central differences of the geometric
