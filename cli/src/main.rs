@@ -24,8 +24,6 @@ Plan:
   plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability |
               merge: the paper's boundary value problems, stability, sweeps (--shard I/N
               for job arrays), continuation, and what the orbit survives on a network
-  plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability: the paper's boundary value
-              problems, stability, sweeps, and what the orbit survives on a network
 
 Look:
   figures     The paper's Figs. 4 to 8, and 8b and 8c, as PNG files
@@ -168,5 +166,33 @@ fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::from(e.exit_code())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// The hand-written help lists every subcommand exactly once (a merge once left `plan`
+    /// there twice) and nothing that is not one.
+    #[test]
+    fn help_lists_each_subcommand_once() {
+        let help = Cli::command().render_help().to_string();
+        let listed: Vec<&str> = help
+            .lines()
+            .filter(|l| l.starts_with("  ") && !l.starts_with("   "))
+            .filter_map(|l| l.split_whitespace().next())
+            .filter(|w| !w.starts_with('-'))
+            .collect();
+        let mut names: Vec<String> = Cli::command()
+            .get_subcommands()
+            .map(|c| c.get_name().to_owned())
+            .filter(|n| n != "help")
+            .collect();
+        names.sort();
+        let mut sorted: Vec<String> = listed.iter().map(|s| s.to_string()).collect();
+        sorted.sort();
+        assert_eq!(sorted, names, "help lines: {listed:?}");
     }
 }
