@@ -84,13 +84,7 @@ fn observer_converges_to_the_true_rates_with_exact_angles_and_model() {
 /// 1e-9 rad, rad/s: the two runs take mirrored but not bit-identical floating-point paths).
 #[test]
 fn mirrored_measurements_give_mirrored_estimates() {
-    let imp = Imperfections {
-        measure: tilting_plant::imperfect::Measure::Angles,
-        noise: [1e-3, 1e-3, 0.0, 0.0],
-        encoder_counts: Some(4096),
-        seed: 11,
-        ..Imperfections::default()
-    };
+    let imp = Imperfections::measured_as_hardware(11);
     let run = closed_loop(Method::Observer, imp, 2.0);
     let mirror_mode = |m: Mode| match m {
         Mode::Flat => Mode::Flat,

@@ -17,7 +17,7 @@ use std::time::Instant;
 use tilting_controller::trajectory::{Trajectory, EXCITATION_DEFAULT};
 use tilting_controller::{LawArgs, LawSpec};
 use tilting_planner::identify::{identify, Options, Recorded, Velocities};
-use tilting_plant::imperfect::{Imperfections, Measure};
+use tilting_plant::imperfect::Imperfections;
 use tilting_plant::Params;
 use tilting_sim::recording::{run_logged, simulate_logged};
 use tilting_sim::{Scenario, ScenarioFile, SimOptions};
@@ -96,13 +96,7 @@ fn main() {
 fn noisy(robot: &Params) {
     let record = |sc: Scenario, seed: u64| -> Recorded {
         let opts = SimOptions {
-            imperfect: Some(Imperfections {
-                noise: [1e-3, 1e-3, 0.0, 0.0],
-                encoder_counts: Some(4096),
-                measure: Measure::Angles,
-                seed,
-                ..Imperfections::default()
-            }),
+            imperfect: Some(Imperfections::measured_as_hardware(seed)),
             ..SimOptions::default()
         };
         let (_, l) = simulate_logged(&sc, opts, &mut |_| {}).expect("the scenario runs");

@@ -14,7 +14,7 @@
 use tilting_controller::trajectory::EXCITATION_DEFAULT;
 use tilting_controller::{LawArgs, LawSpec};
 use tilting_planner::identify::{identify, IdentifyError, Options, Velocities};
-use tilting_plant::imperfect::{Imperfections, Measure};
+use tilting_plant::imperfect::Imperfections;
 use tilting_plant::{Mode, Params};
 use tilting_record::{Sample, Trace};
 use tilting_sim::recording::simulate_logged;
@@ -244,13 +244,7 @@ fn refuses_motion_without_excitation_saying_what_to_record() {
 /// --encoder-counts 4096` writes it.
 fn record_noisy(sc: Scenario, seed: u64) -> tilting_planner::identify::Recorded {
     let opts = SimOptions {
-        imperfect: Some(Imperfections {
-            noise: [1e-3, 1e-3, 0.0, 0.0],
-            encoder_counts: Some(4096),
-            measure: Measure::Angles,
-            seed,
-            ..Imperfections::default()
-        }),
+        imperfect: Some(Imperfections::measured_as_hardware(seed)),
         ..SimOptions::default()
     };
     let (report, logged) = simulate_logged(&sc, opts, &mut |_| {}).unwrap();

@@ -182,12 +182,8 @@ fn main() {
     if let Some(q) = std::env::args().nth(2) {
         tuning.accel_psd = q.parse().expect("Q");
     }
-    let noisy = Imperfections {
-        noise: [1e-3, 1e-3, 0.0, 0.0],
-        encoder_counts: Some(4096),
-        seed: 1,
-        ..Imperfections::default()
-    };
+    // `run` sets what is measured (angles for an estimator, else the full state).
+    let noisy = Imperfections::measured_as_hardware(1);
     let cases = [
         Case {
             name: "exact angles, exact model",

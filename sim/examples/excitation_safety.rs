@@ -13,7 +13,7 @@
 
 use tilting_controller::trajectory::EXCITATION_DEFAULT;
 use tilting_controller::{LawArgs, Trajectory};
-use tilting_plant::imperfect::{Imperfections, Measure};
+use tilting_plant::imperfect::Imperfections;
 use tilting_plant::Params;
 use tilting_sim::recording::simulate_logged;
 use tilting_sim::{Scenario, ScenarioFile, SimOptions};
@@ -108,13 +108,7 @@ fn main() {
                 }])
             };
             let opts = SimOptions {
-                imperfect: noise.map(|seed| Imperfections {
-                    noise: [1e-3, 1e-3, 0.0, 0.0],
-                    encoder_counts: Some(4096),
-                    measure: Measure::Angles,
-                    seed,
-                    ..Imperfections::default()
-                }),
+                imperfect: noise.map(Imperfections::measured_as_hardware),
                 ..SimOptions::default()
             };
             let (r, logged) = simulate_logged(&sc, opts, &mut |_| {}).expect("valid scenario");

@@ -4,7 +4,7 @@
 
 use tilting_controller::trajectory::EXCITATION_DEFAULT;
 use tilting_controller::{excitation_torque_limit, LawArgs};
-use tilting_plant::imperfect::{Imperfections, Measure};
+use tilting_plant::imperfect::Imperfections;
 use tilting_plant::{Mode, Params};
 use tilting_sim::recording::simulate_logged;
 use tilting_sim::{Scenario, ScenarioFile, SimOptions};
@@ -57,13 +57,7 @@ fn run(plant: Params, noise: Option<u64>) -> Outcome {
         }])
     };
     let opts = SimOptions {
-        imperfect: noise.map(|seed| Imperfections {
-            noise: [1e-3, 1e-3, 0.0, 0.0],
-            encoder_counts: Some(4096),
-            measure: Measure::Angles,
-            seed,
-            ..Imperfections::default()
-        }),
+        imperfect: noise.map(Imperfections::measured_as_hardware),
         ..SimOptions::default()
     };
     let (report, logged) = simulate_logged(&sc, opts, &mut |_| {}).unwrap();

@@ -102,18 +102,8 @@ pub fn realtime_turn() -> MutexGuard<'static, ()> {
     REALTIME.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// The headline's sensors (issue 17): the angles only, 1 mrad of noise on each and a
-/// 4,096-count encoder, as `simulate`/`live`/`tilting-plant` flags.
-pub const MEASURED_AS_HARDWARE: [&str; 8] = [
-    "--measure",
-    "angles",
-    "--noise-alpha",
-    "0.001",
-    "--noise-beta",
-    "0.001",
-    "--encoder-counts",
-    "4096",
-];
+/// The headline's sensors (issue 17) as flags, beside `Imperfections::measured_as_hardware`.
+pub use tilting_plant::imperfect::MEASURED_AS_HARDWARE;
 
 /// A free TCP port on 127.0.0.1 (the OS picks it; it is released before use).
 pub fn free_port() -> u16 {

@@ -12,15 +12,6 @@ mod scratch;
 #[allow(unused_imports)] // not every test file uses it
 pub use scratch::Scratch;
 
-/// The headline's sensors (issue 17): the angles only, 1 mrad of noise on each and a
-/// 4,096-count encoder, as `simulate`/`live`/`tilting-plant` flags.
-pub const MEASURED_AS_HARDWARE: [&str; 8] = [
-    "--measure",
-    "angles",
-    "--noise-alpha",
-    "0.001",
-    "--noise-beta",
-    "0.001",
-    "--encoder-counts",
-    "4096",
-];
+/// The headline's sensors (issue 17) as flags, beside `Imperfections::measured_as_hardware`.
+#[allow(unused_imports)] // not every test file uses it
+pub use tilting_plant::imperfect::MEASURED_AS_HARDWARE;
