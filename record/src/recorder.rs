@@ -94,6 +94,9 @@ pub struct RecordView {
     /// Of those, the messages refused because they came from a foreign source (another
     /// session than the plant's or the controller's: [`tilting_proto::source`]).
     pub foreign: u64,
+    /// The foreign-source refusals per topic ([`Topic::index`]): the states', events' and
+    /// statuses' are the plant's pin's, the torques' the controller's.
+    pub foreign_per_topic: [u64; 5],
     /// The first refusal, in words.
     pub first_refusal: Option<String>,
     /// The newest status believed (written).
@@ -387,6 +390,7 @@ impl Writer {
             Err(e) => {
                 self.local.refused[topic.index()] += 1;
                 self.local.foreign += u64::from(e.is_foreign());
+                self.local.foreign_per_topic[topic.index()] += u64::from(e.is_foreign());
                 if self.local.first_refusal.is_none() {
                     self.local.first_refusal = Some(e.to_string());
                     self.pending = 64;
@@ -1022,6 +1026,9 @@ mod tests {
         let (_, truth) = run(None, false);
         let (v, wire) = run(Some(Sources::default()), true);
         assert_eq!((v.refused, v.foreign), ([10, 10, 0, 0, 0], 20), "{v:?}");
+        // Each refusal is charged to its stream's pin: the states' to the plant's, the
+        // torques' to the controller's.
+        assert_eq!(v.foreign_per_topic, [10, 10, 0, 0, 0], "{v:?}");
         assert_eq!((v.states, v.torques), (50, 50));
         assert_eq!(wire, truth);
         // Without sources, everything is the recording (the foreign messages too).

@@ -572,3 +572,107 @@ fn live_excitation_keeps_the_plate_flat_and_the_arm_on_the_excitation() {
     );
     assert!(!stdout.contains("E_av = 0 J"), "{stdout}");
 }
+
+/// `summary.json` and the report name the zenoh sessions the plant and the controller
+/// published from. The independent truth is on the wire: an outside peer that joins the
+/// plant's port reads the source each state and each torque names in its attachment (set by
+/// the publisher from its own session's `ZenohId`, not from the flags `live` keeps), and
+/// every state it hears names one session, every torque another, the ones in the summary.
+#[test]
+fn the_summary_names_the_sessions_the_nodes_published_from() {
+    use std::collections::BTreeMap;
+    use std::sync::{Arc, Mutex};
+    use tilting_proto::SourceId;
+    let _turn = realtime_turn();
+    let dir = Scratch::new("ids");
+    let out = dir.path().join("out");
+    let robot = robot("ids");
+    let port = free_port();
+    let args: Vec<String> = [
+        "live",
+        "--duration",
+        "4",
+        "--robot",
+        &robot,
+        "--port",
+        &port.to_string(),
+        "--out",
+    ]
+    .map(String::from)
+    .into_iter()
+    .chain([out.display().to_string()])
+    .collect();
+    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let t0 = Instant::now();
+    while !live.stderr().contains("tilts") {
+        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    type Seen = Arc<Mutex<BTreeMap<Option<String>, u64>>>;
+    let (states, torques): (Seen, Seen) = Default::default();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let _watch = rt.block_on(async {
+        let watcher = Client::open(&robot, None, Some(port)).await;
+        let count = |seen: &Seen| {
+            let seen = seen.clone();
+            move |source: Option<SourceId>| {
+                let mut m = seen.lock().unwrap();
+                *m.entry(source.map(|s| s.to_string())).or_default() += 1;
+            }
+        };
+        let (on_state, on_torque) = (count(&states), count(&torques));
+        let k = &watcher.keys;
+        let drops = |key: &str| Arc::new(tilting_net::DropCounter::new(key));
+        let s = &watcher.session;
+        let a = tilting_net::subscribe_decoded_from(
+            s,
+            drops(k.plant_state()),
+            move |_: PlantState, from| on_state(from),
+        )
+        .await
+        .unwrap();
+        let b = tilting_net::subscribe_decoded_from(
+            s,
+            drops(k.controller_torque()),
+            move |_: TorqueCommand, from| on_torque(from),
+        )
+        .await
+        .unwrap();
+        (watcher, a, b)
+    });
+    let status = live.expect_exit(Duration::from_secs(40));
+    assert!(status.success(), "{status}\n{}", live.logs());
+    let s = live_summary(&out);
+    let ids = s.zenoh_ids.as_ref().expect("zenoh_ids in summary.json");
+    let (plant, ctl) = (
+        ids.plant.as_ref().expect("the plant's id"),
+        ids.controller.as_ref().expect("the controller's id"),
+    );
+    let (states, torques) = (
+        states.lock().unwrap().clone(),
+        torques.lock().unwrap().clone(),
+    );
+    eprintln!("summary {ids:?}; on the wire: states {states:?}, torques {torques:?}");
+    // Each stream named one session (hundreds of messages each), the summary's.
+    let only = |seen: &BTreeMap<Option<String>, u64>| {
+        assert_eq!(seen.len(), 1, "{seen:?}");
+        let (id, n) = seen.iter().next().unwrap();
+        assert!(*n > 100, "{seen:?}");
+        id.clone().expect("a source attached")
+    };
+    assert_eq!(only(&states), plant.id);
+    assert_eq!(only(&torques), ctl.id);
+    assert_ne!(plant.id, ctl.id);
+    // As `tilting record --plant-id` takes them, and nothing refused as foreign.
+    for id in [&plant.id, &ctl.id] {
+        assert!(id.parse::<SourceId>().is_ok(), "{id}");
+    }
+    assert_eq!((plant.foreign, ctl.foreign, s.record.foreign), (0, 0, 0));
+    // The report says them.
+    let stdout = live.stdout();
+    let line = format!(
+        "zenoh ids: plant {} (0 foreign refused), controller {} (0 foreign refused)",
+        plant.id, ctl.id
+    );
+    assert!(stdout.contains(&line), "{stdout}");
+}

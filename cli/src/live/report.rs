@@ -155,6 +155,10 @@ pub(super) fn summarise(
         out: job.dir.clone(),
         reference: LawRecord::from(&job.reference),
         endpoints: o.endpoints.clone(),
+        zenoh_ids: Some(super::summary::Sessions::new(
+            &job.ids,
+            o.view.foreign_per_topic,
+        )),
         record: record_counts(&o, args.csv),
         planner: o.planner,
         png,

@@ -156,6 +156,60 @@ pub struct RecordCounts {
     pub peaks: Vec<[f64; 2]>,
 }
 
+/// A zenoh session a live run pinned streams to: the plant's (its states, events and
+/// statuses) or the controller's (its torques).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PinnedSession {
+    /// Its zenoh id, in hexadecimal as zenoh prints it and as `--zenoh-id`, `--plant-id` and
+    /// `--controller-id` take it (`tilting record --plant-id ID`).
+    pub id: String,
+    /// Well-formed messages the recorder refused on this pin's streams because they named
+    /// another session, or none (part of `record.foreign`).
+    pub foreign: u64,
+}
+
+/// The zenoh sessions of the plant and the controller: `tilting live` draws both ids before it
+/// starts either node (`--zenoh-id`), tells each node the other's, and pins its recorder and
+/// status line to them.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Sessions {
+    /// The plant's session.
+    pub plant: Option<PinnedSession>,
+    /// The controller's session.
+    pub controller: Option<PinnedSession>,
+}
+
+impl Sessions {
+    /// The sessions of `ids`, with the recorder's foreign-source refusals per topic
+    /// (`foreign_per_topic`, [`tilting_proto::Topic::index`] order) charged to their pins.
+    pub fn new(ids: &tilting_record::Sources, foreign_per_topic: [u64; 5]) -> Self {
+        let [states, torques, events, statuses, _] = foreign_per_topic;
+        let pin = |id: Option<tilting_proto::SourceId>, foreign| {
+            id.map(|id| PinnedSession {
+                id: id.to_string(),
+                foreign,
+            })
+        };
+        Self {
+            plant: pin(ids.plant, states + events + statuses),
+            controller: pin(ids.controller, torques),
+        }
+    }
+
+    /// One line: `plant ID (N foreign refused), controller ID (M foreign refused)`.
+    pub fn describe(&self) -> String {
+        let one = |who: &str, p: &Option<PinnedSession>| match p {
+            Some(p) => format!("{who} {} ({} foreign refused)", p.id, p.foreign),
+            None => format!("{who} not pinned in advance"),
+        };
+        format!(
+            "{}, {}",
+            one("plant", &self.plant),
+            one("controller", &self.controller)
+        )
+    }
+}
+
 /// The planner's counters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PlannerCounts {
@@ -184,6 +238,10 @@ pub struct LiveSummary {
     pub reference: LawRecord,
     /// The sessions' endpoints.
     pub endpoints: Endpoints,
+    /// The plant's and the controller's zenoh ids, as the run chose them and pinned its
+    /// recorder to them (absent in summaries written before they were recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zenoh_ids: Option<Sessions>,
     /// The recording.
     pub record: RecordCounts,
     /// The planner's counters.
@@ -307,6 +365,9 @@ impl LiveSummary {
             let _ = writeln!(out, "safe mode: {}", describe_safe_modes(p));
         }
         let _ = writeln!(out, "faults: {}", fault.unwrap_or("none"));
+        if let Some(ids) = &self.zenoh_ids {
+            let _ = writeln!(out, "zenoh ids: {}", ids.describe());
+        }
         let r = &self.record;
         let refused: u64 = r.refused.iter().sum();
         if refused > 0 || r.invalid > 0 {
