@@ -54,13 +54,23 @@ pub struct CertsArgs {
     /// into (created; existing files of the same names are replaced)
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Host name or IP address the nodes use to reach the router (repeatable; always adds
-    /// localhost and 127.0.0.1): the router's certificate is valid for these names
+    /// Host name or IP address the nodes use to reach the router (repeatable; localhost and
+    /// 127.0.0.1 are always there): the router's certificate and the plant's (which runs on
+    /// the router's host) are valid for these names too
     #[arg(long = "router-host", value_name = "HOST")]
     pub router_hosts: Vec<String>,
-    /// The router's endpoint written into the nodes' configuration files
+    /// The router's endpoint written into the nodes' configuration files (and the router's
+    /// listen endpoint in router.json5)
     #[arg(long, default_value = DEFAULT_ROUTER_ENDPOINT, value_name = "ENDPOINT")]
     pub router_endpoint: String,
+    /// Another host name or IP address of an identity (repeatable), e.g. `--host
+    /// logger=10.0.0.4`: NODE's certificate is valid for HOST too (subjectAltName), for
+    /// the nodes that dial it and check the name. The first HOST of `plant` and of `logger`
+    /// also names their endpoints of the direct loop in the `{node}-direct.json5` files
+    /// (`tls/HOST:7448`, `tls/HOST:7449`). NODE: plant, controller, planner, logger, router
+    /// or an `--extra` name
+    #[arg(long = "host", value_name = "NODE=HOST")]
+    pub hosts: Vec<String>,
     /// Another identity to certify, with no rights beyond a logger's if named `logger*`, none
     /// otherwise (repeatable; only [A-Za-z0-9_-])
     #[arg(long = "extra", value_name = "NODE")]
@@ -98,12 +108,18 @@ pub fn certs(args: &CertsArgs) -> Result<(), CommandError> {
             )));
         }
     }
+    // `--host` first: the plant's and the logger's first name their endpoints.
+    let mut hosts = Vec::new();
+    for h in &args.hosts {
+        hosts.push(Host::parse(h, &args.extra).map_err(CommandError::Usage)?);
+    }
     for h in &args.router_hosts {
-        if h.is_empty() || (h.contains(['/', ' ', ':']) && h.parse::<std::net::IpAddr>().is_err()) {
+        if !valid_host(h) {
             return Err(CommandError::Usage(anyhow!(
-                "invalid `--router-host` = {h:?}: a host name or an IP address"
+                "invalid `--router-host` = {h:?}: {HOST_RULE}"
             )));
         }
+        hosts.extend(Host::router_host(h));
     }
     if !args.router_endpoint.starts_with("tls/") {
         return Err(CommandError::Usage(anyhow!(
@@ -111,14 +127,8 @@ pub fn certs(args: &CertsArgs) -> Result<(), CommandError> {
             args.router_endpoint
         )));
     }
-    let m = generate(
-        &keys,
-        &args.out,
-        &args.router_hosts,
-        &args.router_endpoint,
-        &args.extra,
-    )
-    .map_err(CommandError::Failed)?;
+    let m = generate(&keys, &args.out, &hosts, &args.router_endpoint, &args.extra)
+        .map_err(CommandError::Failed)?;
     let dir = args.out.display();
     println!(
         "certificates for robot {} in {dir}: {}",
@@ -134,20 +144,108 @@ pub fn certs(args: &CertsArgs) -> Result<(), CommandError> {
         "start a node:      tilting-plant --robot {} --zenoh-config {dir}/plant.json5",
         m.robot
     );
+    for h in &hosts {
+        println!("{}'s certificate names {}", h.node, h.name);
+    }
     Ok(())
+}
+
+/// What `--host` and `--router-host` allow as a host, in words.
+pub const HOST_RULE: &str = "a DNS name (labels of 1 to 63 letters, digits and '-', not \
+    starting or ending with '-', joined by '.', at most 253 characters) or an IP address \
+    (IPv4 or IPv6, without brackets)";
+
+/// Whether `h` is a DNS name or an IP address a certificate may name ([`HOST_RULE`]).
+pub fn valid_host(h: &str) -> bool {
+    if h.parse::<std::net::IpAddr>().is_ok() {
+        return true;
+    }
+    !h.is_empty()
+        && h.len() <= 253
+        && h.split('.').all(|l| {
+            (1..=63).contains(&l.len())
+                && !l.starts_with('-')
+                && !l.ends_with('-')
+                && l.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
+        })
+}
+
+/// Port of the plant's TLS endpoint of the direct loop in the generated files (`tls/HOST:7448`
+/// with the plant's first `--host`).
+pub const DIRECT_PLANT_PORT: u16 = 7448;
+
+/// Port of the recorder's (the logger's) TLS endpoint of the direct loop in the generated
+/// files (`tls/HOST:7449` with the logger's first `--host`).
+pub const DIRECT_RECORDER_PORT: u16 = 7449;
+
+/// One more name of an identity's certificate (`tilting certs --host NODE=HOST`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Host {
+    /// The identity: one of [`NODES`] or an `--extra` name.
+    pub node: String,
+    /// A DNS name or an IP address ([`valid_host`]).
+    pub name: String,
+}
+
+impl Host {
+    /// `NODE=HOST` of `--host`, NODE one of [`NODES`] or `extra`; a usage error naming the flag
+    /// and what it allows otherwise.
+    pub fn parse(s: &str, extra: &[String]) -> anyhow::Result<Self> {
+        let Some((node, name)) = s.split_once('=') else {
+            anyhow::bail!("invalid `--host` = {s:?}: NODE=HOST, e.g. logger=10.0.0.4");
+        };
+        if !(NODES.contains(&node) || extra.iter().any(|e| e == node)) {
+            let mut known: Vec<&str> = NODES.to_vec();
+            known.extend(extra.iter().map(String::as_str));
+            anyhow::bail!(
+                "invalid `--host` = {s:?}: NODE must be one of {}",
+                known.join(", ")
+            );
+        }
+        if !valid_host(name) {
+            anyhow::bail!("invalid `--host` = {s:?}: HOST must be {HOST_RULE}");
+        }
+        Ok(Self {
+            node: node.to_owned(),
+            name: name.to_owned(),
+        })
+    }
+
+    /// What `--router-host HOST` means: the router's certificate and the plant's name HOST
+    /// (the plant runs on the router's host, and the controller dials both).
+    pub fn router_host(name: &str) -> [Self; 2] {
+        ["router", "plant"].map(|node| Self {
+            node: node.to_owned(),
+            name: name.to_owned(),
+        })
+    }
+
+    /// A TLS endpoint on this host: `tls/HOST:PORT` (`tls/[HOST]:PORT` for IPv6).
+    pub fn endpoint(&self, port: u16) -> String {
+        match self.name.parse::<std::net::Ipv6Addr>() {
+            Ok(_) => format!("tls/[{}]:{port}", self.name),
+            Err(_) => format!("tls/{}:{port}", self.name),
+        }
+    }
 }
 
 /// Creates `out` and writes into it: `ca.pem` (the CA certificate; its key is not kept),
 /// `{node}.pem` and `{node}.key` for each of [`NODES`] and `extra`, a client configuration
 /// `{node}.json5` for each node (mode client, scouting off, TLS with its certificate, connect to
-/// `router_endpoint`), `router.json5` (mode router, TLS with mTLS, the ACL of the module
-/// documentation), `{node}-direct.json5` for each of [`DIRECT`] (the plant, the controller and
-/// the recorder of `live --secure`, [`direct_config`]) and [`MANIFEST`]. File paths inside the
+/// `router_endpoint`), `router.json5` (mode router, listening on `router_endpoint`, TLS with
+/// mTLS, the ACL of the module documentation), `{node}-direct.json5` for each of [`DIRECT`]
+/// (the plant, the controller and the recorder of `live --secure`, [`direct_config`], with
+/// the endpoints of [`DirectEndpoints::from_hosts`]) and [`MANIFEST`]. File paths inside the
 /// configurations are absolute.
+///
+/// The certificates of the router, the plant and the logger name `localhost` and `127.0.0.1`
+/// (in their subjectAltName: the nodes dial the router, the controller and the recorder dial
+/// the plant, the controller dials the recorder, and each checks the name); every `hosts`
+/// entry adds its name to its identity's certificate.
 pub fn generate(
     keys: &Keys,
     out: &Path,
-    router_hosts: &[String],
+    hosts: &[Host],
     router_endpoint: &str,
     extra: &[String],
 ) -> anyhow::Result<Manifest> {
@@ -180,22 +278,20 @@ pub fn generate(
 
     let mut nodes: Vec<String> = NODES.iter().map(|s| s.to_string()).collect();
     nodes.extend(extra.iter().cloned());
+    let endpoints = DirectEndpoints::from_hosts(hosts, router_endpoint);
     for node in &nodes {
         let mut sans: Vec<String> = Vec::new();
-        // The router's and the plant's certificates name their host: the nodes dial the router,
-        // the controller and the recorder dial the plant (the direct loop), and each checks the
-        // name. The plant runs on the router's host ("Three hosts" in the README). The
-        // logger's names the loopback host: `live --secure`'s recorder listens with it and the
-        // controller dials it ([`RECORDER`]).
-        if node == "router" || node == "plant" {
+        // The certificates of the sessions that are dialled name their host: the nodes dial
+        // the router, the controller and the recorder dial the plant (the direct loop), the
+        // controller dials the recorder ([`RECORDER`]), and each checks the name. On one host
+        // that is the loopback host; `--host` adds the others ("Three hosts" in the README).
+        if node == "router" || node == "plant" || node == RECORDER {
             sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
-            for h in router_hosts {
-                if !sans.contains(h) {
-                    sans.push(h.clone());
-                }
+        }
+        for h in hosts.iter().filter(|h| &h.node == node) {
+            if !sans.contains(&h.name) {
+                sans.push(h.name.clone());
             }
-        } else if node == RECORDER {
-            sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
         }
         let mut p = CertificateParams::new(sans)?;
         p.distinguished_name
@@ -216,7 +312,7 @@ pub fn generate(
         write(&out.join(format!("{node}.pem")), &cert.pem(), false)?;
         write(&out.join(format!("{node}.key")), &key.serialize_pem(), true)?;
         let cfg = if node == "router" {
-            router_config(keys, &out, &nodes)
+            router_config(keys, &out, &nodes, router_endpoint)
         } else {
             client_config(&out, node, router_endpoint)
         };
@@ -226,9 +322,13 @@ pub fn generate(
             false,
         )?;
         if DIRECT.contains(&node.as_str()) {
+            let mut cfg = direct_config(keys, &out, node, &nodes);
+            let (listen, connect) = endpoints.of(node);
+            cfg["listen"]["endpoints"] = json!(listen);
+            cfg["connect"]["endpoints"] = json!(connect);
             write(
                 &out.join(format!("{node}-direct.json5")),
-                &serde_json::to_string_pretty(&direct_config(keys, &out, node, &nodes))?,
+                &serde_json::to_string_pretty(&cfg)?,
                 false,
             )?;
         }
@@ -243,6 +343,52 @@ pub fn generate(
         false,
     )?;
     Ok(manifest)
+}
+
+/// The endpoints written into the `{node}-direct.json5` files (a node's `--listen` and
+/// `--connect` replace them, as `tilting live --secure` does).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DirectEndpoints {
+    /// The plant's TLS endpoint, `tls/HOST:7448` on the plant's first `--host`, if any.
+    pub plant: Option<String>,
+    /// The recorder's, `tls/HOST:7449` on the logger's first `--host`, if any.
+    pub recorder: Option<String>,
+    /// The router's.
+    pub router: String,
+}
+
+impl DirectEndpoints {
+    /// The plant's and the recorder's endpoints on the first host `hosts` gives each (none
+    /// without: the flags must say them), and the router's.
+    pub fn from_hosts(hosts: &[Host], router_endpoint: &str) -> Self {
+        let first = |node: &str, port| {
+            hosts
+                .iter()
+                .find(|h| h.node == node)
+                .map(|h| h.endpoint(port))
+        };
+        Self {
+            plant: first("plant", DIRECT_PLANT_PORT),
+            recorder: first(RECORDER, DIRECT_RECORDER_PORT),
+            router: router_endpoint.to_owned(),
+        }
+    }
+
+    /// Where `node` (one of [`DIRECT`]) listens and what it dials, as [`session_flags`] would
+    /// say with these endpoints: the plant listens on its endpoint and dials the router; the
+    /// controller dials the plant, the router and the recorder; the recorder listens on its
+    /// endpoint and dials the plant. Unknown endpoints are left out.
+    pub fn of(&self, node: &str) -> (Vec<String>, Vec<String>) {
+        let (p, r) = (self.plant.clone(), self.recorder.clone());
+        let router = Some(self.router.clone());
+        let (listen, connect) = match node {
+            "plant" => (vec![p], vec![router]),
+            "controller" => (vec![], vec![p, router, r]),
+            _ => (vec![r], vec![p]),
+        };
+        let known = |v: Vec<Option<String>>| v.into_iter().flatten().collect();
+        (known(listen), known(connect))
+    }
 }
 
 /// Reads the [`MANIFEST`] of a certificate directory and checks that it is for `robot`.
@@ -391,8 +537,10 @@ pub fn direct_recorder(certs: &Path) -> bool {
 /// The zenoh configuration of `node` (one of [`DIRECT`]) in the direct loop (`{node}-direct.json5`,
 /// what `tilting live --secure` runs): a **peer** with the TLS link of [`client_config`] (its own
 /// certificate, mutual authentication, names checked), no scouting, and its own access control
-/// ([`node_acl`]). The endpoints are left to the flags: the plant `--listen`s on its endpoint
-/// and `--connect`s to the router; the controller `--connect`s to the plant and to the router.
+/// ([`node_acl`]). No endpoint here: [`generate`] writes those of [`DirectEndpoints`] into
+/// the file, and the flags replace them ([`session_flags`]: the plant `--listen`s on its
+/// endpoint and `--connect`s to the router; the controller `--connect`s to the plant, the
+/// router and the recorder; the recorder `--listen`s on its own and `--connect`s to the plant).
 pub fn direct_config(keys: &Keys, dir: &Path, node: &str, nodes: &[String]) -> Value {
     json!({
         "mode": "peer",
@@ -567,13 +715,13 @@ pub fn node_acl(keys: &Keys, node: &str, nodes: &[String]) -> Value {
     })
 }
 
-/// The zenoh configuration of the router: listens on [`DEFAULT_ROUTER_ENDPOINT`] (replace it
-/// with `tilting-router --listen`), TLS only with mutual authentication, scouting off, and the
-/// access control of the module documentation for the identities in `nodes`.
-pub fn router_config(keys: &Keys, dir: &Path, nodes: &[String]) -> Value {
+/// The zenoh configuration of the router: listens on `endpoint` (the one the nodes dial;
+/// replace it with `tilting-router --listen`), TLS only with mutual authentication, scouting
+/// off, and the access control of the module documentation for the identities in `nodes`.
+pub fn router_config(keys: &Keys, dir: &Path, nodes: &[String], endpoint: &str) -> Value {
     json!({
         "mode": "router",
-        "listen": { "endpoints": [DEFAULT_ROUTER_ENDPOINT] },
+        "listen": { "endpoints": [endpoint] },
         "connect": { "endpoints": [] },
         "scouting": {
             "multicast": { "enabled": false },
@@ -790,6 +938,7 @@ pub fn router(args: &RouterArgs) -> Result<(), CommandError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn generates_certs_and_configs_zenoh_accepts() {
@@ -798,7 +947,7 @@ mod tests {
         let m = generate(
             &keys,
             dir.path(),
-            &["10.1.2.3".into()],
+            &Host::router_host("10.1.2.3"),
             DEFAULT_ROUTER_ENDPOINT,
             &["rogue".into()],
         )
@@ -832,6 +981,209 @@ mod tests {
         }
         assert!(read_manifest(dir.path(), "unit").is_ok());
         assert!(read_manifest(dir.path(), "other").is_err());
+    }
+
+    /// The names in the subjectAltName of the certificate `{node}.pem` in `dir`, read back
+    /// with x509-parser (zenoh's TLS link parses certificates with it too): DNS names as
+    /// written, IP addresses as `std::net::IpAddr` prints them.
+    fn sans(dir: &Path, node: &str) -> std::collections::BTreeSet<String> {
+        use x509_parser::extensions::GeneralName;
+        let pem = std::fs::read(dir.join(format!("{node}.pem"))).unwrap();
+        let (_, pem) = x509_parser::pem::parse_x509_pem(&pem).unwrap();
+        let cert = pem.parse_x509().unwrap();
+        let Some(san) = cert.subject_alternative_name().unwrap() else {
+            return Default::default();
+        };
+        san.value
+            .general_names
+            .iter()
+            .map(|n| match n {
+                GeneralName::DNSName(d) => d.to_string(),
+                GeneralName::IPAddress(b) => match b.len() {
+                    4 => std::net::IpAddr::from(<[u8; 4]>::try_from(*b).unwrap()).to_string(),
+                    16 => std::net::IpAddr::from(<[u8; 16]>::try_from(*b).unwrap()).to_string(),
+                    _ => panic!("{node}: an IP address of {} bytes", b.len()),
+                },
+                other => panic!("{node}: unexpected name {other:?}"),
+            })
+            .collect()
+    }
+
+    fn set(names: &[&str]) -> std::collections::BTreeSet<String> {
+        names.iter().map(|s| s.to_string()).collect()
+    }
+
+    /// `--host NODE=HOST` puts HOST in NODE's certificate (DNS names and IPv4 and IPv6
+    /// addresses, as what they are), `--router-host` in the router's and the plant's, and the
+    /// plant's and the logger's first host names their endpoints in the direct files; the
+    /// defaults are unchanged. The truth: the certificates parsed back, against the names
+    /// written out here.
+    #[test]
+    fn hosts_go_into_the_certificates_and_the_direct_endpoints() {
+        let dir = tempfile::tempdir().unwrap();
+        let keys = Keys::new("unit").unwrap();
+        let extra = ["rogue".to_owned()];
+        let mut hosts: Vec<Host> = [
+            "plant=plant.arm1.example",
+            "logger=10.0.0.4",
+            "logger=rec.example",
+            "controller=fd00::2",
+            "rogue=10.9.9.9",
+        ]
+        .iter()
+        .map(|h| Host::parse(h, &extra).unwrap())
+        .collect();
+        hosts.extend(Host::router_host("10.0.0.1"));
+        generate(&keys, dir.path(), &hosts, "tls/10.0.0.1:7447", &extra).unwrap();
+        let d = dir.path();
+        let local = ["localhost", "127.0.0.1"];
+        assert_eq!(
+            sans(d, "plant"),
+            set(&[&local[..], &["plant.arm1.example", "10.0.0.1"]].concat())
+        );
+        assert_eq!(
+            sans(d, "router"),
+            set(&[&local[..], &["10.0.0.1"]].concat())
+        );
+        assert_eq!(
+            sans(d, "logger"),
+            set(&[&local[..], &["10.0.0.4", "rec.example"]].concat())
+        );
+        assert_eq!(sans(d, "controller"), set(&["fd00::2"]));
+        assert_eq!(sans(d, "rogue"), set(&["10.9.9.9"]));
+        assert_eq!(sans(d, "planner"), set(&[]));
+        // The endpoints: the plant's and the logger's first host, the router's endpoint.
+        let endpoints = |d: &Path, node: &str, what: &str| {
+            let cfg = zenoh::Config::from_file(d.join(format!("{node}-direct.json5"))).unwrap();
+            let v: Vec<String> =
+                serde_json::from_str(&cfg.get_json(&format!("{what}/endpoints")).unwrap()).unwrap();
+            v
+        };
+        let (p, r, l) = (
+            "tls/plant.arm1.example:7448",
+            "tls/10.0.0.1:7447",
+            "tls/10.0.0.4:7449",
+        );
+        assert_eq!(endpoints(d, "plant", "listen"), [p]);
+        assert_eq!(endpoints(d, "plant", "connect"), [p, r][1..]);
+        assert_eq!(endpoints(d, "controller", "listen"), Vec::<String>::new());
+        assert_eq!(endpoints(d, "controller", "connect"), [p, r, l]);
+        assert_eq!(endpoints(d, "logger", "listen"), [l]);
+        assert_eq!(endpoints(d, "logger", "connect"), [p]);
+        let router = zenoh::Config::from_file(d.join("router.json5")).unwrap();
+        assert_eq!(
+            router.get_json("listen/endpoints").unwrap(),
+            "[\"tls/10.0.0.1:7447\"]"
+        );
+        // IPv6 endpoints take brackets.
+        assert_eq!(
+            Host::parse("plant=fd00::1", &[]).unwrap().endpoint(7448),
+            "tls/[fd00::1]:7448"
+        );
+        // Without hosts: the loopback names only, and no endpoint but the router's.
+        let dir = tempfile::tempdir().unwrap();
+        generate(&keys, dir.path(), &[], DEFAULT_ROUTER_ENDPOINT, &[]).unwrap();
+        let d = dir.path();
+        for node in ["plant", "router", "logger"] {
+            assert_eq!(sans(d, node), set(&local), "{node}");
+        }
+        assert_eq!(sans(d, "controller"), set(&[]));
+        assert_eq!(endpoints(d, "plant", "listen"), Vec::<String>::new());
+        assert_eq!(
+            endpoints(d, "controller", "connect"),
+            [DEFAULT_ROUTER_ENDPOINT]
+        );
+        assert_eq!(endpoints(d, "logger", "connect"), Vec::<String>::new());
+    }
+
+    /// Bad `--host` values get an error that names the flag and says what is allowed.
+    #[test]
+    fn bad_hosts_are_refused_with_the_rule() {
+        let extra = ["rogue".to_owned()];
+        for bad in [
+            "logger",
+            "=10.0.0.4",
+            "nobody=10.0.0.4",
+            "logger=",
+            "logger=-rec.example",
+            "logger=rec-.example",
+            "logger=rec..example",
+            "logger=rec_1.example",
+            "logger=tls/10.0.0.4:7449",
+            "logger=10.0.0.4:7449",
+            "logger=[fd00::1]",
+            "logger=rec example",
+        ] {
+            let e = Host::parse(bad, &extra).expect_err(bad).to_string();
+            assert!(e.contains("`--host`") && e.contains(bad), "{bad}: {e}");
+        }
+        let long = format!("logger={}", vec!["a".repeat(63); 4].join("."));
+        assert!(Host::parse(&long, &extra).is_err(), "255 characters");
+        assert!(Host::parse(&format!("logger={}.b", "a".repeat(64)), &extra).is_err());
+        for good in [
+            "rogue=10.0.0.4",
+            "logger=::1",
+            "plant=Plant-1.arm1.example",
+            "router=localhost",
+        ] {
+            assert!(Host::parse(good, &extra).is_ok(), "{good}");
+        }
+        let e = Host::parse("nobody=x", &extra).unwrap_err().to_string();
+        assert!(e.contains("plant") && e.contains("rogue"), "{e}");
+    }
+
+    /// A TLS handshake with the name checked (`verify_name_on_connect`), between two zenoh
+    /// peers of the direct loop on 127.0.0.1: the controller dials the plant with the default
+    /// certificates and the link comes up; the plant dials the controller (whose default
+    /// certificate names no host) and it never does, until `--host controller=127.0.0.1` puts
+    /// the address in the controller's certificate. The truth: whether each session sees the
+    /// other as a peer.
+    #[test]
+    fn a_name_checked_handshake_needs_the_dialled_name_in_the_certificate() {
+        let keys = Keys::new("unit").unwrap();
+        let rt = tilting_net::runtime().unwrap();
+        // Whether `dialler` (its `-direct.json5`) links to `listener` on 127.0.0.1 within
+        // `wait`.
+        let link = |dir: &Path, listener: &str, dialler: &str, wait: Duration| {
+            let port = crate::supervise::free_port().unwrap();
+            let ep = format!("[\"tls/127.0.0.1:{port}\"]");
+            let cfg = |node: &str, listen: &str, connect: &str| {
+                let mut c =
+                    zenoh::Config::from_file(dir.join(format!("{node}-direct.json5"))).unwrap();
+                c.insert_json5("listen/endpoints", listen).unwrap();
+                c.insert_json5("connect/endpoints", connect).unwrap();
+                c
+            };
+            rt.block_on(async {
+                let l = zenoh::open(cfg(listener, &ep, "[]")).await.unwrap();
+                let opened = tokio::time::timeout(wait, zenoh::open(cfg(dialler, "[]", &ep))).await;
+                let Ok(Ok(d)) = opened else {
+                    let _ = l.close().await;
+                    return false;
+                };
+                let t0 = std::time::Instant::now();
+                let mut linked = false;
+                while !linked && t0.elapsed() < wait {
+                    linked = d.info().peers_zid().await.any(|z| z == l.zid());
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+                let _ = d.close().await;
+                let _ = l.close().await;
+                linked
+            })
+        };
+        let plain = tempfile::tempdir().unwrap();
+        generate(&keys, plain.path(), &[], DEFAULT_ROUTER_ENDPOINT, &[]).unwrap();
+        // Generous: a loaded machine may take seconds to open two sessions.
+        let long = Duration::from_secs(30);
+        assert!(link(plain.path(), "plant", "controller", long), "default");
+        // A refused name never links, however long: 3 s show the retries failing.
+        let short = Duration::from_secs(3);
+        assert!(!link(plain.path(), "controller", "plant", short), "no name");
+        let named = tempfile::tempdir().unwrap();
+        let host = [Host::parse("controller=127.0.0.1", &[]).unwrap()];
+        generate(&keys, named.path(), &host, DEFAULT_ROUTER_ENDPOINT, &[]).unwrap();
+        assert!(link(named.path(), "controller", "plant", long), "--host");
     }
 
     /// Whether `acl` (an `access_control` block) lets the certificate `cn` send `message` on

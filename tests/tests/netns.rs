@@ -133,6 +133,10 @@ async fn three_namespaces_through_a_secure_router() {
     let mut hosts = router_ips.clone();
     hosts.push("10.77.1.1".into());
     let certs = dir.path().join("certs");
+    let hosts: Vec<_> = hosts
+        .iter()
+        .flat_map(|h| tilting::security::Host::router_host(h))
+        .collect();
     tilting::security::generate(
         &keys,
         &certs,
