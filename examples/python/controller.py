@@ -40,6 +40,9 @@ PLANT_STATE = struct.Struct("<Q5d2B")
 TORQUE = struct.Struct("<Qd")  # seq, tau
 assert PLANT_STATE.size == 50 and TORQUE.size == 16
 MEASURED_ALL = 15
+# How long the plant's pinned session may be silent before another may take the pin (s), when
+# no --plant-id was given: the Rust controller's.
+PIN_LAPSE = 0.5
 
 FLAT, LEFT, RIGHT = 0, 1, 2
 
@@ -302,8 +305,11 @@ def run(args):
         "torques_not_finite": 0,
         "states_foreign": 0,
     }
-    # --plant-id: states are believed only from that session (docs/protocol.md).
+    # --plant-id: states are believed only from that session; without it, from the session of
+    # the first state believed, until it is silent for 0.5 s (docs/protocol.md, as the Rust
+    # controller).
     plant_id = tilting_source.id_bytes(args.plant_id) if args.plant_id else None
+    pin = tilting_source.SourcePin(plant_id, lapse=PIN_LAPSE)
     lock = threading.Lock()
     log_bad = RateLimitedLog(f"{prefix}/plant/state")
     done = threading.Event()
@@ -323,11 +329,14 @@ def run(args):
     )
 
     def on_state(sample):
-        if plant_id is not None and tilting_source.source_of(sample) != plant_id:
-            with lock:
+        source, now = tilting_source.source_of(sample), time.monotonic()
+        with lock:
+            admitted = pin.admits(source, now)
+            if not admitted:
                 counters["states_received"] += 1
                 counters["states_foreign"] += 1
-            log_bad(f"PlantState from a foreign source, not --plant-id {args.plant_id}")
+        if not admitted:
+            log_bad(f"PlantState from a foreign source, not the plant's session {tilting_source.id_text(pin.pinned)}")
             return
         try:
             seq, _t, x, mode = unpack_plant_state(sample.payload.to_bytes())
@@ -337,6 +346,8 @@ def run(args):
                 counters["states_dropped"] += 1
             log_bad(e)
             return
+        with lock:
+            pin.believe(source, now)
         tau = law.torque(mode, x)
         with lock:
             counters["states_received"] += 1
@@ -411,7 +422,8 @@ def main(argv=None):
     ap.add_argument(
         "--plant-id",
         type=tilting_source.zenoh_id_arg,
-        help="believe states only from this zenoh session (default: from any)",
+        help="believe states only from this zenoh session (default: the session of the first "
+        "state believed, until it is silent for 0.5 s)",
     )
     ap.add_argument("--self-test", action="store_true", help="check encodings and law, then exit")
     args = ap.parse_args(argv)

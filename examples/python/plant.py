@@ -879,9 +879,14 @@ class Node:
             watchdog_trips=0,
             torques_foreign=0,
         )
-        # --controller-id: torques are believed only from that session (docs/protocol.md).
+        # --controller-id: torques are believed only from that session; without it, from the
+        # session of the first torque believed, until it is silent for the lockstep timeout
+        # (the plant's bound on a controller's silence; docs/protocol.md).
         self.controller_id = (
             tilting_source.id_bytes(args.controller_id) if args.controller_id else None
+        )
+        self.pin = tilting_source.SourcePin(
+            self.controller_id, lapse=args.lockstep_timeout_ms * 1e-3
         )
         self.status_state = STARTING
         self.fault = ""
@@ -901,11 +906,15 @@ class Node:
 
     def on_torque(self, sample):
         now = time.monotonic()
-        if self.controller_id is not None and tilting_source.source_of(sample) != self.controller_id:
-            with self.cv:
+        source = tilting_source.source_of(sample)
+        with self.cv:
+            admitted = self.pin.admits(source, now)
+            if not admitted:
                 self.c["torques_received"] += 1
                 self.c["torques_foreign"] += 1
-            self.log_bad(f"TorqueCommand from a foreign source, not --controller-id {self.args.controller_id}")
+                pinned = tilting_source.id_text(self.pin.pinned)
+        if not admitted:
+            self.log_bad(f"TorqueCommand from a foreign source, not the controller's session {pinned}")
             return
         try:
             seq, tau = unpack_torque(sample.payload.to_bytes())
@@ -920,6 +929,7 @@ class Node:
             self.log_bad(e)
             return
         with self.cv:
+            self.pin.believe(source, now)
             self.c["torques_received"] += 1
             if seq == self.waiting_for and seq > self.answered:
                 self.answer, self.answered = tau, seq
@@ -1250,7 +1260,8 @@ def main(argv=None):
     ap.add_argument(
         "--controller-id",
         type=tilting_source.zenoh_id_arg,
-        help="believe torques only from this zenoh session (default: from any)",
+        help="believe torques only from this zenoh session (default: the session of the first "
+        "torque believed, until it is silent for --lockstep-timeout-ms)",
     )
     ap.add_argument("--self-test", action="store_true", help="check encodings and model, then exit")
     args = ap.parse_args(argv)

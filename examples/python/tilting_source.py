@@ -5,7 +5,9 @@ Every put carries, as the zenoh sample's attachment, the 4 bytes `TSRC` and the 
 session's 16-byte `ZenohId` in little-endian order (20 bytes; the payload is unchanged). zenoh
 prints a `ZenohId` as that little-endian number in lowercase hexadecimal without leading zeros
 (`str(session.zid())`), and takes the same text as the configuration's `id`. A receiver told a
-peer's id (`--plant-id`, `--controller-id`) believes that peer's topics only from that session.
+peer's id (`--plant-id`, `--controller-id`) believes that peer's topics only from that session;
+one told no id pins the session of the first believed message ([`SourcePin`], as the Rust
+nodes' `tilting_proto::SourcePin`), until that session falls silent for the pin's lapse.
 """
 
 import argparse
@@ -39,6 +41,12 @@ def id_bytes(zid):
     return int(str(zid), 16).to_bytes(16, "little")
 
 
+def id_text(b):
+    """A zenoh id's 16 little-endian bytes as zenoh prints the id (lowercase hex, no leading
+    zero)."""
+    return format(int.from_bytes(b, "little"), "x")
+
+
 def attachment(zid):
     """The attachment that says "published by session `zid`": `TSRC` and the id, 20 bytes."""
     return TAG + id_bytes(zid)
@@ -68,3 +76,48 @@ class SourcedPublisher:
 
     def undeclare(self):
         self.publisher.undeclare()
+
+
+class SourcePin:
+    """The session a stream is pinned to, as one receiver believes it: the Rust nodes'
+    `tilting_proto::SourcePin` (proto/src/source.rs), for the 16 id bytes of `source_of`.
+
+    - Made with `expected` (the id a node was told, `--plant-id` / `--controller-id`): pinned to
+      it from the start, never lapses; a message from another session, or naming none, is
+      refused.
+    - Otherwise every message is admitted until a believed message names a source
+      (`believe`), which pins it. While pinned, a message from another session or naming none is
+      refused, unless the pinned session has said nothing believed for `lapse` seconds: then the
+      pin has lapsed and the next believed message pins anew (a restarted node is a new
+      session).
+
+    Not thread-safe: the caller holds its lock around `admits` and `believe`.
+    """
+
+    def __init__(self, expected=None, lapse=0.5):
+        if not (lapse > 0.0):
+            raise ValueError(f"invalid lapse {lapse!r}: allowed > 0 s")
+        self.lapse = lapse
+        self.expected = expected is not None
+        self.pinned = expected
+        self.last = None
+
+    def admits(self, source, now):
+        """Whether a message from `source` (16 bytes, or None: it names none) received at
+        `now` (s, a monotonic clock) may be believed."""
+        if self.pinned is None or source == self.pinned:
+            return True
+        if self.expected:
+            return False
+        return now - self.last >= self.lapse
+
+    def believe(self, source, now):
+        """A message from `source` received at `now` was believed (after `admits` and every
+        other rule): it pins its source, or keeps the pin alive."""
+        if self.expected:
+            return
+        if source is not None:
+            self.pinned, self.last = source, now
+        elif self.pinned is not None:
+            # Admitted without a source: the pin had lapsed.
+            self.pinned, self.last = None, None
