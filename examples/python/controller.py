@@ -335,8 +335,9 @@ def run(args):
             if not admitted:
                 counters["states_received"] += 1
                 counters["states_foreign"] += 1
+                pinned = tilting_source.id_text(pin.pinned)
         if not admitted:
-            log_bad(f"PlantState from a foreign source, not the plant's session {tilting_source.id_text(pin.pinned)}")
+            log_bad(f"PlantState from a foreign source, not the plant's session {pinned}")
             return
         try:
             seq, _t, x, mode = unpack_plant_state(sample.payload.to_bytes())
