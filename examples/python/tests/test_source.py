@@ -68,6 +68,18 @@ def test_an_expected_source_holds_the_pin_before_any_message_and_forever():
     assert open_pin.pinned == B
 
 
+def feed(pin, events):
+    """Offers `events` ((time, source), in order) to `pin`, believing each admitted one; the
+    refusals per source."""
+    refused = {A: 0, B: 0}
+    for t, who in events:
+        if pin.admits(who, t):
+            pin.believe(who, t)
+        else:
+            refused[who] += 1
+    return refused
+
+
 def test_a_stream_is_refused_exactly_while_another_holds_the_pin():
     """A 1 kHz stream from A for 1 s, a second session B sending every 10 ms throughout and
     for 0.5 s after A stops, each admitted message believed. The truth, from the rule: B is
@@ -77,12 +89,7 @@ def test_a_stream_is_refused_exactly_while_another_holds_the_pin():
     pin = SourcePin(lapse=lapse)
     events = [(k * 1e-3, A) for k in range(1, 1001)] + [(k * 1e-2 + 5e-4, B) for k in range(150)]
     events.sort()
-    refused = {A: 0, B: 0}
-    for t, who in events:
-        if pin.admits(who, t):
-            pin.believe(who, t)
-        else:
-            refused[who] += 1
+    refused = feed(pin, events)
     # A's first message (1 ms) comes after B's first (0.5 ms): B pinned first, so A was
     # refused until B fell silent... B never does (every 10 ms < lapse): A refused throughout.
     assert refused[A] == 1000
@@ -90,12 +97,7 @@ def test_a_stream_is_refused_exactly_while_another_holds_the_pin():
     assert pin.pinned == B
     # Expected A instead: B refused every time, A never.
     pin = SourcePin(A)
-    refused = {A: 0, B: 0}
-    for t, who in events:
-        if pin.admits(who, t):
-            pin.believe(who, t)
-        else:
-            refused[who] += 1
+    refused = feed(pin, events)
     assert refused == {A: 0, B: 150}
     # A first (B joins at 0.1 s): B refused while A talks and up to 0.2 s after A's last.
     pin = SourcePin(lapse=lapse)
@@ -103,12 +105,7 @@ def test_a_stream_is_refused_exactly_while_another_holds_the_pin():
         (0.1 + k * 1e-2 + 5e-4, B) for k in range(140)
     ]
     events.sort()
-    refused = {A: 0, B: 0}
-    for t, who in events:
-        if pin.admits(who, t):
-            pin.believe(who, t)
-        else:
-            refused[who] += 1
+    refused = feed(pin, events)
     b_times = [t for t, who in events if who == B]
     want = sum(1 for t in b_times if t - a_end < lapse)
     assert (refused[A], refused[B]) == (0, want)
