@@ -3,11 +3,13 @@
 //! the code behind `simulate --record`, identified from its angles (the weak form, the
 //! default) and from its recorded velocities, with the fit check. Prints the median of 5 runs.
 //!
-//! Then the issue's noisy case: the same robot measured as hardware measures it (angles only,
-//! 1 mrad of noise, a 4,096-count encoder) on the excitation (`--reference excitation`, 300 s)
-//! and the robust orbit (30 s), identified from both recordings: each physical parameter's
-//! error, for four noise seeds; then the same on `excitation:0.3,0.8`, the largest motion this
-//! robot's arm was measured to hold flat (docs/identify.md).
+//! Then the issue's noisy case: robots measured as hardware measures them (angles only, 1 mrad
+//! of noise, a 4,096-count encoder) on the excitation (`--reference excitation`, 300 s) and
+//! the robust orbit (30 s), identified from both recordings: each physical parameter's error
+//! for four noise seeds, `b_v` by the least squares alone and with the output-error
+//! refinement (the default, `identify::refine`), and both times. Robots: the heavy arm of
+//! the excitation tests (`m_f` 0.8, `m_l` 1.2, with friction), the paper's with friction,
+//! and the README's, the last also on `excitation:0.3,0.8` (docs/identify.md).
 //!
 //! `cargo build --release -p tilting-planner -p tilting --example identify_bench &&
 //! ./target/release/examples/identify_bench` (the front door beside it resolves the
@@ -93,7 +95,7 @@ fn main() {
 }
 
 /// The noisy angles-only case (module docs).
-fn noisy(robot: &Params) {
+fn noisy(readme: &Params) {
     let record = |sc: Scenario, seed: u64| -> Recorded {
         let opts = SimOptions {
             imperfect: Some(Imperfections::measured_as_hardware(seed)),
@@ -107,7 +109,7 @@ fn noisy(robot: &Params) {
             source: Default::default(),
         }
     };
-    let excitation = |reference: Trajectory| Scenario {
+    let excitation = |robot: &Params, reference: Trajectory| Scenario {
         plant_params: Some(*robot),
         control_period: 1e-3,
         duration: 300.0,
@@ -119,7 +121,7 @@ fn noisy(robot: &Params) {
             ..ScenarioFile::default()
         }])
     };
-    let orbit = Scenario {
+    let orbit = |robot: &Params| Scenario {
         plant_params: Some(*robot),
         control_period: 1e-3,
         duration: 30.0,
@@ -129,39 +131,82 @@ fn noisy(robot: &Params) {
         },
         ..Scenario::default()
     };
-    let opts = Options {
-        base: Params {
-            m_l: robot.m_l,
-            ..Params::default()
-        },
-        half_window: 0.05,
-        window: 2.0,
-        ..Options::default()
+    let heavy = Params {
+        m_f: 0.8,
+        m_l: 1.2,
+        i_l: 0.06,
+        b_v: 0.05,
+        tau_c: 0.08,
+        ..Params::default()
     };
-    for reference in [
-        EXCITATION_DEFAULT,
-        "excitation:0.3,0.8".parse().expect("valid"),
+    let paper = Params {
+        b_v: 0.05,
+        tau_c: 0.08,
+        ..Params::default()
+    };
+    let wide: Trajectory = "excitation:0.3,0.8".parse().expect("valid");
+    for (name, robot, reference) in [
+        (
+            "heavy arm (m_f 0.8, m_l 1.2, i_l 0.06, b_v 0.05, tau_c 0.08)",
+            heavy,
+            EXCITATION_DEFAULT,
+        ),
+        (
+            "paper's robot with friction (b_v 0.05, tau_c 0.08)",
+            paper,
+            EXCITATION_DEFAULT,
+        ),
+        ("README's robot", *readme, EXCITATION_DEFAULT),
+        ("README's robot", *readme, wide),
     ] {
         println!(
-            "noisy (angles only, 1 mrad, 4,096 counts; {reference} 300 s + robust orbit 30 s, \
-             windows 2 s): relative errors (%)"
+            "noisy, {name} (angles only, 1 mrad, 4,096 counts; {reference} 300 s + robust \
+             orbit 30 s, windows 2 s): relative errors (%); b_v by the least squares alone \
+             (LS) and refined by the output error (OE, the default), with its standard error"
         );
-        println!("seed   m_f     l_c     joint inertia  tau_c   b_v    identify (ms)  rotor");
+        println!(
+            "seed   m_f     l_c     joint inertia  tau_c   b_v LS   b_v OE (se)      \
+             identify LS, OE (ms)  rotor"
+        );
         for seed in [3, 13, 23, 33] {
-            let mut rec = record(excitation(reference), seed);
-            rec.append(record(orbit.clone(), seed + 1));
+            let mut rec = record(excitation(&robot, reference), seed);
+            rec.append(record(orbit(&robot), seed + 1));
+            let opts = Options {
+                base: Params {
+                    m_l: robot.m_l,
+                    ..Params::default()
+                },
+                half_window: 0.05,
+                window: 2.0,
+                ..Options::default()
+            };
+            let t = Instant::now();
+            let ls = identify(
+                &rec.trace,
+                &rec.tau,
+                &Options {
+                    refine: None,
+                    ..opts
+                },
+            )
+            .expect("identifiable");
+            let ms_ls = 1e3 * t.elapsed().as_secs_f64();
             let t = Instant::now();
             let id = identify(&rec.trace, &rec.tau, &opts).expect("identifiable");
             let ms = 1e3 * t.elapsed().as_secs_f64();
             let p = id.params;
             let e = |g: f64, w: f64| 100.0 * (g - w) / w;
+            let se = id.base[5].std_error.unwrap_or(f64::NAN);
             println!(
-                "{seed:<6} {:+.2}  {:+.3}  {:+.3}         {:+.2}  {:+.1}  {ms:.0}  {}",
+                "{seed:<6} {:+.2}  {:+.3}  {:+.3}         {:+.2}  {:+6.1}   {:+6.2} ({:.1})    \
+                 {ms_ls:.0}, {ms:.0}  {}",
                 e(p.m_f, robot.m_f),
                 e(p.lc(), robot.lc()),
                 e(p.joint_inertia(), robot.joint_inertia()),
                 e(p.tau_c, robot.tau_c),
+                e(ls.params.b_v, robot.b_v),
                 e(p.b_v, robot.b_v),
+                100.0 * se / robot.b_v,
                 if id.base[3].value.is_some() {
                     "seen"
                 } else {

@@ -273,12 +273,12 @@ fn record_noisy(sc: Scenario, seed: u64) -> tilting_planner::identify::Recorded 
 /// (measured over four noise seeds: within 1.1 %, 0.02 %, 0.08 % and 1.9 %). The rotor's share
 /// (`pi4`, `pi5`: 0.2 % and 0.5 % of the arm's inertia) is below this noise: said so, and
 /// lumped into the arm's inertia about the joint, compared as such (`m_l l_c^2 + i_l + n_g^2
-/// j_m`, what flat motion sees). `b_v` misses the target: the plate stays flat only while the
-/// torque stays under about 7 N m, which bounds the arm's speed near 0.4 rad/s and so the
-/// viscous torque near 0.02 N m; over four seeds its error was +1.6, +3.4, -20.7 and +3.1 %.
-/// It is held to 25 % here (the spread measured), the others to the 3 %; the larger
-/// excitation of `a_larger_excitation_gets_b_v_within_three_percent_on_a_light_arm` gets it
-/// within 3 %.
+/// j_m`, what flat motion sees). `b_v`: the least squares alone left it +1.6, +3.4, -20.7,
+/// +3.1 % off over four seeds (the plate stays flat only while the torque stays under about
+/// 7 N m, which bounds the arm's speed near 0.4 rad/s and the viscous torque near 0.02 N m, and
+/// the velocities are differentiated from the noisy angles); the output-error refinement
+/// (`identify::refine`, the default) gets +2.05 % on this seed (standard error 1.8 %), held to
+/// the 3 % with the others.
 #[test]
 fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent() {
     let truth = robot();
@@ -328,7 +328,7 @@ fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent
             0.03,
         ),
         ("tau_c", p.tau_c, truth.tau_c, 0.03),
-        ("b_v", p.b_v, truth.b_v, 0.25),
+        ("b_v", p.b_v, truth.b_v, 0.03),
     ] {
         eprintln!("{name}: {got} vs {w} ({:+.2} %)", 100.0 * (got - w) / w);
         assert!(((got - w) / w).abs() < tol, "{name}: {got} vs {w}");
@@ -371,8 +371,10 @@ fn identifies_a_noisy_angles_only_robot_from_the_excitation_within_three_percent
 /// needs 5.5 N m, 80 % of the excitation's torque limit; the default's 0.3 rad at 0.6 rad/s
 /// leaves the viscous column under the noise). Four noise seeds, each 300 s of excitation
 /// (flat throughout: asserted) + 30 s of robust orbit, identified as above: every parameter
-/// within 3 % of the hidden robot (measured: `b_v` +2.0, -0.8, +1.8, -2.6 % with the
-/// amplitude governor, which leaves this light arm at scale 1; `tau_c` within 0.5 %, `m_f` 1.0 %, `l_c` 0.01 %, the arm's inertia about the joint 0.03 %). Not for a heavy
+/// within 3 % of the hidden robot (measured: `b_v` +2.0, -0.8, +1.8, -2.6 % by the least
+/// squares alone, +0.1, -0.8, -0.7, +0.8 % with the output-error refinement, the default;
+/// the amplitude governor leaves this light arm at scale 1; `tau_c` within 0.5 %, `m_f` 1.0 %,
+/// `l_c` 0.01 %, the arm's inertia about the joint 0.03 %).
 /// arm: the README's robot (`m_l l_c` 1 % above the paper's) falls over at 0.35 rad (docs/
 /// identify.md).
 #[test]
@@ -434,6 +436,113 @@ fn a_larger_excitation_gets_b_v_within_three_percent_on_a_light_arm() {
                 ((got - w) / w).abs() < 0.03,
                 "seed {seed} {name}: {got} vs {w}"
             );
+        }
+    }
+}
+
+/// `b_v` within the 3 % on a heavy arm (`m_f` 0.8, `m_l` 1.2 of the paper's, with
+/// `i_l` 0.06, `b_v` 0.05, `tau_c` 0.08) on the default excitation, which the amplitude
+/// governor holds to about 0.25 rad and 0.32 rad/s: 300 s (flat throughout) + 30 s of robust
+/// orbit, angles only with 1 mrad of noise and a 4,096-count encoder, four noise seeds.
+///
+/// The least squares alone left `b_v` at +19.0, +3.7, -6.6, +23.0 % (its differentiated
+/// velocities); the output-error refinement (`identify::refine`, on by default) measured
+/// -0.1, +2.0, -2.6, +1.9 %, with a standard error of 2.8 % (0.0014 N m s/rad): the
+/// information 300 s of this excitation hold, so 3 % is met on these seeds, not guaranteed on
+/// every seed (docs/identify.md). Asserted: every parameter within 3 % of the hidden robot,
+/// `b_v` within 3 of its reported standard errors (the errors coherent), that standard error
+/// below the least squares' own, and the refinement's arm inertia and gravity torque within
+/// 0.5 % of the robot's (measured 0.02 %).
+#[test]
+fn the_output_error_refinement_gets_b_v_within_three_percent_on_a_heavy_arm() {
+    let truth = Params {
+        m_f: 0.8,
+        m_l: 1.2,
+        i_l: 0.06,
+        b_v: 0.05,
+        tau_c: 0.08,
+        ..Params::default()
+    };
+    let excitation = Scenario {
+        plant_params: Some(truth),
+        control_period: 1e-3,
+        duration: 300.0,
+        ..Scenario::resolve(&[&ScenarioFile {
+            law: LawArgs {
+                reference: Some(EXCITATION_DEFAULT),
+                ..LawArgs::default()
+            },
+            ..ScenarioFile::default()
+        }])
+    };
+    let orbit = Scenario {
+        plant_params: Some(truth),
+        control_period: 1e-3,
+        duration: 30.0,
+        law: LawSpec {
+            orbit_peak: Some(0.04),
+            ..LawSpec::default()
+        },
+        ..Scenario::default()
+    };
+    let opts = Options {
+        base: Params {
+            m_l: truth.m_l,
+            ..Params::default()
+        },
+        half_window: 0.05,
+        window: 2.0,
+        ..Options::default()
+    };
+    for seed in [3, 13, 23, 33] {
+        let mut rec = record_noisy(excitation.clone(), seed);
+        rec.append(record_noisy(orbit.clone(), seed + 1));
+        let id = identify(&rec.trace, &rec.tau, &opts).unwrap();
+        let ls = identify(
+            &rec.trace,
+            &rec.tau,
+            &Options {
+                refine: None,
+                ..opts
+            },
+        )
+        .unwrap();
+        let p = id.params;
+        for (name, got, w) in [
+            ("m_f", p.m_f, truth.m_f),
+            ("l_c", p.lc(), truth.lc()),
+            (
+                "arm inertia about the joint",
+                p.joint_inertia(),
+                truth.joint_inertia(),
+            ),
+            ("tau_c", p.tau_c, truth.tau_c),
+            ("b_v", p.b_v, truth.b_v),
+        ] {
+            eprintln!(
+                "seed {seed} {name}: {got} vs {w} ({:+.2} %)",
+                100.0 * (got - w) / w
+            );
+            assert!(
+                ((got - w) / w).abs() < 0.03,
+                "seed {seed} {name}: {got} vs {w}"
+            );
+        }
+        let se = id.base[5].std_error.unwrap();
+        let se_ls = ls.base[5].std_error.unwrap();
+        eprintln!(
+            "seed {seed} b_v: least squares {} +- {se_ls}, refined +- {se}",
+            ls.params.b_v
+        );
+        assert!((p.b_v - truth.b_v).abs() < 3.0 * se, "seed {seed}: {se}");
+        assert!(se < se_ls, "seed {seed}: {se} vs {se_ls}");
+        let r = id.refinement.as_ref().expect("the refinement ran");
+        assert!(r.converged, "{r:?}");
+        for (got, w) in [
+            (r.value[0], truth.joint_inertia()),
+            (r.value[1], truth.m_l * truth.lc() * truth.g),
+        ] {
+            assert!(((got - w) / w).abs() < 5e-3, "seed {seed}: {got} vs {w}");
         }
     }
 }

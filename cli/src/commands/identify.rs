@@ -209,6 +209,30 @@ fn human(id: &Identification, source: &str, out: Option<&PathBuf>) -> String {
             }
         }
     }
+    if let Some(r) = &id.refinement {
+        let _ = writeln!(
+            s,
+            "\noutput-error refinement ({} flat windows of {} s joined, {} angles, {} \
+             iterations{}): beta RMS {:.3e} rad (least squares {:.3e}); J {:.6} +- {:.1e} kg m^2, \
+             m_l l_c g {:.6} +- {:.1e} N m, b_v {:.6} +- {:.1e} N m s/rad, tau_c {:.6} +- \
+             {:.1e} N m (b_v and tau_c above are these where their standard errors are smaller)",
+            r.windows,
+            r.window_s,
+            r.samples,
+            r.iterations,
+            if r.converged { "" } else { ", not converged" },
+            r.rms,
+            r.rms_start,
+            r.value[0],
+            r.std_error[0],
+            r.value[1],
+            r.std_error[1],
+            r.value[2],
+            r.std_error[2],
+            r.value[3],
+            r.std_error[3]
+        );
+    }
     let p = &id.params;
     let _ = writeln!(
         s,

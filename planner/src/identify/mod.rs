@@ -13,6 +13,7 @@
 
 pub mod fit;
 pub mod load;
+pub mod refine;
 pub mod rows;
 pub mod smooth;
 
@@ -70,6 +71,10 @@ pub struct Options {
     /// Slowest joint speed (rad/s) at which a torque row is used ([`Velocities::Angles`]):
     /// below it the joint may stick, and the estimated speed's sign may be noise.
     pub v_min: f64,
+    /// The output-error refinement of the flat arm's parameters ([`refine`],
+    /// [`Velocities::Angles`] only): its window length (s), `None` for the least squares
+    /// alone.
+    pub refine: Option<f64>,
 }
 
 /// The differentiator's default half width (s): 4th-degree polynomials over 21 ms.
@@ -86,6 +91,7 @@ impl Default for Options {
             half_window: HALF_WINDOW,
             window: WINDOW,
             v_min: 0.01,
+            refine: Some(refine::WINDOW),
         }
     }
 }
@@ -144,6 +150,11 @@ pub struct Identification {
     /// and, for comparison, with the prior's; filled by [`Identification::check_fit`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fit: Option<FitChecks>,
+    /// The output-error refinement of the flat arm's parameters ([`refine`]), when it ran:
+    /// `b_v` and `tau_c` above are its estimates where their standard errors are smaller
+    /// than the least squares'.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<refine::Refinement>,
     /// The state `(alpha, beta, alpha_dot, beta_dot)` at each sample as the fit saw it
     /// (smoothed, or recorded), `None` where unused; not serialised.
     #[serde(skip)]
@@ -330,6 +341,11 @@ pub fn identify(
             se[c] = Some(fit.se[j] * corr);
         }
     }
+    let sum35 = lump.then(|| {
+        let j = cols.iter().position(|&c| c == 2).unwrap_or(0);
+        (fit.x[j], fit.se[j] * corr)
+    });
+    let refinement = refine_friction(trace, tau, &states, opts, sum35, &mut value, &mut se);
     let mut base: Vec<Estimate> = (0..N_BASE)
         .map(|i| Estimate {
             name: BASE[i].0.into(),
@@ -340,10 +356,6 @@ pub fn identify(
             not_identifiable: out[i].clone(),
         })
         .collect();
-    let sum35 = lump.then(|| {
-        let j = cols.iter().position(|&c| c == 2).unwrap_or(0);
-        (fit.x[j], fit.se[j] * corr)
-    });
     if let Some((v, s)) = sum35 {
         base.push(Estimate {
             name: "pi3+pi5".into(),
@@ -374,8 +386,43 @@ pub fn identify(
         warnings,
         velocities: opts.velocities,
         fit: None,
+        refinement,
         states,
     })
+}
+
+/// Runs the output-error refinement ([`refine`]) from the least squares' `value` when the
+/// options ask for it and the flat arm's four parameters were estimated (`sum35`: the
+/// lumped `pi3 + pi5`); replaces `b_v` (`pi6`) and `tau_c` (`pi7`) and their standard errors
+/// where the refinement's standard error is the smaller.
+fn refine_friction(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    states: &[Option<[f64; 4]>],
+    opts: &Options,
+    sum35: Option<(f64, f64)>,
+    value: &mut [Option<f64>; N_BASE],
+    se: &mut [Option<f64>; N_BASE],
+) -> Option<refine::Refinement> {
+    let window = opts.refine?;
+    if opts.velocities != Velocities::Angles {
+        return None;
+    }
+    let j = match (sum35, value[2], value[4]) {
+        (Some((s, _)), _, _) => s,
+        (None, Some(p3), Some(p5)) => p3 + p5,
+        _ => return None,
+    };
+    let start = [j, opts.base.g * value[1]?, value[5]?, value[6]?];
+    let r = refine::refine(trace, tau, states, start, window)?;
+    for (k, i) in [(2, 5), (3, 6)] {
+        let ls = se[i].unwrap_or(f64::INFINITY);
+        if r.converged && r.value[k].is_finite() && r.std_error[k] < ls {
+            value[i] = Some(r.value[k]);
+            se[i] = Some(r.std_error[k]);
+        }
+    }
+    Some(r)
 }
 
 /// The fit check with the identified parameters and with the prior.

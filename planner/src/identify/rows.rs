@@ -303,7 +303,7 @@ fn weak_rows(
 
 /// The segments `[a, b)` of samples joined by intervals without an event, a mode change, a
 /// torque that is not known, or a gap (a spacing over 1.5 times the smallest).
-fn segments(trace: &Trace, tau: &[Option<f64>]) -> Vec<(usize, usize)> {
+pub(super) fn segments(trace: &Trace, tau: &[Option<f64>]) -> Vec<(usize, usize)> {
     let s = &trace.samples;
     let h_min = s
         .windows(2)
