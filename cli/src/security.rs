@@ -65,10 +65,10 @@ pub struct CertsArgs {
     pub router_endpoint: String,
     /// Another host name or IP address of an identity (repeatable), e.g. `--host
     /// logger=10.0.0.4`: NODE's certificate is valid for HOST too (subjectAltName), for
-    /// the nodes that dial it and check the name. The first HOST of `plant` and of `logger`
-    /// also names their endpoints of the direct loop in the `{node}-direct.json5` files
-    /// (`tls/HOST:7448`, `tls/HOST:7449`). NODE: plant, controller, planner, logger, router
-    /// or an `--extra` name
+    /// the nodes that dial it and check the name. The plant's first host (its first `--host
+    /// plant=`, else the first `--router-host`) and the logger's first also name their
+    /// endpoints of the direct loop in the `{node}-direct.json5` files (`tls/HOST:7448`,
+    /// `tls/HOST:7449`). NODE: plant, controller, planner, logger, router or an `--extra` name
     #[arg(long = "host", value_name = "NODE=HOST")]
     pub hosts: Vec<String>,
     /// Another identity to certify, with no rights beyond a logger's if named `logger*`, none
