@@ -480,3 +480,107 @@ pub fn rogue_marked(run: &tilting_record::Recording) -> u64 {
         })
         .sum()
 }
+
+/// The session id a rogue names when it claims one: made up, so no node ever pinned it.
+pub const MADE_UP_SOURCE: tilting_proto::SourceId = tilting_proto::SourceId([0xee; 16]);
+
+/// A plausible state marked as a rogue's: `seq` on the 1 kHz time grid (`time = seq` ms),
+/// tilted left by 0.3 rad with `beta = ROGUE_MARK_BETA`, at rest. Within every rule of the
+/// front door but the source's.
+pub fn marked_state(seq: u64) -> tilting_proto::PlantState {
+    tilting_proto::PlantState {
+        seq,
+        time: seq as f64 * 1e-3,
+        alpha: 0.3,
+        beta: ROGUE_MARK_BETA,
+        alpha_dot: Some(0.0),
+        beta_dot: Some(0.0),
+        mode: 1,
+    }
+}
+
+/// A plausible torque marked as a rogue's ([`ROGUE_MARK_TAU`]) answering state `seq`.
+pub fn marked_torque(seq: u64) -> tilting_proto::TorqueCommand {
+    tilting_proto::TorqueCommand {
+        seq,
+        tau: ROGUE_MARK_TAU,
+    }
+}
+
+/// An outside zenoh peer that dials a node's listening port with a session of its own (an id
+/// no node was told) and publishes on the plant's state key and the controller's torque key:
+/// the attacker of the front-door tests.
+pub struct Rogue {
+    /// Its session and the robot's keys.
+    pub client: Client,
+    newest: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    _follow: Option<zenoh::pubsub::Subscriber<()>>,
+}
+
+impl Rogue {
+    /// A peer of `robot` dialling `127.0.0.1:port`.
+    pub async fn dial(robot: &str, port: u16) -> Self {
+        Self {
+            client: Client::open(robot, None, Some(port)).await,
+            newest: Default::default(),
+            _follow: None,
+        }
+    }
+
+    /// Also subscribes to the plant's states, so that [`Rogue::newest`] and [`Rogue::lie`]
+    /// follow the run.
+    pub async fn following(mut self) -> Self {
+        use std::sync::atomic::Ordering;
+        let newest = self.newest.clone();
+        let keys = &self.client.keys;
+        let counter = std::sync::Arc::new(tilting_net::DropCounter::new(keys.plant_state()));
+        let sub = tilting_net::subscribe_decoded(
+            &self.client.session,
+            counter,
+            move |s: tilting_proto::PlantState| {
+                newest.fetch_max(s.seq, Ordering::Relaxed);
+            },
+        )
+        .await
+        .expect("the rogue's subscription");
+        self._follow = Some(sub);
+        self
+    }
+
+    /// The newest state's `seq` heard since [`Rogue::following`] (0 before, or without it).
+    pub fn newest(&self) -> u64 {
+        self.newest.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Puts `state` on the plant's state key, then `torque` on the controller's torque key,
+    /// each naming `source` in its attachment (`None`: no attachment at all).
+    pub async fn put(
+        &self,
+        state: &tilting_proto::PlantState,
+        torque: &tilting_proto::TorqueCommand,
+        source: Option<tilting_proto::SourceId>,
+    ) {
+        use tilting_proto::codec::encode;
+        let (s, keys) = (&self.client.session, &self.client.keys);
+        let attachment = source.map(|id| id.attachment().to_vec());
+        for (key, payload) in [
+            (keys.plant_state(), encode(state)),
+            (keys.controller_torque(), encode(torque)),
+        ] {
+            match &attachment {
+                None => s.put(key, payload).await,
+                Some(a) => s.put(key, payload).attachment(a.clone()).await,
+            }
+            .unwrap_or_else(|e| panic!("the rogue's put on {key}: {e}"));
+        }
+    }
+
+    /// Puts the marked lies answering the newest state heard ([`Rogue::following`]): the state
+    /// one period ahead ([`marked_state`] of `newest + 1`) and the torque answering the newest
+    /// ([`marked_torque`] of `newest`), naming `source` as [`Rogue::put`] does.
+    pub async fn lie(&self, source: Option<tilting_proto::SourceId>) {
+        let seq = self.newest();
+        self.put(&marked_state(seq + 1), &marked_torque(seq), source)
+            .await;
+    }
+}

@@ -16,7 +16,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 use tilting::live::summary::{LiveSummary, OrbitState};
-use tilting_proto::{codec, PlantState, Topic, TorqueCommand};
+use tilting_proto::{PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 
 /// `summary.json` of a live run in `out`.
@@ -66,7 +66,7 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
     let (mut live, robot, port, out) = live_with_open_port(&dir, "forged", duration);
     let rt = tokio::runtime::Runtime::new().unwrap();
     let _rogue = rt.block_on(async {
-        let rogue = Client::open(&robot, None, Some(port)).await;
+        let rogue = Rogue::dial(&robot, port).await;
         tokio::time::sleep(Duration::from_millis(1000)).await;
         let lie = PlantState {
             seq: 1 << 63,
@@ -81,10 +81,7 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
             seq: 1 << 63,
             tau: 1e6,
         };
-        let (state_key, torque_key) = (rogue.keys.plant_state(), rogue.keys.controller_torque());
-        let s = &rogue.session;
-        s.put(state_key, codec::encode(&lie)).await.unwrap();
-        s.put(torque_key, codec::encode(&torque)).await.unwrap();
+        rogue.put(&lie, &torque, None).await;
         rogue
     });
     let status = live.expect_exit(Duration::from_secs(40));
@@ -139,70 +136,18 @@ fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {
 /// the controller stalled that long, which the plant's watchdog would show (checked).
 #[test]
 fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    use std::sync::Arc;
-    use tilting_proto::SourceId;
     let _turn = realtime_turn();
     let dir = Scratch::new("foreign");
     let duration = 6.0;
     let (mut live, robot, port, out) = live_with_open_port(&dir, "foreign", duration);
     let rt = tokio::runtime::Runtime::new().unwrap();
     let (sent, _rogue) = rt.block_on(async {
-        let rogue = Client::open(&robot, None, Some(port)).await;
-        let newest = Arc::new(AtomicU64::new(0));
-        let n = newest.clone();
-        let _sub = tilting_net::subscribe_decoded(
-            &rogue.session,
-            Arc::new(tilting_net::DropCounter::new(rogue.keys.plant_state())),
-            move |s: PlantState| {
-                n.fetch_max(s.seq, Ordering::Relaxed);
-            },
-        )
-        .await
-        .unwrap();
+        let rogue = Rogue::dial(&robot, port).await.following().await;
         tokio::time::sleep(Duration::from_millis(500)).await;
-        let s = &rogue.session;
-        let state_pub = s
-            .declare_publisher(rogue.keys.plant_state().to_owned())
-            .await
-            .unwrap();
-        let torque_pub = s
-            .declare_publisher(rogue.keys.controller_torque().to_owned())
-            .await
-            .unwrap();
-        let made_up = SourceId([0xee; 16]).attachment().to_vec();
         let sent = 200u64;
         for i in 0..sent {
-            let seq = newest.load(Ordering::Relaxed);
-            let lie = PlantState {
-                seq: seq + 1,
-                time: (seq + 1) as f64 * 1e-3,
-                alpha: 0.3,
-                beta: ROGUE_MARK_BETA,
-                alpha_dot: Some(0.0),
-                beta_dot: Some(0.0),
-                mode: 1,
-            };
-            let torque = TorqueCommand {
-                seq,
-                tau: ROGUE_MARK_TAU,
-            };
-            let (state, torque) = (codec::encode(&lie), codec::encode(&torque));
-            if i % 2 == 0 {
-                state_pub.put(state).await.unwrap();
-                torque_pub.put(torque).await.unwrap();
-            } else {
-                state_pub
-                    .put(state)
-                    .attachment(made_up.clone())
-                    .await
-                    .unwrap();
-                torque_pub
-                    .put(torque)
-                    .attachment(made_up.clone())
-                    .await
-                    .unwrap();
-            }
+            // Half name no source, half a made-up session.
+            rogue.lie((i % 2 == 1).then_some(MADE_UP_SOURCE)).await;
             tokio::time::sleep(Duration::from_millis(2)).await;
         }
         (sent, rogue)
@@ -265,9 +210,6 @@ fn plausible_states_from_a_foreign_source_are_refused_and_counted() {
 /// the controller existed, and the recorder's.)
 #[test]
 fn a_rogue_that_talks_before_the_controller_takes_no_pin() {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    use std::sync::Arc;
-    use tilting_proto::SourceId;
     let _turn = realtime_turn();
     let dir = Scratch::new("early-rogue");
     let out = dir.path().join("out");
@@ -294,46 +236,11 @@ fn a_rogue_that_talks_before_the_controller_takes_no_pin() {
     }
     let rt = tokio::runtime::Runtime::new().unwrap();
     let (sent, _rogue) = rt.block_on(async {
-        let rogue = Client::open(&robot, None, Some(port)).await;
-        let newest = Arc::new(AtomicU64::new(0));
-        let n = newest.clone();
-        let _sub = tilting_net::subscribe_decoded(
-            &rogue.session,
-            Arc::new(tilting_net::DropCounter::new(rogue.keys.plant_state())),
-            move |s: PlantState| {
-                n.fetch_max(s.seq, Ordering::Relaxed);
-            },
-        )
-        .await
-        .unwrap();
-        let made_up = SourceId([0xee; 16]).attachment().to_vec();
-        let (sk, tk) = (rogue.keys.plant_state(), rogue.keys.controller_torque());
+        let rogue = Rogue::dial(&robot, port).await.following().await;
         let mut sent = 0u64;
         let mut after = 0;
         while after < 200 && t0.elapsed() < Duration::from_secs(30) {
-            let seq = newest.load(Ordering::Relaxed);
-            let lie = PlantState {
-                seq: seq + 1,
-                time: (seq + 1) as f64 * 1e-3,
-                alpha: 0.3,
-                beta: ROGUE_MARK_BETA,
-                alpha_dot: Some(0.0),
-                beta_dot: Some(0.0),
-                mode: 1,
-            };
-            let torque = TorqueCommand {
-                seq,
-                tau: ROGUE_MARK_TAU,
-            };
-            let s = &rogue.session;
-            s.put(tk, codec::encode(&torque))
-                .attachment(made_up.clone())
-                .await
-                .unwrap();
-            s.put(sk, codec::encode(&lie))
-                .attachment(made_up.clone())
-                .await
-                .unwrap();
+            rogue.lie(Some(MADE_UP_SOURCE)).await;
             sent += 1;
             if live.stderr().contains("tilts") {
                 after += 1;

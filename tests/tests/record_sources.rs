@@ -17,7 +17,7 @@
 //! goes over a reliable link to a subscriber known to match before the first put.
 
 use std::time::{Duration, Instant};
-use tilting_proto::{codec, PlantState, SourceId, Topic, TorqueCommand};
+use tilting_proto::{codec, Topic};
 use tilting_tests::*;
 use zenoh::Wait as _;
 
@@ -27,24 +27,14 @@ const CONTROLLER_ID: &str = "c0de0000000000000000000000000e2";
 /// Puts `n` marker states and `n` marker torques from `rogue`, half with no attachment and half
 /// naming a made-up session.
 fn burst(rogue: &Client, n: u64, first_seq: u64) {
-    let made_up = SourceId([0xee; 16]).attachment().to_vec();
+    let made_up = MADE_UP_SOURCE.attachment().to_vec();
     let s = &rogue.session;
     for i in 0..n {
         let seq = first_seq + i;
-        let lie = PlantState {
-            seq,
-            time: seq as f64 * 1e-3,
-            alpha: 0.3,
-            beta: ROGUE_MARK_BETA,
-            alpha_dot: Some(0.0),
-            beta_dot: Some(0.0),
-            mode: 1,
-        };
-        let torque = TorqueCommand {
-            seq,
-            tau: ROGUE_MARK_TAU,
-        };
-        let (state, torque) = (codec::encode(&lie), codec::encode(&torque));
+        let (state, torque) = (
+            codec::encode(&marked_state(seq)),
+            codec::encode(&marked_torque(seq)),
+        );
         let (sk, tk) = (rogue.keys.plant_state(), rogue.keys.controller_torque());
         if i % 2 == 0 {
             s.put(sk, state).wait().unwrap();
