@@ -298,4 +298,21 @@ fn says_the_rotor_is_lumped_under_noise_and_reports_the_sum() {
         h.status.success() && text.contains("pi3+pi5") && text.contains("not separable"),
         "{text}"
     );
+    // The output-error refinement ran on the flat excitation: its b_v is the one reported,
+    // with its standard error (smaller than the least squares' of `--no-refine`), and the
+    // summary says so; `--no-refine` leaves it out.
+    let r = &json["refinement"];
+    assert!(r["converged"].as_bool().unwrap(), "{r}");
+    let se = base[5]["std_error"].as_f64().unwrap();
+    assert_eq!(base[5]["value"], r["value"][2], "{r}");
+    assert_eq!(se, r["std_error"][2].as_f64().unwrap());
+    assert!(text.contains("output-error refinement"), "{text}");
+    let mut a = args.to_vec();
+    a.extend(["--json", "--no-refine"]);
+    let ls = tilting(&a);
+    assert!(ls.status.success(), "{}", stderr(&ls));
+    let ls: serde_json::Value = serde_json::from_slice(&ls.stdout).unwrap();
+    assert!(ls.get("refinement").is_none(), "{ls}");
+    let se_ls = ls["base"][5]["std_error"].as_f64().unwrap();
+    assert!(se < se_ls, "{se} vs {se_ls}");
 }

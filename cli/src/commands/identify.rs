@@ -46,6 +46,10 @@ pub struct IdentifyArgs {
     /// 1 sample in 50 gives no torque equation (the joint may stick there)
     #[arg(long, value_name = "RAD/S", default_value_t = Options::default().v_min, allow_negative_numbers = true)]
     pub min_speed: f64,
+    /// Skip the output-error refinement of the flat arm (b_v, tau_c re-fitted against the
+    /// recorded angles after the least squares; angles path only): the least squares alone
+    #[arg(long)]
+    pub no_refine: bool,
     /// Draw the fit check into this PNG: the recorded angles beside their re-simulation with
     /// the identified parameters under the recorded torques (restarted from the recorded state
     /// every --fit-window s); its RMS error is reported either way
@@ -128,6 +132,11 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
             half_window: args.half_window,
             window: args.window,
             v_min: args.min_speed,
+            refine: if args.no_refine {
+                None
+            } else {
+                Options::default().refine
+            },
             ..Options::default()
         },
     )
