@@ -45,7 +45,8 @@
 //! that link only (zenoh marks the queue congested, and later messages for it are dropped at
 //! once until it drains); the other links are not touched. The receivers see a drop as a gap
 //! (the plant's lost torques, the recorder's missing states). Only messages sent off the loop
-//! and rarely ([`Qos::Data`]: the planner's reference) block.
+//! and rarely ([`Qos::Data`]: the planner's reference), and a tool's that must all arrive
+//! ([`Qos::Lossless`]: `tilting replay`), block.
 
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -415,6 +416,9 @@ pub enum Qos {
     /// Rare messages sent off the loop (the planner's reference): data priority, blocking
     /// rather than dropping when the link is congested.
     Data,
+    /// A tool that must deliver every message and has no loop to stall (`tilting replay`):
+    /// real-time priority, express, blocking rather than dropping when the link is congested.
+    Lossless,
 }
 
 impl RawPublisher {
@@ -424,6 +428,7 @@ impl RawPublisher {
             Qos::Control => (Priority::RealTime, true, CongestionControl::Drop),
             Qos::Telemetry => (Priority::Data, false, CongestionControl::Drop),
             Qos::Data => (Priority::Data, false, CongestionControl::Block),
+            Qos::Lossless => (Priority::RealTime, true, CongestionControl::Block),
         };
         let publisher = session
             .declare_publisher(key.to_owned())

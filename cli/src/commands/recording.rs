@@ -302,8 +302,9 @@ async fn replay_async(
     let mut pubs: Vec<Option<RawPublisher>> = (0..5).map(|_| None).collect();
     for &t in topics {
         let qos = match t {
-            Topic::State | Topic::Torque => Qos::Control,
-            Topic::Event | Topic::Status => Qos::Telemetry,
+            // A replay must deliver every message it was asked to (and `--fast` outruns any
+            // queue): it waits on a full link, at the loop's priority.
+            Topic::State | Topic::Torque | Topic::Event | Topic::Status => Qos::Lossless,
             _ => Qos::Data,
         };
         pubs[t.index()] = Some(RawPublisher::declare(&session, t.key(keys), qos).await?);
