@@ -404,26 +404,32 @@ fn a_larger_excitation_gets_b_v_within_three_percent_on_a_light_arm() {
     for seed in [3, 13, 23, 33] {
         let rec = excitation_and_orbit(truth, reference, seed);
         let p = identify(&rec.trace, &rec.tau, &opts).unwrap().params;
-        for (name, got, w) in [
-            ("m_f", p.m_f, truth.m_f),
-            ("l_c", p.lc(), truth.lc()),
-            (
-                "arm inertia about the joint",
-                p.joint_inertia(),
-                truth.joint_inertia(),
-            ),
-            ("tau_c", p.tau_c, truth.tau_c),
-            ("b_v", p.b_v, truth.b_v),
-        ] {
-            eprintln!(
-                "seed {seed} {name}: {got} vs {w} ({:+.2} %)",
-                100.0 * (got - w) / w
-            );
-            assert!(
-                ((got - w) / w).abs() < 0.03,
-                "seed {seed} {name}: {got} vs {w}"
-            );
-        }
+        assert_identifiable_within_3_percent(&p, &truth, seed);
+    }
+}
+
+/// Asserts that `p` has every identifiable parameter (m_f, l_c, the arm's inertia about the
+/// joint, tau_c, b_v) within 3 % of the hidden robot `truth`, printing each error.
+fn assert_identifiable_within_3_percent(p: &Params, truth: &Params, seed: u64) {
+    for (name, got, w) in [
+        ("m_f", p.m_f, truth.m_f),
+        ("l_c", p.lc(), truth.lc()),
+        (
+            "arm inertia about the joint",
+            p.joint_inertia(),
+            truth.joint_inertia(),
+        ),
+        ("tau_c", p.tau_c, truth.tau_c),
+        ("b_v", p.b_v, truth.b_v),
+    ] {
+        eprintln!(
+            "seed {seed} {name}: {got} vs {w} ({:+.2} %)",
+            100.0 * (got - w) / w
+        );
+        assert!(
+            ((got - w) / w).abs() < 0.03,
+            "seed {seed} {name}: {got} vs {w}"
+        );
     }
 }
 
@@ -464,26 +470,7 @@ fn the_output_error_refinement_gets_b_v_within_three_percent_on_a_heavy_arm() {
         )
         .unwrap();
         let p = id.params;
-        for (name, got, w) in [
-            ("m_f", p.m_f, truth.m_f),
-            ("l_c", p.lc(), truth.lc()),
-            (
-                "arm inertia about the joint",
-                p.joint_inertia(),
-                truth.joint_inertia(),
-            ),
-            ("tau_c", p.tau_c, truth.tau_c),
-            ("b_v", p.b_v, truth.b_v),
-        ] {
-            eprintln!(
-                "seed {seed} {name}: {got} vs {w} ({:+.2} %)",
-                100.0 * (got - w) / w
-            );
-            assert!(
-                ((got - w) / w).abs() < 0.03,
-                "seed {seed} {name}: {got} vs {w}"
-            );
-        }
+        assert_identifiable_within_3_percent(&p, &truth, seed);
         let se = id.base[5].std_error.unwrap();
         let se_ls = ls.base[5].std_error.unwrap();
         eprintln!(

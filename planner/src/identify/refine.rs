@@ -441,14 +441,7 @@ impl Data {
         let mut sv = V6::zeros();
         sq[4] = 1.0;
         sv[5] = 1.0;
-        let karnopp = |q: f64, u: f64| -> f64 {
-            let net = u - g * q.cos();
-            if net.abs() < tc {
-                0.0
-            } else {
-                net.signum()
-            }
-        };
+        let karnopp = |q: f64, u: f64| karnopp_phase(u, g, q, tc);
         let mut phase = if v != 0.0 { v.signum() } else { 0.0 };
         rows.clear();
         rows.push((q, sq));
@@ -552,15 +545,7 @@ impl Data {
     fn simulate(&self, w: &Window, p: &[f64; 4], out: &mut [f64]) -> [f64; 2] {
         let [j, g, b, tc] = *p;
         let (mut q, mut v) = (w.z[0], w.z[1]);
-        // The joint's phase: +1, -1 sliding, 0 stuck.
-        let karnopp = |q: f64, u: f64| -> f64 {
-            let net = u - g * q.cos();
-            if net.abs() < tc {
-                0.0
-            } else {
-                net.signum()
-            }
-        };
+        let karnopp = |q: f64, u: f64| karnopp_phase(u, g, q, tc);
         let mut phase = if v != 0.0 { v.signum() } else { 0.0 };
         out[0] = q;
         let last = if w.linked { w.b } else { w.b - 1 };
@@ -609,6 +594,18 @@ impl Data {
 }
 
 /// One classical Runge-Kutta step of `q' = v`, `v' = a(q, v)` over `h`.
+/// The flat arm's joint phase by Karnopp's rule, as the plant applies it when the arm is at
+/// rest: +1 or -1 when the net torque `u - g cos(q)` (N m; `g` = m_l l_c g) exceeds the
+/// Coulomb friction `tc` (N m) and the arm starts to slide that way, 0 while it sticks.
+fn karnopp_phase(u: f64, g: f64, q: f64, tc: f64) -> f64 {
+    let net = u - g * q.cos();
+    if net.abs() < tc {
+        0.0
+    } else {
+        net.signum()
+    }
+}
+
 fn rk4(q: f64, v: f64, h: f64, a: impl Fn(f64, f64) -> f64) -> (f64, f64) {
     let k1 = (v, a(q, v));
     let k2 = (
