@@ -87,12 +87,16 @@ pub const REAL_TIME_QUEUE_BATCHES: usize = 16;
 pub const WAIT_BEFORE_DROP_US: i64 = 50;
 
 /// The queue settings of "Never blocking the loop": (key, our value, zenoh's default).
-const QUEUE_SETTINGS: [(&str, &str, &str); 2] = [
-    ("transport/link/tx/queue/size/real_time", "16", "2"),
+const QUEUE_SETTINGS: [(&str, i64, i64); 2] = [
+    (
+        "transport/link/tx/queue/size/real_time",
+        REAL_TIME_QUEUE_BATCHES as i64,
+        2,
+    ),
     (
         "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
-        "50",
-        "1000",
+        WAIT_BEFORE_DROP_US,
+        1000,
     ),
 ];
 
@@ -252,8 +256,8 @@ impl ZenohArgs {
         for (key, ours, zenoh_default) in QUEUE_SETTINGS {
             // A file's own choice stands; zenoh's default (or no file) gets ours.
             let current = cfg.get_json(key).unwrap_or_default();
-            if current.trim() == zenoh_default {
-                cfg.insert_json5(key, ours).map_err(|e| {
+            if current.trim() == zenoh_default.to_string() {
+                cfg.insert_json5(key, &ours.to_string()).map_err(|e| {
                     anyhow::anyhow!("zenoh config {key} = {ours}: {}", zenoh_error(&e))
                 })?;
             }
