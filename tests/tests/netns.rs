@@ -42,15 +42,36 @@ fn ip(args: &[&str]) {
     );
 }
 
+/// Waits until something in namespace `ns` listens on TCP `port` (iproute2's `ss`), at most
+/// `timeout`. A zenoh client exits at once when its endpoint refuses the connection, so the
+/// rogue controller (a client that dials the plant's own endpoint) starts only after this.
+fn wait_listening(ns: &str, port: u16, timeout: Duration) -> bool {
+    let end = std::time::Instant::now() + timeout;
+    while std::time::Instant::now() < end {
+        let out = Command::new("ip")
+            .args(["netns", "exec", ns, "ss", "-Hltn"])
+            .arg(format!("sport = :{port}"))
+            .output();
+        if matches!(&out, Ok(o) if o.status.success() && !o.stdout.trim_ascii().is_empty()) {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    false
+}
+
 fn skip_reason() -> Option<String> {
     // SAFETY: geteuid(2) has no preconditions.
     if unsafe { libc::geteuid() } != 0 {
         return Some("not root".into());
     }
-    match Command::new("ip").arg("-V").output() {
-        Ok(o) if o.status.success() => None,
-        _ => Some("iproute2's `ip` is missing".into()),
+    for tool in ["ip", "ss"] {
+        match Command::new(tool).arg("-V").output() {
+            Ok(o) if o.status.success() => {}
+            _ => return Some(format!("iproute2's `{tool}` is missing")),
+        }
     }
+    None
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -189,6 +210,11 @@ async fn three_namespaces_through_a_secure_router() {
     // (it may listen, so it answers every state it sees), and a planner with a `rogue`
     // certificate and another law, a client of the router.
     let logger = certs.join("logger.json5").display().to_string();
+    assert!(
+        wait_listening(&name("p"), 7448, Duration::from_secs(20)),
+        "the plant did not listen on {plant_ep}\n{}",
+        plant.logs()
+    );
     let mut rogue_ctl = exec(
         "rogue-controller",
         &name("x"),
