@@ -115,6 +115,57 @@ pub fn robot(tag: &str) -> String {
     format!("{tag}_{}", std::process::id())
 }
 
+/// `summary.json` of a `tilting live` run whose output directory is `out`.
+pub fn live_summary(out: &Path) -> tilting::live::summary::LiveSummary {
+    let text = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
+}
+
+/// A running `tilting live` of `duration` s for robot `robot(tag)` with the plant on a free
+/// port, its output in `{dir}/out`: waits (at most 20 s) until its status line counts tilts.
+/// Returns it, the robot's name, the plant's port and the output directory.
+pub fn live_with_open_port(
+    dir: &Scratch,
+    tag: &str,
+    duration: f64,
+) -> (Proc, String, u16, PathBuf) {
+    let out = dir.path().join("out");
+    let robot = robot(tag);
+    let port = free_port();
+    let args: Vec<String> = [
+        "live".into(),
+        "--duration".into(),
+        duration.to_string(),
+        "--robot".into(),
+        robot.clone(),
+        "--port".into(),
+        port.to_string(),
+        "--out".into(),
+        out.display().to_string(),
+    ]
+    .into();
+    let live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let t0 = Instant::now();
+    while !live.stderr().contains("tilts") {
+        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    (live, robot, port, out)
+}
+
+/// A child of process `pid` (started by its main thread; Linux `/proc`) whose command line
+/// contains `name`.
+pub fn child_named(pid: u32, name: &str) -> Option<i32> {
+    let list = std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children")).ok()?;
+    list.split_whitespace().find_map(|c| {
+        let cmd = std::fs::read(format!("/proc/{c}/cmdline")).ok()?;
+        String::from_utf8_lossy(&cmd)
+            .contains(name)
+            .then(|| c.parse().ok())
+            .flatten()
+    })
+}
+
 /// A child process of a test, started by the product's supervisor; killed when dropped.
 pub struct Proc(tilting::supervise::Child);
 

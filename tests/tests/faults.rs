@@ -25,18 +25,6 @@ fn summary_at(path: &Path) -> LiveSummary {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display()))
 }
 
-/// The child of `pid` whose command line contains `name`.
-fn child_named(pid: u32, name: &str) -> Option<i32> {
-    let list = std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children")).ok()?;
-    list.split_whitespace().find_map(|c| {
-        let cmd = std::fs::read(format!("/proc/{c}/cmdline")).ok()?;
-        String::from_utf8_lossy(&cmd)
-            .contains(name)
-            .then(|| c.parse().ok())
-            .flatten()
-    })
-}
-
 /// Starts `tilting live` with `extra` flags into `out` and waits until its loop runs.
 fn start_live(dir: &Scratch, out: &Path, tag: &str, extra: &[&str]) -> Proc {
     let mut args: Vec<String> = vec![

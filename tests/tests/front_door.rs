@@ -12,50 +12,11 @@
 //!   at the size limit; `tilting info`, `replay` and `animate --from` on a recording with
 //!   flipped bits end with an error or a partial read, never an abort.
 
-use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use tilting::live::summary::{LiveSummary, OrbitState};
+use tilting::live::summary::OrbitState;
 use tilting_proto::{PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
-
-/// `summary.json` of a live run in `out`.
-fn live_summary(out: &Path) -> LiveSummary {
-    let text = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
-}
-
-/// A running `tilting live` of `duration` s for robot `robot(tag)` with the plant on a free
-/// port, its output in `{dir}/out`: waits until its loop tilts. Returns it, the robot's name,
-/// the plant's port and the output directory.
-fn live_with_open_port(
-    dir: &Scratch,
-    tag: &str,
-    duration: f64,
-) -> (Proc, String, u16, std::path::PathBuf) {
-    let out = dir.path().join("out");
-    let robot = robot(tag);
-    let port = free_port();
-    let args: Vec<String> = [
-        "live".into(),
-        "--duration".into(),
-        duration.to_string(),
-        "--robot".into(),
-        robot.clone(),
-        "--port".into(),
-        port.to_string(),
-        "--out".into(),
-        out.display().to_string(),
-    ]
-    .into();
-    let live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
-    let t0 = Instant::now();
-    while !live.stderr().contains("tilts") {
-        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    (live, robot, port, out)
-}
 
 #[test]
 fn a_forged_state_changes_neither_the_recording_nor_the_verdict() {

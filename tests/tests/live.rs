@@ -15,7 +15,7 @@
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use tilting::live::summary::{LiveResult, LiveSummary};
+use tilting::live::summary::LiveResult;
 use tilting_proto::{ModeEvent, PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 
@@ -293,24 +293,6 @@ fn a_late_controller_gets_the_published_reference() {
     assert_eq!(p.puts, 1, "{p:?}");
 }
 
-/// `summary.json` of a live run in `out`.
-fn live_summary(out: &Path) -> LiveSummary {
-    let text = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
-}
-
-/// The children of `pid` whose command line contains `name`.
-fn child_named(pid: u32, name: &str) -> Option<i32> {
-    let list = std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children")).ok()?;
-    list.split_whitespace().find_map(|c| {
-        let cmd = std::fs::read(format!("/proc/{c}/cmdline")).ok()?;
-        String::from_utf8_lossy(&cmd)
-            .contains(name)
-            .then(|| c.parse().ok())
-            .flatten()
-    })
-}
-
 #[test]
 fn a_controller_dying_mid_run_is_reported_and_the_recording_kept() {
     let tilting = bin("tilting");
@@ -585,29 +567,7 @@ fn the_summary_names_the_sessions_the_nodes_published_from() {
     use tilting_proto::SourceId;
     let _turn = realtime_turn();
     let dir = Scratch::new("ids");
-    let out = dir.path().join("out");
-    let robot = robot("ids");
-    let port = free_port();
-    let args: Vec<String> = [
-        "live",
-        "--duration",
-        "4",
-        "--robot",
-        &robot,
-        "--port",
-        &port.to_string(),
-        "--out",
-    ]
-    .map(String::from)
-    .into_iter()
-    .chain([out.display().to_string()])
-    .collect();
-    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
-    let t0 = Instant::now();
-    while !live.stderr().contains("tilts") {
-        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    let (mut live, robot, port, out) = live_with_open_port(&dir, "ids", 4.0);
     type Seen = Arc<Mutex<BTreeMap<Option<String>, u64>>>;
     let (states, torques): (Seen, Seen) = Default::default();
     let rt = tokio::runtime::Runtime::new().unwrap();
