@@ -99,6 +99,22 @@ pub fn endpoint(port: u16) -> String {
     format!("tcp/127.0.0.1:{port}")
 }
 
+/// Whether this process may run threads under `SCHED_FIFO` at `priority` (1 to 99): tried on a
+/// short-lived thread of its own, so nothing else changes. The error says what to do.
+pub fn check_fifo(priority: i32) -> anyhow::Result<()> {
+    let tried = std::thread::spawn(move || tilting_plant::node::clock::set_fifo_priority(priority))
+        .join()
+        .map_err(|_| anyhow::anyhow!("the SCHED_FIFO probe thread panicked"))?;
+    tried.map_err(|e| {
+        anyhow::anyhow!(
+            "SCHED_FIFO at priority {priority} is not permitted here ({e}): run as root, give \
+             the node binaries CAP_SYS_NICE (`setcap cap_sys_nice+ep`), or raise the \
+             real-time priority limit (`ulimit -r {priority}`, or `rtprio` in \
+             /etc/security/limits.conf)"
+        )
+    })
+}
+
 /// A child node. Killed on drop if still running.
 pub struct Child {
     name: String,
@@ -116,6 +132,20 @@ impl Child {
     /// Starts `bin args...` with stdout in `{dir}/{name}.json` and stderr in
     /// `{dir}/{name}.log`.
     pub fn spawn(name: &str, bin: &Path, args: &[String], dir: &Path) -> anyhow::Result<Self> {
+        Self::spawn_with(name, bin, args, dir, None)
+    }
+
+    /// [`Child::spawn`], and with `fifo` = `Some(priority)` (1 to 99) the child runs under
+    /// `SCHED_FIFO` at that priority from before its `exec`: its main thread and every thread
+    /// it starts later (Linux threads inherit the policy), zenoh's included. Fails, naming the
+    /// OS error, where that is not permitted (see [`check_fifo`]).
+    pub fn spawn_with(
+        name: &str,
+        bin: &Path,
+        args: &[String],
+        dir: &Path,
+        fifo: Option<i32>,
+    ) -> anyhow::Result<Self> {
         let stdout = dir.join(format!("{name}.json"));
         let stderr = dir.join(format!("{name}.log"));
         let mut cmd = Command::new(bin);
@@ -139,9 +169,10 @@ impl Child {
         {
             use std::os::unix::process::CommandExt as _;
             // SAFETY: the closure runs in the child between fork and exec and only calls
-            // prctl(2), which is async-signal-safe, and allocates nothing.
+            // prctl(2) and sched_setscheduler(2), which are async-signal-safe, and allocates
+            // nothing (`last_os_error` reads errno).
             unsafe {
-                cmd.pre_exec(|| {
+                cmd.pre_exec(move || {
                     libc::prctl(
                         libc::PR_SET_PDEATHSIG,
                         libc::SIGTERM as libc::c_ulong,
@@ -149,13 +180,29 @@ impl Child {
                         0,
                         0,
                     );
+                    if let Some(priority) = fifo {
+                        let param = libc::sched_param {
+                            sched_priority: priority,
+                        };
+                        if libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) != 0 {
+                            return Err(std::io::Error::last_os_error());
+                        }
+                    }
                     Ok(())
                 });
             }
         }
-        let child = cmd
-            .spawn()
-            .with_context(|| format!("cannot start {}", bin.display()))?;
+        #[cfg(not(target_os = "linux"))]
+        if let Some(p) = fifo {
+            anyhow::bail!(
+                "cannot start {} under SCHED_FIFO {p}: only on Linux",
+                bin.display()
+            );
+        }
+        let child = cmd.spawn().with_context(|| match fifo {
+            Some(p) => format!("cannot start {} under SCHED_FIFO {p}", bin.display()),
+            None => format!("cannot start {}", bin.display()),
+        })?;
         Ok(Self {
             name: name.to_owned(),
             bin: bin

@@ -137,6 +137,11 @@ pub struct LiveArgs {
     /// [default: --params]
     #[arg(long, value_name = "FILE.toml")]
     pub plant_params: Option<PathBuf>,
+    /// Run the plant and the controller under SCHED_FIFO at this priority (1-99; 20 when the
+    /// flag has no value): every thread of both, so other work on a busy machine cannot delay
+    /// the loop. Needs root, CAP_SYS_NICE or an rtprio limit (`ulimit -r`) of at least it
+    #[arg(long, value_name = "1-99", num_args = 0..=1, default_missing_value = "20")]
+    pub realtime: Option<i32>,
     /// `--ros2`: the plant as a ROS 2 node too.
     #[command(flatten)]
     pub ros2: ros2::LiveRos2Args,
@@ -285,6 +290,14 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
         tilting_sim::network::check_max_age(d, 1.0 / args.rate, args.max_age)
             .map_err(|e| usage(e.into()))?;
     }
+    if let Some(p) = args.realtime {
+        if !(1..=99).contains(&p) {
+            return Err(usage(anyhow!(
+                "invalid `--realtime` = {p}: allowed 1 to 99"
+            )));
+        }
+        crate::supervise::check_fifo(p).map_err(|e| usage(e.context("--realtime")))?;
+    }
     if args.port == Some(0) {
         return Err(usage(anyhow!(
             "invalid `--port` = 0: allowed 1 to 65535 (omit it for a free port)"
@@ -342,6 +355,9 @@ fn announce(job: &Job) {
             "live: zenoh ids: plant {p}, controller {c} (messages from other sessions are \
              refused; `tilting record --plant-id {p} --controller-id {c}` records this run)"
         );
+    }
+    if let Some(p) = args.realtime {
+        eprintln!("live: the plant and the controller run under SCHED_FIFO {p} (every thread)");
     }
     if let Some(imp) = &job.impairment {
         eprintln!(

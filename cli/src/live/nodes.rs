@@ -306,7 +306,13 @@ pub(super) fn spawn_plant(
     topo: &Topology,
     bins: &NodeBinaries,
 ) -> anyhow::Result<Child> {
-    Child::spawn("plant", &bins.plant, &plant_args(job, topo), &job.dir)
+    Child::spawn_with(
+        "plant",
+        &bins.plant,
+        &plant_args(job, topo),
+        &job.dir,
+        job.args.realtime,
+    )
 }
 
 /// Starts the controller; the plant starts its clock when the controller's token appears.
@@ -316,7 +322,13 @@ pub(super) fn spawn_controller(
     bins: &NodeBinaries,
 ) -> anyhow::Result<Child> {
     let args = controller_args(job, topo);
-    Child::spawn("controller", &bins.controller, &args, &job.dir)
+    Child::spawn_with(
+        "controller",
+        &bins.controller,
+        &args,
+        &job.dir,
+        job.args.realtime,
+    )
 }
 
 #[cfg(test)]

@@ -159,6 +159,7 @@ pub(super) fn summarise(
             &job.ids,
             o.view.foreign_per_topic,
         )),
+        realtime: args.realtime,
         record: record_counts(&o, args.csv),
         planner: o.planner,
         png,

@@ -242,6 +242,9 @@ pub struct LiveSummary {
     /// recorder to them (absent in summaries written before they were recorded).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub zenoh_ids: Option<Sessions>,
+    /// The SCHED_FIFO priority the plant and the controller ran at (`--realtime`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub realtime: Option<i32>,
     /// The recording.
     pub record: RecordCounts,
     /// The planner's counters.
