@@ -121,36 +121,48 @@ pub fn live_summary(out: &Path) -> tilting::live::summary::LiveSummary {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
 }
 
-/// A running `tilting live` of `duration` s for robot `robot(tag)` with the plant on a free
-/// port, its output in `{dir}/out`: waits (at most 20 s) until its status line counts tilts.
-/// Returns it, the robot's name, the plant's port and the output directory.
+/// Starts `tilting live --robot robot(tag) --out out` with `extra` flags and waits (at most
+/// 30 s) until its status line counts tilts.
+pub fn start_live(dir: &Scratch, out: &Path, tag: &str, extra: &[&str]) -> Proc {
+    let mut args: Vec<String> = vec![
+        "live".into(),
+        "--robot".into(),
+        robot(tag),
+        "--out".into(),
+        out.display().to_string(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let t0 = Instant::now();
+    while !live.stderr().contains("tilts") {
+        assert!(
+            t0.elapsed() < Duration::from_secs(30) && live.try_wait().is_none(),
+            "{}",
+            live.logs()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    live
+}
+
+/// [`start_live`] of `duration` s with the plant on a free port and the output in
+/// `{dir}/out`. Returns it, the robot's name, the plant's port and the output directory.
 pub fn live_with_open_port(
     dir: &Scratch,
     tag: &str,
     duration: f64,
 ) -> (Proc, String, u16, PathBuf) {
     let out = dir.path().join("out");
-    let robot = robot(tag);
     let port = free_port();
-    let args: Vec<String> = [
-        "live".into(),
-        "--duration".into(),
+    let flags = [
+        "--duration".to_owned(),
         duration.to_string(),
-        "--robot".into(),
-        robot.clone(),
-        "--port".into(),
+        "--port".to_owned(),
         port.to_string(),
-        "--out".into(),
-        out.display().to_string(),
-    ]
-    .into();
-    let live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
-    let t0 = Instant::now();
-    while !live.stderr().contains("tilts") {
-        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    (live, robot, port, out)
+    ];
+    let flags: Vec<&str> = flags.iter().map(String::as_str).collect();
+    let live = start_live(dir, &out, tag, &flags);
+    (live, robot(tag), port, out)
 }
 
 /// A child of process `pid` (started by its main thread; Linux `/proc`) whose command line

@@ -25,29 +25,6 @@ fn summary_at(path: &Path) -> LiveSummary {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display()))
 }
 
-/// Starts `tilting live` with `extra` flags into `out` and waits until its loop runs.
-fn start_live(dir: &Scratch, out: &Path, tag: &str, extra: &[&str]) -> Proc {
-    let mut args: Vec<String> = vec![
-        "live".into(),
-        "--robot".into(),
-        robot(tag),
-        "--out".into(),
-        out.display().to_string(),
-    ];
-    args.extend(extra.iter().map(|s| s.to_string()));
-    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
-    let t0 = Instant::now();
-    while !live.stderr().contains("tilts") {
-        assert!(
-            t0.elapsed() < Duration::from_secs(30) && live.try_wait().is_none(),
-            "{}",
-            live.logs()
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    live
-}
-
 fn signal(pid: i32, sig: i32) {
     // SAFETY: kill(2) on a pid read from our child's children list.
     unsafe { libc::kill(pid, sig) };

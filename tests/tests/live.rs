@@ -295,25 +295,10 @@ fn a_late_controller_gets_the_published_reference() {
 
 #[test]
 fn a_controller_dying_mid_run_is_reported_and_the_recording_kept() {
-    let tilting = bin("tilting");
     let _turn = realtime_turn();
     let dir = Scratch::new("death");
     let out = dir.path().join("out");
-    let robot = robot("death");
-    let args: Vec<String> = [
-        "live",
-        "--duration",
-        "30",
-        "--csv",
-        "--robot",
-        &robot,
-        "--out",
-    ]
-    .map(String::from)
-    .into_iter()
-    .chain([out.display().to_string()])
-    .collect();
-    let mut live = Proc::spawn("live", &tilting, &args, dir.path());
+    let mut live = start_live(&dir, &out, "death", &["--duration", "30", "--csv"]);
     // Wait until the loop runs (states are being recorded), then kill the controller.
     let end = Instant::now() + Duration::from_secs(20);
     let ctl = loop {
@@ -405,25 +390,10 @@ fn the_old_planner_commands_still_work_and_say_where_they_went() {
 
 #[test]
 fn a_recording_survives_sigkill_of_live_with_whole_rows() {
-    let tilting = bin("tilting");
     let _turn = realtime_turn();
     let dir = Scratch::new("sigkill");
     let out = dir.path().join("out");
-    let robot = robot("sigkill");
-    let args: Vec<String> = [
-        "live",
-        "--duration",
-        "30",
-        "--csv",
-        "--robot",
-        &robot,
-        "--out",
-    ]
-    .map(String::from)
-    .into_iter()
-    .chain([out.display().to_string()])
-    .collect();
-    let mut live = Proc::spawn("live", &tilting, &args, dir.path());
+    let mut live = start_live(&dir, &out, "sigkill", &["--duration", "30", "--csv"]);
     // Let the loop run for about 3 s of recorded states, then kill `live` without warning.
     let end = Instant::now() + Duration::from_secs(30);
     loop {

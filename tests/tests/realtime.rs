@@ -7,7 +7,7 @@
 //! second runs `live` as `nobody` with util-linux's `setpriv`. Without them they print `SKIP`.
 
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use tilting_tests::*;
 
 /// `(policy, rt_priority)` of every thread of process `pid`.
@@ -39,26 +39,13 @@ fn realtime_runs_every_thread_of_the_plant_and_the_controller_fifo() {
     let _turn = realtime_turn();
     let dir = Scratch::new("realtime");
     let out = dir.path().join("out");
-    let args: Vec<String> = [
-        "live",
-        "--duration",
-        "4",
-        "--realtime",
-        "7",
-        "--robot",
-        &robot("realtime"),
-        "--out",
-        &out.display().to_string(),
-    ]
-    .map(String::from)
-    .into();
-    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
-    let t0 = Instant::now();
     // Once the loop tilts, zenoh's threads in both nodes have all started.
-    while !live.stderr().contains("tilts") {
-        assert!(t0.elapsed() < Duration::from_secs(20), "{}", live.logs());
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    let mut live = start_live(
+        &dir,
+        &out,
+        "realtime",
+        &["--duration", "4", "--realtime", "7"],
+    );
     let mut seen = Vec::new();
     for node in ["tilting-plant", "tilting-controller"] {
         let pid = child_named(live.pid() as u32, node)
