@@ -11,6 +11,7 @@ use std::process::ExitStatus;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tilting_plant::node::stats::{Lateness, LATE_SHARE};
 use tilting_proto::Status;
 
 /// Longest wait for the plant's first state (s).
@@ -112,36 +113,6 @@ pub(super) struct Children<'a> {
 /// half the 1 s within which a failure is to be said.
 pub(super) const STATE_SILENCE_S: f64 = 0.5;
 
-/// Share of the last second's control periods whose torque missed its deadline above which a
-/// live run raises the "loop late" alarm (over an unimpaired link). A quiet run misses under
-/// 1 %; with the plant and the controller starved of CPU (6 busy loops beside them on 2 cores)
-/// 76 % were missed and the robot stopped tilting within 6 s (README, Faults). At 20 % the loop
-/// can still hold the orbit, so this is said before the robot falls.
-pub(super) const LATE_SHARE: f64 = 0.2;
-
-/// The share of missed deadlines over about the last second, from the plant's statuses:
-/// `(steps, deadline_misses)` sampled each monitoring tick.
-#[derive(Default)]
-struct Lateness(std::collections::VecDeque<(u64, u64)>);
-
-impl Lateness {
-    /// Ticks per second (the monitor's 200 ms tick).
-    const TICKS: usize = 5;
-
-    /// Adds the newest status's counters; the share of missed periods since the sample a
-    /// second ago, once there are at least 100 periods between them.
-    fn update(&mut self, status: Option<&Status>) -> Option<f64> {
-        let st = status?;
-        self.0.push_back((st.steps, st.deadline_misses));
-        if self.0.len() > Self::TICKS + 1 {
-            self.0.pop_front();
-        }
-        let (&(s0, m0), &(s1, m1)) = (self.0.front()?, self.0.back()?);
-        let steps = s1.checked_sub(s0)?;
-        (steps >= 100).then(|| m1.saturating_sub(m0) as f64 / steps as f64)
-    }
-}
-
 /// Watches the running loop five times a second until the plant or the controller exits, a
 /// signal arrives or `duration` + [`GRACE_S`] s pass: checks the children, repeats the
 /// reference once a second and refreshes the status line (each tick on a terminal, once a
@@ -164,7 +135,8 @@ pub(super) async fn monitor(
     let give_up = Instant::now() + Duration::from_secs_f64(duration + GRACE_S);
     let mut ticks: u64 = 0;
     let mut printed = String::new();
-    let mut lateness = Lateness::default();
+    // Five samples a second, one per tick.
+    let mut lateness = Lateness::new(5);
     let end = loop {
         tokio::time::sleep(Duration::from_millis(200)).await;
         // Five ticks a second: `second` marks one of them.
@@ -185,7 +157,11 @@ pub(super) async fn monitor(
             w.tap.repeat();
         }
         let router_exit = router.as_deref_mut().and_then(Child::try_wait);
-        let late = lateness.update(w.recorder.view().last_status.as_ref());
+        let late = w
+            .recorder
+            .view()
+            .last_status
+            .and_then(|st| lateness.update(st.steps, st.deadline_misses));
         let alarms = if end.is_some() {
             Vec::new()
         } else {
@@ -320,42 +296,5 @@ impl Watch<'_> {
             line.push_str(alarms);
         }
         line
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn status(steps: u64, deadline_misses: u64) -> Status {
-        Status {
-            steps,
-            deadline_misses,
-            ..Status::default()
-        }
-    }
-
-    #[test]
-    fn lateness_is_the_share_missed_over_the_last_second() {
-        let mut l = Lateness::default();
-        assert_eq!(l.update(None), None, "no status yet");
-        assert_eq!(l.update(Some(&status(0, 0))), None, "one sample");
-        // 200 periods a tick; 10 % missed in each of the first five ticks.
-        let mut out = None;
-        for k in 1..=5u64 {
-            out = l.update(Some(&status(200 * k, 20 * k)));
-        }
-        assert!((out.unwrap() - 0.1).abs() < 1e-12, "{out:?}");
-        // Then every period missed for one tick: the window (the last 5 ticks, 1,000
-        // periods) holds 4 ticks at 10 % and one at 100 %.
-        let out = l.update(Some(&status(1200, 100 + 200)));
-        assert!(
-            (out.unwrap() - (80.0 + 200.0) / 1000.0).abs() < 1e-12,
-            "{out:?}"
-        );
-        // A window of fewer than 100 periods (a stalled plant) says nothing.
-        let mut l = Lateness::default();
-        l.update(Some(&status(10, 10)));
-        assert_eq!(l.update(Some(&status(50, 50))), None);
     }
 }

@@ -106,6 +106,9 @@ pub(super) struct Loop {
     pub(super) next_status: Instant,
     pub(super) status_interval: Duration,
     pub(super) next_timing_log: Instant,
+    /// The share of missed deadlines over the last second, and whether the log said the loop
+    /// is late (said once when it becomes late, once when it recovers).
+    pub(super) lateness: (super::stats::Lateness, bool),
     /// When the period being integrated started (ns), for its cost.
     pub(super) period_t0: u64,
     /// `--sample-on-event`: the answer to the last extra state, until it takes effect.
@@ -246,6 +249,7 @@ impl Loop {
         let now = Instant::now();
         if now >= self.next_status {
             self.publish_status();
+            self.check_lateness();
         }
         if now >= self.next_timing_log {
             self.next_timing_log = now + TIMING_LOG_INTERVAL;
@@ -266,6 +270,35 @@ impl Loop {
                 l.p999
             );
         }
+    }
+
+    /// Says in the log when over [`super::stats::LATE_SHARE`] of the last second's periods
+    /// missed their torque, and when the loop recovers (real time over a real link only: an
+    /// emulated delay misses by design). A node started by hand has no status line to say it.
+    fn check_lateness(&mut self) {
+        if self.hold.is_some() || self.link.is_some() {
+            return;
+        }
+        let Some(share) = self.lateness.0.update(self.seq, self.deadline_misses) else {
+            return;
+        };
+        let late = share > super::stats::LATE_SHARE;
+        if late && !self.lateness.1 {
+            tracing::warn!(
+                seq = self.seq,
+                "the loop is late: {:.0} % of the last second's periods missed their torque \
+                 (the plant or the controller is short of CPU, or the link is slow; run both \
+                 under SCHED_FIFO: `chrt -f 20 ...`, or `tilting live --realtime`)",
+                share * 100.0
+            );
+        } else if !late && self.lateness.1 {
+            tracing::info!(
+                seq = self.seq,
+                "the loop is on time again: {:.0} % of the last second's periods missed",
+                share * 100.0
+            );
+        }
+        self.lateness.1 = late;
     }
 
     pub(super) fn set_state(&mut self, state: u8) {

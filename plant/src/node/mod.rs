@@ -245,6 +245,8 @@ async fn run_async(
         next_status: Instant::now(),
         status_interval: Duration::from_millis(100),
         next_timing_log: Instant::now() + TIMING_LOG_INTERVAL,
+        // One sample per periodic status (every 100 ms).
+        lateness: (stats::Lateness::new(10), false),
         period_t0: 0,
         event_answer: None,
     };
