@@ -10,9 +10,10 @@
 //! law's peak trim on that plan (`--orbit-peak`): at least 200 tilts above 0.01 rad in 100 s,
 //! alternating, **every** peak after the first 10 tilts within 10 % of the planned peak, their
 //! mean within 4 %, and at most 10 lift-offs below 0.01 rad (sensor noise). Measured on this
-//! robot and another one, 4 noise seeds each: 226-228 tilts, the last peak more than 10 % off
-//! is the 6th at worst, the worst after the 10th 4.5-6.6 % off, the mean -0.9 to -1.1 %, 0 or
-//! 1 noise lift-off (docs/architecture.md, "State estimation in the controller"). Tilts
+//! robot and another one, 4 noise seeds each (`bench/headline.sh`, README): 226-227 tilts, the
+//! last peak more than 10 % off is the 7th at worst, the worst after the 10th 4.2-7.2 % off,
+//! the mean -0.8 to -1.1 %, 0 or 1 noise lift-off (docs/architecture.md, "State estimation in
+//! the controller"). Tilts
 //! counted: lift-offs whose peak exceeds 0.01 rad, a quarter of the orbit's; the first 10 are
 //! the settling of the trim (the first tilt starts from the paper's initial state, 15-30 %
 //! off the identified robot's orbit, and the trim changes the torque scale by 2 % of the
