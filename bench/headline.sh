@@ -107,9 +107,10 @@ PY
     [ -z "$failed" ] && { step "$d" trim "$T" "${live[@]}" --orbit-peak "$peak" ||
         failed=simulate; }
     [ -z "$failed" ] && { step "$d" notrim "$T" "${live[@]}" || failed="simulate (no trim)"; }
-    python3 - "$robot" "$seed" "$d" "$((SECONDS - t0))" "$failed" >>"$OUT/table.txt" <<'PY'
+    python3 - "$robot" "$seed" "$d" "$((SECONDS - t0))" "$failed" "$e_av" "$peak" \
+        >>"$OUT/table.txt" <<'PY'
 import json, sys
-robot, seed, d, secs, failed = sys.argv[1:]
+robot, seed, d, secs, failed, e_av, peak = sys.argv[1:]
 tag = f"{robot:6} seed {seed}"
 if failed:
     name = {"simulate": "trim", "simulate (no trim)": "notrim"}.get(failed, failed)
@@ -145,16 +146,7 @@ se = f"{100 * se / true['b_v']:.1f} %" if se is not None else "-"
 print(f"{tag}: identify m_f {pct(p['m_f'], true['m_f'])}, l_c {pct(lc, true['l_c'])}, "
       f"J {pct(j_got, j_true)}, tau_c {pct(p['tau_c'], true['tau_c'])}, "
       f"b_v {pct(p['b_v'], true['b_v'])} (standard error {se}); {refined}")
-plan = json.load(open(f"{d}/plan.json"))
-def walk(v, key):
-    if isinstance(v, dict):
-        if isinstance(v.get(key), (int, float)):
-            return v[key]
-        return next((x for x in (walk(w, key) for w in v.values()) if x is not None), None)
-    if isinstance(v, list):
-        return next((x for x in (walk(w, key) for w in v) if x is not None), None)
-    return None
-e_av, peak = walk(plan, "energy_avg_adaptation"), walk(plan, "max_tilt")
+e_av, peak = float(e_av), float(peak)
 print(f"{tag}: plan E_av {e_av:.9f} J, peak {peak:.6f} rad")
 # The figures of cli/tests/headline_cli.rs.
 def figures(name):
