@@ -368,14 +368,7 @@ pub fn identify(
     }
     let rms_tau = (r.rhs.iter().map(|t| t * t).sum::<f64>() / r.rhs.len() as f64).sqrt();
     let mut warnings = Vec::new();
-    if let Some(r) = refinement.as_ref().filter(|r| !r.converged) {
-        warnings.push(format!(
-            "the output-error refinement did not converge in {} iterations: b_v and tau_c \
-             are the least squares' (their standard errors say how far to trust them); a \
-             longer excitation may help",
-            r.iterations
-        ));
-    }
+    warnings.extend(refinement.as_ref().and_then(not_converged));
     let friction = check_friction(&value, &se, rms_tau, &mut warnings)?;
     let (params, not_identifiable) =
         derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
@@ -431,6 +424,18 @@ fn refine_friction(
         }
     }
     Some(r)
+}
+
+/// The warning of a refinement that did not converge (its values were not used).
+fn not_converged(r: &refine::Refinement) -> Option<String> {
+    (!r.converged).then(|| {
+        format!(
+            "the output-error refinement did not converge in {} iterations: b_v and tau_c \
+             are the least squares' (their standard errors say how far to trust them); a \
+             longer excitation may help",
+            r.iterations
+        )
+    })
 }
 
 /// The fit check with the identified parameters and with the prior.
