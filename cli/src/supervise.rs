@@ -169,8 +169,8 @@ impl Child {
         {
             use std::os::unix::process::CommandExt as _;
             // SAFETY: the closure runs in the child between fork and exec and only calls
-            // prctl(2) and sched_setscheduler(2), which are async-signal-safe, and allocates
-            // nothing (`last_os_error` reads errno).
+            // prctl(2) and sched_setscheduler(2) (`set_fifo_priority`), which are
+            // async-signal-safe, and allocates nothing (its error reads errno).
             unsafe {
                 cmd.pre_exec(move || {
                     libc::prctl(
@@ -180,15 +180,10 @@ impl Child {
                         0,
                         0,
                     );
-                    if let Some(priority) = fifo {
-                        let param = libc::sched_param {
-                            sched_priority: priority,
-                        };
-                        if libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) != 0 {
-                            return Err(std::io::Error::last_os_error());
-                        }
+                    match fifo {
+                        Some(p) => tilting_plant::node::clock::set_fifo_priority(p),
+                        None => Ok(()),
                     }
-                    Ok(())
                 });
             }
         }

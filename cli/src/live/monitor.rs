@@ -157,15 +157,10 @@ pub(super) async fn monitor(
             w.tap.repeat();
         }
         let router_exit = router.as_deref_mut().and_then(Child::try_wait);
-        let late = w
-            .recorder
-            .view()
-            .last_status
-            .and_then(|st| lateness.update(st.steps, st.deadline_misses));
         let alarms = if end.is_some() {
             Vec::new()
         } else {
-            w.alarms(router_exit, late)
+            w.alarms(router_exit, &mut lateness)
         };
         let kinds: Vec<&str> = alarms.iter().map(|a| a.0).collect();
         let new_alarm = kinds.iter().any(|k| !alarm_kinds.contains(k));
@@ -211,13 +206,17 @@ impl Watch<'_> {
     /// What is wrong now that the user must hear of at once, each as its kind and its text:
     /// the recording failing, the router exited, a node's liveliness token gone, no state for
     /// [`STATE_SILENCE_S`], over an unimpaired link more than [`LATE_SHARE`] of the last
-    /// second's periods missed (`late`).
+    /// second's periods missed (`lateness`, sampled here from the plant's status).
     fn alarms(
         &self,
         router_exit: Option<ExitStatus>,
-        late: Option<f64>,
+        lateness: &mut Lateness,
     ) -> Vec<(&'static str, String)> {
         let view = self.recorder.view();
+        let late = view
+            .last_status
+            .as_ref()
+            .and_then(|st| lateness.update(st.steps, st.deadline_misses));
         let mut v = Vec::new();
         if let Some(e) = &view.error {
             v.push(("recording", format!("RECORDING FAILED: {e}")));
