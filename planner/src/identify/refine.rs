@@ -281,14 +281,17 @@ impl Data {
             // parameter by less than 1e-2 of its standard error (the valley along b_v and
             // tau_c is flat: a criterion on the cost's fall stopped half a standard error
             // short; one on the damped step stopped wherever the damping was large).
-            // The largest undamped step in units of the parameters' standard errors.
+            // `gn_in_se`: the largest undamped step in standard errors (joined only).
             let s2 = cost / self.samples(wins) as f64;
-            let gn_in_se = n.solve(0.0).zip(n.covariance()).map(|(gn, cov)| {
-                (0..4)
-                    .map(|j| gn.0[j].abs() / (s2 * cov[(j, j)]).sqrt())
-                    .fold(0.0, f64::max)
-            });
-            if link && gn_in_se.is_some_and(|r| r <= 1e-2) {
+            let gn_in_se = link
+                .then(|| n.solve(0.0).zip(n.covariance()))
+                .flatten()
+                .map(|(gn, cov)| {
+                    (0..4)
+                        .map(|j| gn.0[j].abs() / (s2 * cov[(j, j)]).sqrt())
+                        .fold(0.0, f64::max)
+                });
+            if gn_in_se.is_some_and(|r| r <= 1e-2) {
                 return (it, true, Some(n));
             }
             let mut accepted = false;
@@ -608,7 +611,6 @@ impl Data {
     }
 }
 
-/// One classical Runge-Kutta step of `q' = v`, `v' = a(q, v)` over `h`.
 /// The flat arm's joint phase by Karnopp's rule, as the plant applies it when the arm is at
 /// rest: +1 or -1 when the net torque `u - g cos(q)` (N m; `g` = m_l l_c g) exceeds the
 /// Coulomb friction `tc` (N m) and the arm starts to slide that way, 0 while it sticks.
@@ -621,6 +623,7 @@ fn karnopp_phase(u: f64, g: f64, q: f64, tc: f64) -> f64 {
     }
 }
 
+/// One classical Runge-Kutta step of `q' = v`, `v' = a(q, v)` over `h`.
 fn rk4(q: f64, v: f64, h: f64, a: impl Fn(f64, f64) -> f64) -> (f64, f64) {
     let k1 = (v, a(q, v));
     let k2 = (
