@@ -10,7 +10,7 @@ use crate::dynamics::{
     hold_torque, joint_accelerations, plate_torque, vertical_force_t, Joint, Terms, Trig,
 };
 use crate::ode::{Dense, Dop853, Dopri5, OdeError, OdeStats, Tolerance};
-use crate::{ConfigError, ImpactLaw, Mode, Params, State};
+use crate::{ConfigError, ImpactLaw, Landing, Mode, Params, State};
 
 /// A torque law `tau(t, q, x)` (N m) evaluated inside the right-hand side. It must be a pure
 /// function of its arguments (the integrator evaluates it at trial states).
@@ -255,6 +255,13 @@ impl SimConfig {
                 value: format!("{lc} (with f = {}, i_l = {}, j_m = {})", p.f, p.i_l, p.j_m),
                 allowed: "such that m_l l_c (l_c - f) + i_l + n_g j_m > 0 (the impact laws \
                           divide by it): l_c > f suffices",
+            });
+        }
+        if p.restitution != 0.0 && self.impact != ImpactLaw::Physical {
+            return Err(ConfigError::OutOfRange {
+                field: "restitution",
+                value: format!("{} (with impact = {})", p.restitution, self.impact.as_str()),
+                allowed: "0 unless impact = \"physical\" (only the physical law rebounds)",
             });
         }
         positive("rtol", self.tol.rtol)?;
@@ -784,8 +791,17 @@ impl Plant {
         self.tilts += 1;
         let mut xm = self.x;
         xm[0] = 0.0; // located to round-off; the impact happens on the ground
-        let x_after = self.cfg.impact.apply(&self.cfg.params, from, &xm);
-        self.record_transition(Mode::Flat, x_after, obs)
+        match self.cfg.impact.land(&self.cfg.params, from, &xm) {
+            Landing::Plastic(x_after) => self.record_transition(Mode::Flat, x_after, obs),
+            Landing::Rebound(x_after) => {
+                // The plate touches (a landing at the rebound's arm rate) and leaves again at
+                // once over the same edge: a new tilt, as the orbit's land-and-tilt is.
+                let touch = State::new(0.0, x_after[1], 0.0, x_after[3]);
+                self.record_transition(Mode::Flat, touch, obs)?;
+                self.extreme = None;
+                self.record_transition(from, x_after, obs)
+            }
+        }
     }
 
     /// `held`: the torque is constant over the call, so intervals that one 5th-order step
@@ -912,7 +928,7 @@ impl Plant {
                     let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig, || {
                         tau_of.torque_t(s.t1, mode, &s.y1, &p, &s.aux1)
                     });
-                    if !(0..NG).any(|i| fires(i, g0[i], g1[i])) {
+                    if !(0..NG).any(|i| fires_in(mode != Mode::Flat, i, &g0, &g1)) {
                         self.t = s.t1;
                         self.x = s.y1;
                         self.terms = Some((mode, s.y1.map(f64::to_bits).into(), s.aux1));
@@ -929,7 +945,7 @@ impl Plant {
                 let g1 = self.events_t(&step.y1, step.f1(), &tr1, || {
                     tau_of.torque(step.t1, mode, &step.y1)
                 });
-                let first = if (0..NG).any(|i| fires(i, g0[i], g1[i])) {
+                let first = if (0..NG).any(|i| fires_in(mode != Mode::Flat, i, &g0, &g1)) {
                     let dense = self.stepper.dense(&mut f, &step);
                     let first =
                         self.first_event(&f, tau_of, &dense, (step.t0, &g0), (step.t1, &g1));
@@ -978,17 +994,30 @@ impl Plant {
         let mode = self.mode;
         let mut roots = [(f64::INFINITY, Ev::A); NG];
         let mut n_roots = 0;
-        for i in (0..NG).filter(|&i| fires(i, g0[i], g1[i])) {
-            let gi = |t: f64| {
-                let x = dense.eval(t);
-                let xd = if self.needs_derivative(i) {
-                    f(t, &x)
-                } else {
-                    x
-                };
-                self.events(&x, &xd, || tau_of.torque(t, mode, &x))[i]
+        let g_at = |i: usize, t: f64| {
+            let x = dense.eval(t);
+            let xd = if self.needs_derivative(i) {
+                f(t, &x)
+            } else {
+                x
             };
-            let r = locate(&gi, t0, g0[i], t1, g1[i], self.cfg.event_tol);
+            self.events(&x, &xd, || tau_of.torque(t, mode, &x))[i]
+        };
+        for i in (0..NG).filter(|&i| fires_in(mode != Mode::Flat, i, g0, g1)) {
+            let gi = |t: f64| g_at(i, t);
+            // A rebound that lands within its first step: the landing lies after the extreme,
+            // where `alpha` is positive.
+            let (ta, ga) = if i == 0 && g0[0] == 0.0 && mode != Mode::Flat {
+                let te = locate(&|t| g_at(1, t), t0, g0[1], t1, g1[1], self.cfg.event_tol);
+                (te, gi(te))
+            } else {
+                (t0, g0[i])
+            };
+            let r = if ga > 0.0 {
+                locate(&gi, ta, ga, t1, g1[i], self.cfg.event_tol)
+            } else {
+                ta
+            };
             roots[n_roots] = (r, EVS[i]);
             n_roots += 1;
         }
@@ -1091,6 +1120,17 @@ fn crossed(g0: f64, g1: f64) -> bool {
 #[inline(always)]
 fn fires(i: usize, g0: f64, g1: f64) -> bool {
     crossed(g0, g1) || (i == NG - 1 && g0 == 0.0 && g1 < 0.0)
+}
+
+/// Did slot `i` fire in a step from `g0` to `g1`? [`fires`], and in a tilted mode also a landing
+/// inside the very step a tilt started with the plate moving up (a rebound): `alpha` starts at
+/// exactly 0 (`g0[0] = 0`), rises (`g0[1] > 0`), turns (the extreme fired) and is below the
+/// ground at the step's end. A tilt that starts at rest (`alpha_dot = 0`, the paper's tilts)
+/// never takes this path.
+#[inline(always)]
+fn fires_in(tilted: bool, i: usize, g0: &[f64; NG], g1: &[f64; NG]) -> bool {
+    fires(i, g0[i], g1[i])
+        || (tilted && i == 0 && g0[0] == 0.0 && g1[0] < 0.0 && crossed(g0[1], g1[1]))
 }
 
 /// Locates the zero of `g` in `[a, b]` with `g(a) > 0 >= g(b)` to width `tol` (s) by the

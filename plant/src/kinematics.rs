@@ -62,12 +62,12 @@ fn spins(p: &Params, x: &State) -> (f64, f64) {
 }
 
 /// Total energy `E = T + V` (J), ground at `y = 0`: the centres of mass' kinetic and potential
-/// energy and the arm's and the rotor's rotational energy.
+/// energy and the arm's, the rotor's and the plate's rotational energy.
 pub fn energy(p: &Params, mode: Mode, x: &State) -> f64 {
     let q = point_masses(p, mode, x);
     let (wa, wr) = spins(p, x);
     let t = 0.5 * (p.m_f * q.foot_vel.norm_squared() + p.m_l * q.arm_vel.norm_squared())
-        + 0.5 * (p.i_l * wa * wa + p.j_m * wr * wr);
+        + 0.5 * (p.i_l * wa * wa + p.j_m * wr * wr + p.i_f * x[2] * x[2]);
     let v = p.g * (p.m_f * q.foot.y + p.m_l * q.arm.y);
     t + v
 }
@@ -81,7 +81,11 @@ pub fn angular_momentum(p: &Params, mode: Mode, x: &State, about: Vector2<f64>) 
         d.x * v.y - d.y * v.x
     };
     let (wa, wr) = spins(p, x);
-    p.m_f * cross(q.foot, q.foot_vel) + p.m_l * cross(q.arm, q.arm_vel) + p.i_l * wa + p.j_m * wr
+    p.m_f * cross(q.foot, q.foot_vel)
+        + p.m_l * cross(q.arm, q.arm_vel)
+        + p.i_l * wa
+        + p.j_m * wr
+        + p.i_f * x[2]
 }
 
 /// Mirror image of a state: `(alpha, beta) -> (-alpha, pi - beta)`, rates negated. Maps a

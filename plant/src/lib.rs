@@ -49,7 +49,7 @@ pub mod sampled;
 pub use dynamics::Joint;
 pub use flags::{parse_x0, ParamsArgs};
 pub use hybrid::{Fault, JointEvent, Observer, Plant, SimConfig, TiltPeak, TorqueLaw, Transition};
-pub use impact::ImpactLaw;
+pub use impact::{ImpactLaw, Landing, REBOUND_MIN_SPEED};
 pub use kinematics::{energy, mirror};
 pub use mode::Mode;
 pub use ode::Tolerance;

@@ -1,5 +1,6 @@
 //! Physical parameters of the tilting system.
 
+use crate::ImpactLaw;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -81,6 +82,24 @@ pub struct Params {
     /// while it slides, and up to `tau_c` either way while it sticks; default 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub tau_c: f64,
+    /// The plate's rotational inertia `i_f` (kg m^2) about its centre of mass (the plate turns
+    /// with `alpha_dot`); 0 (the default) for the paper's point mass. A uniform plate of mass
+    /// `m_f` and length `2 f` has `m_f (2 f)^2 / 12`.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub i_f: f64,
+    /// The landing law: `paper` (the default), `striking-edge` or `physical`
+    /// ([`ImpactLaw`]). A `--impact` flag, where a command takes one, overrides it.
+    #[serde(skip_serializing_if = "is_paper")]
+    pub impact: ImpactLaw,
+    /// The plate's coefficient of restitution `e` (1) at a landing, in `[0, 1)`: the striking
+    /// edge leaves the ground again with `e` times the rate it struck with. Only the
+    /// `physical` law rebounds; 0 (the default) is a plastic landing.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub restitution: f64,
+}
+
+fn is_paper(v: &ImpactLaw) -> bool {
+    *v == ImpactLaw::Paper
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -105,6 +124,9 @@ impl Default for Params {
             n_g: 1.0,
             b_v: 0.0,
             tau_c: 0.0,
+            i_f: 0.0,
+            impact: ImpactLaw::Paper,
+            restitution: 0.0,
         }
     }
 }
@@ -138,8 +160,24 @@ impl Params {
             ("j_m", self.j_m),
             ("b_v", self.b_v),
             ("tau_c", self.tau_c),
+            ("i_f", self.i_f),
         ] {
             non_negative(field, v)?;
+        }
+        let e = self.restitution;
+        if !(e.is_finite() && (0.0..1.0).contains(&e)) {
+            return Err(ConfigError::OutOfRange {
+                field: "restitution",
+                value: format!("{e}"),
+                allowed: "finite, >= 0 and < 1",
+            });
+        }
+        if e != 0.0 && self.impact != ImpactLaw::Physical {
+            return Err(ConfigError::OutOfRange {
+                field: "restitution",
+                value: format!("{e} (with impact = {})", self.impact.as_str()),
+                allowed: "0 unless impact = \"physical\" (only the physical law rebounds)",
+            });
         }
         Ok(())
     }
@@ -187,10 +225,26 @@ impl Params {
         }
     }
 
-    /// Does any rotational inertia (`i_l` or `j_m`) add to the point masses' mass matrix?
+    /// Does any rotational inertia (`i_l`, `j_m` or `i_f`) add to the point masses' mass
+    /// matrix?
     #[inline(always)]
     pub fn has_inertia(&self) -> bool {
-        self.i_l != 0.0 || self.j_m != 0.0
+        self.i_l != 0.0 || self.j_m != 0.0 || self.i_f != 0.0
+    }
+
+    /// These parameters with the landing law `law` (and their restitution kept only if `law`
+    /// is `physical`, the one law that rebounds).
+    pub fn with_impact(mut self, law: ImpactLaw) -> Self {
+        self.impact = law;
+        if law != ImpactLaw::Physical {
+            self.restitution = 0.0;
+        }
+        self
+    }
+
+    /// The landing law of a run: the `--impact` flag when given, else the file's `impact`.
+    pub fn impact_or(&self, flag: Option<ImpactLaw>) -> ImpactLaw {
+        flag.unwrap_or(self.impact)
     }
 
     /// The actuated joint's total inertia `J = m_l l_c^2 + i_l + n_g^2 j_m` (kg m^2) about the
@@ -206,12 +260,13 @@ impl Params {
     }
 
     /// The rotational inertias' share of the mass matrix `(I11, I12, I22)` (kg m^2): the arm's
-    /// `i_l` turns with `alpha + beta`, the rotor's `j_m` with `alpha + n_g beta`, so
-    /// `I11 = i_l + j_m`, `I12 = i_l + n_g j_m`, `I22 = i_l + n_g^2 j_m`.
+    /// `i_l` turns with `alpha + beta`, the rotor's `j_m` with `alpha + n_g beta`, the plate's
+    /// `i_f` with `alpha`, so `I11 = i_l + j_m + i_f`, `I12 = i_l + n_g j_m`,
+    /// `I22 = i_l + n_g^2 j_m`.
     #[inline(always)]
     pub fn inertia(&self) -> (f64, f64, f64) {
         (
-            self.i_l + self.j_m,
+            self.i_l + self.j_m + self.i_f,
             self.i_l + self.n_g * self.j_m,
             self.i_l + self.n_g * self.n_g * self.j_m,
         )

@@ -14,13 +14,15 @@ use tilting_plant::{
 };
 
 /// A robot unlike the paper's point masses: the centre of mass 0.6 m short of the tip, an arm
-/// inertia of 0.25 kg m^2 about it, a 2 g cm^2-class rotor behind a 9:1 gear.
+/// inertia of 0.25 kg m^2 about it, a 2 g cm^2-class rotor behind a 9:1 gear, a plate with its
+/// own inertia (0.09 kg m^2, about a uniform 1 kg plate's 0.083).
 fn hw() -> Params {
     Params {
         l_c: Some(1.4),
         i_l: 0.25,
         j_m: 0.002,
         n_g: 9.0,
+        i_f: 0.09,
         ..Params::default()
     }
 }
@@ -781,7 +783,8 @@ fn mirrored_runs_with_friction_and_inertia_mirror_each_other() {
 #[test]
 fn the_dynamics_are_linear_in_seven_base_parameters() {
     // docs/model.md's regressor form, written out here from the base parameters alone, against
-    // the model's mass matrix and bias terms at random states and accelerations.
+    // the model's mass matrix and bias terms at random states and accelerations (the plate's
+    // inertia `i_f`, an eighth, enters the plate's row alone, as `i_f alpha_ddot`).
     let p = hw();
     let (f, g) = (p.f, p.g);
     let (lc, jm, n) = (1.4, p.j_m, p.n_g);
@@ -799,7 +802,7 @@ fn the_dynamics_are_linear_in_seven_base_parameters() {
             let x = random_state(&mut rng, mode);
             let (a, b, ad, bd) = (x[0], x[1], x[2], x[3]);
             let (add, bdd) = (rng.uniform(-20.0, 20.0), rng.uniform(-20.0, 20.0));
-            let row1 = (sf * sf * pi[0] + 2.0 * sf * b.cos() * pi[1] + pi[2]) * add
+            let row1 = (sf * sf * pi[0] + 2.0 * sf * b.cos() * pi[1] + pi[2] + p.i_f) * add
                 + (sf * b.cos() * pi[1] + pi[2] + pi[3]) * bdd
                 - sf * b.sin() * (2.0 * ad * bd + bd * bd) * pi[1]
                 + g * sf * a.cos() * pi[0]
@@ -824,4 +827,236 @@ fn the_dynamics_are_linear_in_seven_base_parameters() {
     // The rotor and its gear come back from pi4 and pi5 (N + 1 = pi5 / pi4).
     let n_back = pi[4] / pi[3] - 1.0;
     assert!((n_back - n).abs() < 1e-12 && (pi[3] / (n_back - 1.0) - jm).abs() < 1e-15);
+}
+
+// ---- The physical landing law ----------------------------------------------------------------
+
+/// The momentum conjugate to `beta`, `dT / d beta_dot`, from the geometric kinetic energy
+/// (`kinematics`, which knows nothing of the mass matrix): `T` is quadratic in the rates, so
+/// the central difference is exact up to rounding.
+fn p_beta(p: &Params, mode: Mode, x: &State) -> f64 {
+    let h = 0.5;
+    let t = |bd: f64| kinetic(p, mode, x[0], x[1], x[2], bd);
+    (t(x[3] + h) - t(x[3] - h)) / (2.0 * h)
+}
+
+/// The physical law on [`hw`], with restitution `e`.
+fn physical(e: f64) -> Params {
+    Params {
+        impact: ImpactLaw::Physical,
+        restitution: e,
+        ..hw()
+    }
+}
+
+/// A pre-impact state of a tilt from `from`: `alpha = 0`, the plate moving into the ground.
+fn striking(rng: &mut Rng, from: Mode) -> State {
+    let s = if from == Mode::Left { 1.0 } else { -1.0 };
+    State::new(
+        0.0,
+        rng.uniform(0.3, PI - 0.3),
+        -s * rng.uniform(0.05, 2.0),
+        rng.uniform(-2.0, 2.0),
+    )
+}
+
+#[test]
+fn a_physical_landing_keeps_the_arms_momentum_about_the_joint() {
+    // Without a rotor, p_beta is the arm's angular momentum about the joint, the only point
+    // where an impulse reaches the arm: computed here from the bodies' positions and
+    // velocities (the joint is the plate's centre, `foot`), before (tilted) and after (flat).
+    let p = Params {
+        j_m: 0.0,
+        ..physical(0.0)
+    };
+    let mut rng = Rng(0xa11);
+    for from in [Mode::Left, Mode::Right] {
+        for _ in 0..100 {
+            let x = striking(&mut rng, from);
+            let arm_about_joint = |mode: Mode, x: &State| {
+                let q = point_masses(&p, mode, x);
+                let d = q.arm - q.foot;
+                p.m_l * (d.x * q.arm_vel.y - d.y * q.arm_vel.x) + p.i_l * (x[2] + x[3])
+            };
+            let xp = ImpactLaw::Physical.apply(&p, from, &x);
+            let (h0, h1) = (arm_about_joint(from, &x), arm_about_joint(Mode::Flat, &xp));
+            assert!(
+                (h1 - h0).abs() < 1e-12 * (1.0 + h0.abs()),
+                "{from}: {h0} -> {h1}"
+            );
+            // The plate is at rest after a plastic landing.
+            assert_eq!((xp[0], xp[2]), (0.0, 0.0));
+        }
+    }
+}
+
+#[test]
+fn a_physical_landing_keeps_p_beta_and_loses_the_closed_form_energy() {
+    // With the rotor behind its gear and the plate's inertia: p_beta (from the geometric
+    // energy) is kept, for a plastic landing and for rebounds, and the kinetic energy lost is
+    // (1 - e^2) (M11 - M12^2 / M22) alpha_dot-^2 / 2 >= 0 (the Schur complement: M is
+    // positive definite), never a gain.
+    let mut rng = Rng(0xe1a5);
+    for e in [0.0, 0.3, 0.8] {
+        let p = physical(e);
+        for from in [Mode::Left, Mode::Right] {
+            for _ in 0..100 {
+                let x = striking(&mut rng, from);
+                let (to, xp) = match ImpactLaw::Physical.land(&p, from, &x) {
+                    tilting_plant::Landing::Plastic(xp) => (Mode::Flat, xp),
+                    tilting_plant::Landing::Rebound(xp) => (from, xp),
+                };
+                // Above the threshold (2 f e |alpha_dot| >= 1 cm/s) every rebound happens.
+                assert_eq!(to == from, e * x[2].abs() >= 0.01, "e {e} {x:?}");
+                if to == from {
+                    assert!(
+                        (xp[2] + e * x[2]).abs() < 1e-15,
+                        "alpha_dot+ = -e alpha_dot-"
+                    );
+                }
+                let (b0, b1) = (p_beta(&p, from, &x), p_beta(&p, to, &xp));
+                assert!((b1 - b0).abs() < 1e-11 * (1.0 + b0.abs()), "e {e} {from}");
+                let t0 = kinetic(&p, from, x[0], x[1], x[2], x[3]);
+                let t1 = kinetic(&p, to, xp[0], xp[1], xp[2], xp[3]);
+                let (m11, m12, m22) = mass_matrix(&p, from, x[1]);
+                let e_eff = if to == from { e } else { 0.0 };
+                let lost = 0.5 * (1.0 - e_eff * e_eff) * (m11 - m12 * m12 / m22) * x[2] * x[2];
+                assert!(lost > 0.0);
+                assert!(
+                    ((t0 - t1) - lost).abs() < 1e-12 * (1.0 + t0),
+                    "e {e}: {t0} -> {t1}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_physical_landing_is_mirror_symmetric() {
+    let mut rng = Rng(0x5a11);
+    for e in [0.0, 0.5] {
+        let p = physical(e);
+        for _ in 0..100 {
+            let x = striking(&mut rng, Mode::Left);
+            let (l, r) = (
+                ImpactLaw::Physical.land(&p, Mode::Left, &x),
+                ImpactLaw::Physical.land(&p, Mode::Right, &mirror(&x)),
+            );
+            use tilting_plant::Landing::{Plastic, Rebound};
+            let (xl, xr) = match (l, r) {
+                (Plastic(a), Plastic(b)) | (Rebound(a), Rebound(b)) => (a, b),
+                other => panic!("the mirror lands differently: {other:?}"),
+            };
+            assert!((mirror(&xl) - xr).norm() < 1e-13, "{xl:?} vs {xr:?}");
+        }
+    }
+}
+
+#[test]
+fn the_papers_law_gains_energy_where_the_physical_law_loses_it() {
+    // On the paper's robot at the orbit's landing (beta near pi/2, the plate striking at
+    // -0.2 rad/s, the arm at 0.5 rad/s): the paper's law keeps the momentum about the pivot
+    // edge and ends with more kinetic energy than it started with, about 12 %; the physical
+    // law with less.
+    let p = Params::default();
+    let x = State::new(0.0, FRAC_PI_2 - 2e-4, -0.2, -0.5);
+    let t = |mode: Mode, x: &State| kinetic(&p, mode, x[0], x[1], x[2], x[3]);
+    let t0 = t(Mode::Left, &x);
+    let paper = t(Mode::Flat, &ImpactLaw::Paper.apply(&p, Mode::Left, &x)) / t0;
+    let phys = t(Mode::Flat, &ImpactLaw::Physical.apply(&p, Mode::Left, &x)) / t0;
+    assert!(paper > 1.05, "the paper's law: T+/T- = {paper}");
+    assert!(phys < 1.0, "the physical law: T+/T- = {phys}");
+}
+
+/// Records every transition.
+#[derive(Default)]
+struct Transitions(Vec<Transition>);
+impl Observer for Transitions {
+    fn transition(&mut self, ev: &Transition) {
+        self.0.push(*ev);
+    }
+}
+
+/// The arm held upright by a PD through the computed torque (the plate left to itself).
+struct Upright(Params);
+impl tilting_plant::TorqueLaw for Upright {
+    fn torque(&self, _t: f64, mode: Mode, x: &State) -> f64 {
+        let v = -100.0 * (x[1] - FRAC_PI_2) - 20.0 * x[3];
+        torque_for_beta_ddot(&self.0, mode, x, v)
+    }
+}
+
+#[test]
+fn a_rebounding_plate_tilts_again_over_the_same_edge_and_settles() {
+    // The plate let go 0.05 rad tilted over its left edge, the arm held upright, the physical
+    // law with e = 0.5: each landing above the threshold is a touch (Left -> Flat) and a new
+    // left tilt at the same instant with alpha_dot+ = -e alpha_dot- and p_beta kept; the
+    // bounces shrink by e until one lands plastically (the arm's reaction then rocks the
+    // plate over the other edge, where the same happens).
+    let p = physical(0.5);
+    let cfg = SimConfig {
+        impact: ImpactLaw::Physical,
+        ..tight(p)
+    };
+    let x0 = State::new(0.05, FRAC_PI_2, 0.0, 0.0);
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
+    let mut obs = Transitions::default();
+    plant
+        .advance_continuous(&Upright(p), 0.5, &mut obs)
+        .unwrap();
+    let ev = &obs.0;
+    let (mut bounced, mut plastic) = (0, 0);
+    for (i, w) in ev.iter().enumerate().filter(|(_, w)| w.to == Mode::Flat) {
+        let before = w.x_before;
+        let next = ev.get(i + 1).filter(|n| n.t == w.t && n.to == w.from);
+        match next.filter(|n| n.x_after[2] != 0.0) {
+            // A rebound: over the same edge, alpha_dot+ = -e alpha_dot-, p_beta kept.
+            Some(n) => {
+                let after = n.x_after;
+                assert!(
+                    (after[2] + 0.5 * before[2]).abs() < 1e-12,
+                    "{before:?} -> {after:?}"
+                );
+                let (b0, b1) = (p_beta(&p, w.from, &before), p_beta(&p, w.from, &after));
+                assert!((b1 - b0).abs() < 1e-11 * (1.0 + b0.abs()));
+                assert!(2.0 * p.f * 0.5 * before[2].abs() >= tilting_plant::REBOUND_MIN_SPEED);
+                bounced += 1;
+            }
+            // Plastic: only below the threshold (the plate may then tip over either edge
+            // under the arm's torque, starting at rest).
+            None => {
+                assert!(2.0 * p.f * 0.5 * before[2].abs() < tilting_plant::REBOUND_MIN_SPEED);
+                assert_eq!((w.x_after[0], w.x_after[2]), (0.0, 0.0));
+                plastic += 1;
+            }
+        }
+    }
+    // From 0.58 rad/s down to the 0.02 rad/s threshold by halving: 5 rebounds, then plastic.
+    assert_eq!(
+        ev[..11].iter().filter(|e| e.to == Mode::Left).count(),
+        5,
+        "{ev:#?}"
+    );
+    assert!(bounced >= 5 && plastic >= 1, "{bounced} {plastic}");
+}
+
+#[test]
+fn bad_landing_values_are_refused_with_the_field_and_its_range() {
+    for (text, field) in [
+        ("i_f = -0.1", "i_f"),
+        ("impact = \"physical\"\nrestitution = 1.0", "restitution"),
+        ("impact = \"physical\"\nrestitution = -0.1", "restitution"),
+        ("restitution = 0.2", "restitution"),
+        ("impact = \"bouncy\"", "impact"),
+    ] {
+        let e = Params::from_toml_str(text).unwrap_err().to_string();
+        assert!(e.contains(field), "{text}: {e}");
+    }
+    let p = Params::from_toml_str("impact = \"physical\"\nrestitution = 0.2\ni_f = 0.08").unwrap();
+    assert_eq!(
+        (p.impact, p.restitution, p.i_f),
+        (ImpactLaw::Physical, 0.2, 0.08)
+    );
+    // Written back and read again, the same robot.
+    assert_eq!(Params::from_toml_str(&p.to_toml_string()).unwrap(), p);
 }

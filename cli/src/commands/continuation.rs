@@ -136,7 +136,7 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     if let Some(h) = args.control_period {
         check("control-period", h, h > 0.0 && h <= 0.05, "in (0, 0.05] s")?;
     }
-    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let pb = OrbitProblem::new(params, params.impact, args.kp, args.kd);
     // The parameter's start value (the adaptation's E_av does not enter any parameter).
     let p0 = args.param.get(&pb.with_adaptation(args.k, 0.0));
     let to = match (args.to, args.param) {
@@ -442,7 +442,7 @@ pub fn stability(args: &StabilityArgs) -> Result<(), CommandError> {
     let (ok, range) = p2.allows(lo);
     check("from2", lo, ok, range)?;
     check("to2", hi, hi > lo, "finite and > --from2")?;
-    let pb = OrbitProblem::new(params, args.model.impact, args.kp, args.kd);
+    let pb = OrbitProblem::new(params, params.impact, args.kp, args.kd);
     let base_p2 = p2.get(&pb);
     if !(lo..=hi).contains(&base_p2) {
         return Err(usage(format!(

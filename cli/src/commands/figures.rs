@@ -79,7 +79,7 @@ pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
     };
     let ctx = Figures {
         params,
-        impact: args.model.impact,
+        impact: params.impact,
         set,
         out,
     };

@@ -28,9 +28,10 @@ pub struct ModelArgs {
     /// The model's parameter file.
     #[command(flatten)]
     pub params: ParamsArgs,
-    /// Landing impact law
-    #[arg(long, default_value = "paper", value_parser = parse_impact)]
-    pub impact: ImpactLaw,
+    /// Landing impact law: paper, striking-edge or physical [default: the params file's
+    /// `impact`, else paper]
+    #[arg(long, value_name = "LAW", value_parser = parse_impact)]
+    pub impact: Option<ImpactLaw>,
     /// Print one JSON object instead of a human summary
     #[arg(long)]
     pub json: bool,
@@ -41,11 +42,14 @@ fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
 }
 
 impl ModelArgs {
-    /// The parameters of `--params`, or the paper's.
+    /// The parameters of `--params`, or the paper's, with the landing law of `--impact` when
+    /// given (it overrides the file's `impact`).
     pub fn params(&self) -> Result<Params, CommandError> {
-        self.params
+        let p = self
+            .params
             .params()
-            .map_err(|e| CommandError::Usage(e.into()))
+            .map_err(|e| CommandError::Usage(e.into()))?;
+        Ok(p.with_impact(p.impact_or(self.impact)))
     }
 }
 

@@ -58,7 +58,7 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
     let law = args.law()?;
     let energy_avg = args.law.energy_avg.filter(|_| law.k > 0.0);
-    let report = jobs::orbits(params, args.model.impact, law.kp, law.kd, law.k, energy_avg)
+    let report = jobs::orbits(params, params.impact, law.kp, law.kd, law.k, energy_avg)
         .map_err(job_error)?;
     emit(args.model.json, &report, || {
         let mut s = format!(
@@ -208,7 +208,11 @@ fn bifurcation_job(args: &BifurcationArgs) -> Result<BifurcationJob, CommandErro
         kd: args.kd,
         period_tol: args.period_tol,
     };
-    BifurcationJob::new(args.model.params()?, args.model.impact, &range).map_err(job_error)
+    {
+        let params = args.model.params()?;
+        BifurcationJob::new(params, params.impact, &range)
+    }
+    .map_err(job_error)
 }
 
 /// A job's error: a usage error for an invalid input, a failure otherwise.
@@ -344,9 +348,10 @@ pub fn merge_gains(shards: Shards) -> Result<(), CommandError> {
 
 /// Checks the grid flags and returns the job.
 pub fn gains_job(args: &GainsArgs) -> Result<GainsJob, CommandError> {
+    let params = args.model.params()?;
     GainsJob::new(
-        args.model.params()?,
-        args.model.impact,
+        params,
+        params.impact,
         [args.kp_from, args.kp_to, args.kp_step],
         [args.kd_from, args.kd_to, args.kd_step],
     )

@@ -475,8 +475,11 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         .await?;
     let torque = TypedPublisher::declare(&session, keys.controller_torque(), Qos::Control).await?;
     let params = law.config().params;
+    // The model lands by the robot's law (its parameter file's `impact`): the estimator and
+    // the predictor apply it at the landings they see coming.
     let model = tilting_plant::SimConfig {
         params,
+        impact: params.impact,
         ..tilting_plant::SimConfig::default()
     };
     let node = Arc::new(Node {
@@ -517,6 +520,7 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
             };
             let model = tilting_plant::SimConfig {
                 params,
+                impact: params.impact,
                 ..tilting_plant::SimConfig::default()
             };
             Mutex::new(Prediction {

@@ -69,9 +69,10 @@ pub struct PlantArgs {
     /// paper's tilting orbit, `tilting_plant::paper::orbit_x0`]
     #[arg(long, value_name = "A,B,AD,BD", value_parser = crate::parse_x0, allow_hyphen_values = true)]
     pub x0: Option<[f64; 4]>,
-    /// Landing impact law: paper or striking-edge
-    #[arg(long, default_value = "paper")]
-    pub impact: ImpactLaw,
+    /// Landing impact law: paper, striking-edge or physical [default: the params file's
+    /// `impact`, else paper]
+    #[arg(long, value_name = "LAW")]
+    pub impact: Option<ImpactLaw>,
     /// The model's parameter file.
     #[command(flatten)]
     pub params: crate::ParamsArgs,
@@ -259,10 +260,11 @@ impl PlantArgs {
     /// `--mass-error` applied to the arm mass of `--params`.
     pub fn sim_config(&self) -> anyhow::Result<SimConfig> {
         let params = self.params.params()?;
+        let params = params.with_impact(params.impact_or(self.impact));
         let params = self.imperfections()?.plant_params(&params);
         Ok(SimConfig {
             params,
-            impact: self.impact,
+            impact: params.impact,
             tol: Tolerance {
                 rtol: self.rtol,
                 atol: self.rtol * 1e-2,

@@ -77,7 +77,7 @@ pub struct Scenario {
     /// 0 stands for none given (see [`Scenario::resolve`]).
     #[serde(flatten)]
     pub law: LawSpec,
-    /// Landing impact law.
+    /// Landing impact law: the `impact` of a layer, else the plant's parameter file's.
     pub impact: ImpactLaw,
     /// Simulated time (s), from `t = 0`.
     pub duration: f64,
@@ -120,6 +120,7 @@ impl Scenario {
         let mut s = Self::default();
         let mut e_given = false;
         let mut start_given = false;
+        let mut impact_given = false;
         for l in layers {
             if let Some(v) = l.params {
                 s.params = v;
@@ -138,6 +139,7 @@ impl Scenario {
             e_given |= l.law.energy_avg.is_some();
             if let Some(v) = l.impact {
                 s.impact = v;
+                impact_given = true;
             }
             if let Some(v) = l.duration {
                 s.duration = v;
@@ -148,6 +150,10 @@ impl Scenario {
             if let Some(v) = l.rtol {
                 s.rtol = v;
             }
+        }
+        if !impact_given {
+            // The robot's own law: the plant's parameter file's `impact` key.
+            s.impact = s.plant_params().impact;
         }
         if !e_given && !s.builtin_differences().is_empty() {
             s.law.energy_avg = 0.0;
@@ -231,7 +237,7 @@ impl Scenario {
     /// and tolerances.
     pub fn sim_config(&self) -> SimConfig {
         SimConfig {
-            params: self.plant_params(),
+            params: self.plant_params().with_impact(self.impact),
             impact: self.impact,
             tol: Tolerance {
                 rtol: self.rtol,
