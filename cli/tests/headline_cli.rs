@@ -12,7 +12,7 @@
 //! mean within 4 %, and at most 10 lift-offs below 0.01 rad (sensor noise). Measured on this
 //! robot and another one, 4 noise seeds each (`bench/headline.sh`, README): 226-227 tilts, the
 //! last peak more than 10 % off is the 7th at worst, the worst after the 10th 4.2-7.2 % off,
-//! the mean -0.8 to -1.1 %, 0 or 1 noise lift-off (docs/architecture.md, "State estimation in
+//! the mean -0.8 to -1.1 %, 0 or 1 noise lift-off (bench/decisions-2026-11-28.md, "State estimation in
 //! the controller"). Tilts
 //! counted: lift-offs whose peak exceeds 0.01 rad, a quarter of the orbit's; the first 10 are
 //! the settling of the trim (the first tilt starts from the paper's initial state, 15-30 %

@@ -71,7 +71,7 @@ pub const TRIM_GAIN: f64 = 0.02;
 /// every point (0.2: three misses, `f` 10 to 12 % low; 0.3: eight), and in 0.25 % steps over
 /// ±11 % (490 runs). Made only when the law is the paper's and its first state the paper's
 /// orbit start (the start of another model's orbit is not known here: a start off it would
-/// read as a mismatch; docs/architecture.md).
+/// read as a mismatch; bench/decisions-2026-11-28.md).
 pub const FIRST_TRIM_EXPONENT: f64 = 0.15;
 /// A tilt whose peak is below this share of `p*` does not trim the scale: with noisy angles
 /// and `--predict`, the law sees predicted states, whose mode flickers at a landing (a

@@ -7,7 +7,7 @@
 //! built lazily (three extra stages only for steps that contain an event), a step can be cut
 //! to end exactly on a sample instant, and the step-size memory is plain data the plant carries
 //! across zero-order-hold periods so that a lockstep run reproduces an offline one bit for bit.
-//! See `docs/architecture.md` for the comparison with `diffsol`.
+//! See `bench/decisions-2026-11-28.md` for the comparison with `diffsol`.
 
 // The coefficients are quoted with all the digits published for them.
 #![allow(clippy::excessive_precision)]

@@ -717,7 +717,7 @@ fn held_path_transition_times_match_a_tight_reference() {
         "per-segment transition time error {worst:e} s"
     );
     // 2. Globally over the first 2 s: the 1 kHz hold amplifies any difference about 2x per
-    //    half period (docs/architecture.md), so two correct runs drift apart; over 2 s two
+    //    half period (bench/decisions-2026-11-28.md), so two correct runs drift apart; over 2 s two
     //    references with different step caps differ by about 5e-13 s, within the 1e-12 s asked.
     let reference = held_orbit(reference_config(), false, 2.0);
     let ev = |p: &[Period]| -> Vec<Transition> {

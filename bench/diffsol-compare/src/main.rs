@@ -6,7 +6,7 @@
 //!    call and in 1 ms pieces;
 //! 3. the same orbit under a 1 kHz zero-order hold (the networked plant's setting).
 //!
-//! Results and the decision: `docs/architecture.md`, "Integrator: own DOP853 vs diffsol".
+//! Results and the decision: `bench/decisions-2026-11-28.md`, "Integrator: own DOP853 vs diffsol".
 //!
 //! Not part of the workspace (CI never builds diffsol): it has its own `[workspace]` table.
 //! Run by hand: `cd bench/diffsol-compare && cargo run --release` (build about 1 to 2.5 min on
