@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 17's headline chain (README, "The same chain measured as hardware measures") over noise
+# The headline chain (docs/guide/real-robot.md, "The same chain measured as hardware measures") over noise
 # seeds and robots: for each robot and each seed 0 .. SEEDS-1 it runs the README's commands
 # with `--seed SEED` on every `simulate` (the README's single run is seed 0, the default):
 # a 300 s flat excitation and a 30 s orbit recorded with `--measure angles`, 1 mrad of noise
