@@ -142,6 +142,12 @@ pub struct LiveArgs {
     /// the loop. Needs root, CAP_SYS_NICE or an rtprio limit (`ulimit -r`) of at least it
     #[arg(long, value_name = "1-99", num_args = 0..=1, default_missing_value = "20")]
     pub realtime: Option<i32>,
+    /// Run this command as the plant instead of `tilting-plant` (a MuJoCo model, a real robot's
+    /// driver): a shell command line, run as `sh -c 'exec CMD "$@"'` with the flags
+    /// `tilting-plant` would get appended (session, ids, rate, duration, ...; docs/mujoco.md).
+    /// Its stdout is `plant.json` (its last JSON line the summary), its stderr `plant.log`
+    #[arg(long, value_name = "CMD")]
+    pub plant_cmd: Option<String>,
     /// `--ros2`: the plant as a ROS 2 node too.
     #[command(flatten)]
     pub ros2: ros2::LiveRos2Args,
@@ -298,6 +304,11 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
         }
         crate::supervise::check_fifo(p).map_err(|e| usage(e.context("--realtime")))?;
     }
+    if args.plant_cmd.as_ref().is_some_and(|c| c.trim().is_empty()) {
+        return Err(usage(anyhow!(
+            "invalid `--plant-cmd` = \"\": give a command, e.g. \"python3 -m tilting_mujoco\""
+        )));
+    }
     if args.port == Some(0) {
         return Err(usage(anyhow!(
             "invalid `--port` = 0: allowed 1 to 65535 (omit it for a free port)"
@@ -355,6 +366,9 @@ fn announce(job: &Job) {
             "live: zenoh ids: plant {p}, controller {c} (messages from other sessions are \
              refused; `tilting record --plant-id {p} --controller-id {c}` records this run)"
         );
+    }
+    if let Some(cmd) = &args.plant_cmd {
+        eprintln!("live: the plant is `{cmd}` (given the flags of tilting-plant)");
     }
     if let Some(p) = args.realtime {
         eprintln!("live: the plant and the controller run under SCHED_FIFO {p} (every thread)");

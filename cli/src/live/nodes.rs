@@ -300,16 +300,26 @@ fn id_flags(
     v
 }
 
-/// Starts the plant; it publishes state 0 until a controller shows up.
+/// Starts the plant; it publishes state 0 until a controller shows up. With `--plant-cmd`,
+/// that command instead, by `sh -c 'exec CMD "$@"'` with the same flags appended (`exec`: the
+/// signals that stop the plant reach the command itself, not a shell waiting for it).
 pub(super) fn spawn_plant(
     job: &Job,
     topo: &Topology,
     bins: &NodeBinaries,
 ) -> anyhow::Result<Child> {
+    let args = plant_args(job, topo);
+    let Some(cmd) = &job.args.plant_cmd else {
+        return Child::spawn_with("plant", &bins.plant, &args, &job.dir, job.args.realtime);
+    };
+    let sh: Vec<String> = ["-c".into(), format!("exec {cmd} \"$@\""), "plant".into()]
+        .into_iter()
+        .chain(args)
+        .collect();
     Child::spawn_with(
         "plant",
-        &bins.plant,
-        &plant_args(job, topo),
+        std::path::Path::new("/bin/sh"),
+        &sh,
         &job.dir,
         job.args.realtime,
     )

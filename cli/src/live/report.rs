@@ -164,6 +164,7 @@ pub(super) fn summarise(
         planner: o.planner,
         png,
         plant_exit: o.stopped.plant.to_string(),
+        plant_cmd: args.plant_cmd.clone(),
         controller_exit: o.stopped.controller.map(|s| s.to_string()),
         plant: o.plant.take(),
         controller: o.controller.take(),

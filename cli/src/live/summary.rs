@@ -253,6 +253,9 @@ pub struct LiveSummary {
     pub png: bool,
     /// The plant's exit status.
     pub plant_exit: String,
+    /// `--plant-cmd`: the command that ran as the plant instead of `tilting-plant`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plant_cmd: Option<String>,
     /// The controller's exit status (`null` if it never started).
     pub controller_exit: Option<String>,
     /// The plant's own summary.
