@@ -339,7 +339,8 @@ fn no_function_is_long_without_a_reason() {
 // command line, every file and link).
 
 /// The Markdown files a reader meets: the README, `docs/` (the guide included), the dated
-/// decision records under `bench/`, and the examples' README.
+/// decision records under `bench/`, and the READMEs of the examples, `third_party/` and the
+/// figures' assets.
 fn doc_files() -> Vec<PathBuf> {
     fn md_under(dir: &Path, out: &mut Vec<PathBuf>) {
         let Ok(entries) = std::fs::read_dir(dir) else {
@@ -358,6 +359,8 @@ fn doc_files() -> Vec<PathBuf> {
     let mut files = vec![
         root.join("README.md"),
         root.join("examples/python/README.md"),
+        root.join("third_party/README.md"),
+        root.join("viz/assets/README.md"),
     ];
     md_under(&root.join("docs"), &mut files);
     if let Ok(entries) = std::fs::read_dir(root.join("bench")) {
