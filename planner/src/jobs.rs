@@ -468,6 +468,53 @@ pub fn orbits(
     })
 }
 
+/// The adapted loop's orbit with the wanted `peak` (rad): the `E_av` (J) for it, found by
+/// [`crate::peak::energy_for_peak`] for the gains `kp` (1/s^2), `kd` (1/s) and `k > 0`
+/// (1/(J s^2)). Reported as [`orbits`] reports, with the one orbit and its `E_av`; a peak the
+/// family does not reach is refused naming the largest (or smallest) one it does.
+pub fn orbit_for_peak(
+    params: Params,
+    impact: ImpactLaw,
+    [kp, kd, k]: [f64; 3],
+    peak: f64,
+    tick: &dyn Fn(&str),
+) -> Result<OrbitReport, JobError> {
+    check("kp", kp, kp > 0.0, "finite and > 0")?;
+    check("kd", kd, kd > 0.0, "finite and > 0")?;
+    check(
+        "k",
+        k,
+        k > 0.0,
+        "finite and > 0 (the peak is set through E_av)",
+    )?;
+    check(
+        "peak",
+        peak,
+        peak > 0.0 && peak < 1.5,
+        "finite, > 0 and < 1.5 (rad)",
+    )?;
+    if params.restitution != 0.0 {
+        return Err(JobError::Invalid(format!(
+            "invalid `restitution` = {}: the planner plans plastic landings only (0); the \
+             plant simulates rebounds",
+            params.restitution
+        )));
+    }
+    let pb = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
+    let found = crate::peak::energy_for_peak(&pb, &crate::peak::PeakSearch::new(peak), tick)
+        .map_err(|e| match e {
+            crate::peak::PeakError::NoOrbit { .. } => JobError::Failed(e.to_string()),
+            _ => JobError::Invalid(e.to_string()),
+        })?;
+    Ok(OrbitReport {
+        kp,
+        kd,
+        k,
+        energy_avg_adaptation: Some(found.energy_avg_adaptation),
+        solutions: vec![found.orbit],
+    })
+}
+
 /// Approach 1: the frequency of `beta_d = A sin(w t) + pi/2` (`amplitude` A in rad) whose
 /// ideal-tracking tilt lands at `t_l = T/2 + s t_t` (`landing_offset` s), searched in
 /// `[omega_min, omega_max]` (rad/s).

@@ -4,6 +4,7 @@
 //!   tilt lands at a chosen instant, and the `(A, w)` partition of Fig. 4;
 //! - [`orbit`]: approach 2, periodic tilting orbits of the closed loop by Newton shooting, with
 //!   their Floquet multipliers;
+//! - [`peak`]: the adaptation's energy target `E_av` for a wanted tilt peak;
 //! - [`gains`]: orbits over a `(K_P, K_D)` grid (Fig. 6);
 //! - [`bifurcation`]: the sweep over the adaptation gain `k` (Fig. 8) and `k*`;
 //! - [`continuation`]: pseudo-arclength continuation of the orbits, flips, folds and
@@ -30,5 +31,6 @@ pub mod margins;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod orbit;
+pub mod peak;
 pub mod shard;
 pub mod sinusoid;

@@ -315,3 +315,132 @@ fn a_sweep_row_is_a_plain_simulation_of_the_loop() {
         assert!(row.peaks.iter().all(|p| (0.01..0.2).contains(p)));
     }
 }
+
+// ---- The energy target for a wanted peak ------------------------------------------------------
+
+/// Records the tilt extremes.
+#[derive(Default)]
+struct Peaks(Vec<f64>);
+impl Observer for Peaks {
+    fn tilt_peak(&mut self, p: &tilting_plant::TiltPeak) {
+        self.0.push(p.alpha);
+    }
+}
+
+/// The adapted loop run by the hybrid simulator (not the shooting) from the paper's orbit
+/// start for `t_end` s: the tilt peaks (rad).
+fn adapted_peaks(
+    params: Params,
+    impact: ImpactLaw,
+    kd: f64,
+    energy_avg: f64,
+    t_end: f64,
+) -> Vec<f64> {
+    let law = ComputedTorque::new(ControlConfig {
+        params,
+        law: LawSpec {
+            kd,
+            k: 500.0,
+            energy_avg,
+            ..LawSpec::default()
+        },
+    })
+    .unwrap();
+    let cfg = SimConfig {
+        params,
+        impact,
+        ..tight()
+    };
+    let x0 = OrbitProblem::start(
+        tilting_plant::paper::ORBIT_BETA0,
+        tilting_plant::paper::ORBIT_BETA_DOT0,
+    );
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
+    let mut peaks = Peaks::default();
+    plant.advance_continuous(&law, t_end, &mut peaks).unwrap();
+    peaks.0
+}
+
+#[test]
+fn the_energy_for_a_peak_gives_that_peak_in_a_closed_loop_simulation() {
+    use tilting_planner::peak::{energy_for_peak, PeakSearch};
+    // The physical law (the plate lands plastically, p_beta kept): the paper's k = 0 orbit
+    // does not exist, the family of the adapted loop is found from a scan of E_av. The
+    // simulated loop, started from the paper's orbit (not this one), settles on the peak.
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        ..Params::default()
+    };
+    let pb =
+        OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
+    assert!(orbit::find_all(&OrbitProblem::new(
+        params,
+        ImpactLaw::Physical,
+        100.0,
+        14.14
+    ))
+    .is_empty());
+    let found = energy_for_peak(&pb, &PeakSearch::new(0.018), &|_| {}).unwrap();
+    assert!(
+        (found.orbit.max_tilt - 0.018).abs() < 1e-9,
+        "{:?}",
+        found.orbit
+    );
+    assert!(found.orbit.stable);
+    let peaks = adapted_peaks(
+        params,
+        ImpactLaw::Physical,
+        14.14,
+        found.energy_avg_adaptation,
+        30.0,
+    );
+    // After 25 s (multipliers 0.85 and 0.07: the transient decays by 0.85 per half period,
+    // 1e-17 over 86 tilts), the last peaks are the orbit's, alternating, to 1e-6 rad.
+    let last = &peaks[peaks.len() - 6..];
+    for w in last.windows(2) {
+        assert!(w[0] * w[1] < 0.0, "alternating: {last:?}");
+    }
+    for p in last {
+        assert!((p.abs() - 0.018).abs() < 1e-6, "{last:?}");
+    }
+    // And with the paper's law, asked for the peak of the paper's own adapted orbit, the
+    // search gives back the paper's E_av (the k = 0 orbit's, 19.963439703 J).
+    let paper = OrbitProblem::new(Params::default(), ImpactLaw::Paper, 100.0, 14.14)
+        .with_adaptation(500.0, tilting_plant::paper::ORBIT_ENERGY_AVG);
+    use tilting_plant::paper::{ORBIT_BETA0, ORBIT_BETA_DOT0, ORBIT_HALF_PERIOD};
+    let s = orbit::solve(&paper, [ORBIT_BETA0, ORBIT_BETA_DOT0, ORBIT_HALF_PERIOD]).unwrap();
+    let back = energy_for_peak(&paper, &PeakSearch::new(s.max_tilt), &|_| {}).unwrap();
+    assert!(
+        (back.energy_avg_adaptation - tilting_plant::paper::ORBIT_ENERGY_AVG).abs() < 1e-7,
+        "{}",
+        back.energy_avg_adaptation
+    );
+}
+
+#[test]
+fn a_peak_beyond_the_family_is_refused_naming_the_largest() {
+    use tilting_planner::peak::{energy_for_peak, PeakError, PeakSearch};
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        ..Params::default()
+    };
+    let pb =
+        OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
+    match energy_for_peak(&pb, &PeakSearch::new(0.04), &|_| {}) {
+        Err(PeakError::Unreachable {
+            largest,
+            energy_avg,
+            ..
+        }) => {
+            // 0.018 was reached above; the largest lies between it and the wanted 0.04, and
+            // an orbit with it exists at the E_av named.
+            assert!(largest > 0.018 && largest < 0.04, "{largest}");
+            let s = orbit::find_all(&pb.with_adaptation(500.0, energy_avg));
+            assert!(
+                s.iter().any(|o| (o.max_tilt - largest).abs() < 1e-6),
+                "{largest} at {energy_avg}: {s:?}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+}

@@ -13,7 +13,7 @@ use tilting_planner::jobs::{
 };
 pub use tilting_planner::jobs::{BifurcationReport, GainsReport, OrbitReport};
 use tilting_planner::shard::Shard;
-use tilting_plant::paper::{ORBIT_KD, ORBIT_KP};
+use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 
 /// `orbit`: the periodic orbits of approach 2 for one gain pair.
 #[derive(Debug, Clone, Args)]
@@ -35,6 +35,10 @@ pub struct OrbitArgs {
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
+    /// Find the adaptation's E_av (J) for which the adapted loop tilts with this peak |alpha|
+    /// (rad), for any landing law; k defaults to the paper's 500 [default: off]
+    #[arg(long, value_name = "RAD")]
+    pub peak: Option<f64>,
 }
 
 impl OrbitArgs {
@@ -58,8 +62,24 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
     let law = args.law()?;
     let energy_avg = args.law.energy_avg.filter(|_| law.k > 0.0);
-    let report = jobs::orbits(params, params.impact, law.kp, law.kd, law.k, energy_avg)
-        .map_err(job_error)?;
+    let report = match args.peak {
+        Some(peak) => {
+            if args.law.energy_avg.is_some() {
+                return Err(usage(
+                    "`--peak` finds E_av: give --peak or --energy-avg, not both".into(),
+                ));
+            }
+            let k = if law.k > 0.0 { law.k } else { ORBIT_K };
+            let b = spinner(args.model.json);
+            let tick = |what: &str| b.set_message(what.to_owned());
+            let r = jobs::orbit_for_peak(params, params.impact, [law.kp, law.kd, k], peak, &tick);
+            b.finish_and_clear();
+            r
+        }
+        None => jobs::orbits(params, params.impact, law.kp, law.kd, law.k, energy_avg),
+    }
+    .map_err(job_error)?;
+    let law = LawSpec { k: report.k, ..law };
     emit(args.model.json, &report, || {
         let mut s = format!(
             "periodic orbits for K_P = {}, K_D = {}, k = {} ({} found)\n",
@@ -71,8 +91,12 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
         if let Some(e) = report.energy_avg_adaptation {
             // The orbit's own E_av below is its mean energy; the adaptation's is the k = 0
             // orbit's, the one `simulate`/`live --energy-avg` need to run this orbit.
+            let whose = match args.peak {
+                Some(p) => format!("for the peak {p} rad"),
+                None => "the k = 0 orbit's".into(),
+            };
             s += &format!(
-                "  adaptation E_av = {e:.9} J (the k = 0 orbit's): run it with --k {} \
+                "  adaptation E_av = {e:.9} J ({whose}): run it with --k {} \
                  --energy-avg {e:.9}\n",
                 law.k
             );
@@ -104,6 +128,16 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
         }
         s
     })
+}
+
+/// A spinner on stderr with a message per stage (hidden with `--json` or off a terminal).
+fn spinner(json: bool) -> indicatif::ProgressBar {
+    if json || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        return indicatif::ProgressBar::hidden();
+    }
+    let b = indicatif::ProgressBar::new_spinner();
+    b.enable_steady_tick(std::time::Duration::from_millis(200));
+    b
 }
 
 // ---------------------------------------------------------------------------------------------
