@@ -970,3 +970,25 @@ fn the_readme_and_the_guide_carry_no_commit_hashes_or_issue_numbers() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// The README's two command lines are the ones a newcomer types, and CI runs the second.
+#[test]
+fn the_readme_gives_the_two_commands_and_ci_runs_its_test_command() {
+    let root = workspace_root();
+    let (code, _) = split_fences(&read_doc(&root.join("README.md")));
+    for line in [
+        "cargo build --release --workspace && ./target/release/tilting live --duration 20",
+        "cargo test --workspace --release",
+    ] {
+        assert!(
+            code.iter().any(|l| l.trim() == line),
+            "the README's code blocks lack the command line `{line}`"
+        );
+    }
+    let ci = read_doc(&root.join(".ci/run"));
+    assert!(
+        ci.lines()
+            .any(|l| l.trim() == "cargo test --workspace --release"),
+        ".ci/run no longer runs the README's test command `cargo test --workspace --release`"
+    );
+}
