@@ -221,6 +221,16 @@ impl Job<'_> {
         }
     }
 
+    /// The controller's model and the robot the plant simulates (checked by `check`; the
+    /// paper's without a file).
+    fn params(&self) -> (tilting_plant::Params, tilting_plant::Params) {
+        let (_, ctl) = self.args.params_files();
+        let model = ctl
+            .and_then(|f| tilting_plant::Params::from_toml_file(&f).ok())
+            .unwrap_or_default();
+        (model, self.plant_params())
+    }
+
     /// The robot the plant simulates (checked by `check`; the paper's without a file).
     fn plant_params(&self) -> tilting_plant::Params {
         let (plant, _) = self.args.params_files();
@@ -401,8 +411,13 @@ async fn live(
         job.ids,
     )?;
     announce(job);
-    let (scenario, check) =
-        orbit::nominal(&job.reference, job.args.rate, job.args.duration).await?;
+    let (scenario, check) = orbit::nominal(
+        &job.reference,
+        job.params(),
+        job.args.rate,
+        job.args.duration,
+    )
+    .await?;
     if check.is_none() {
         eprintln!("live: the law has no nominal orbit to compare with (no orbit verdict)");
     }

@@ -10,6 +10,7 @@ use super::summary::{OrbitState, OrbitVerdict};
 use anyhow::Context as _;
 use tilting_controller::LawSpec;
 use tilting_planner::margins::{self, peaks_hold, Criteria, LAST_PEAKS, SECONDS_PER_TILT};
+use tilting_plant::Params;
 use tilting_sim::Scenario;
 
 /// Longest wait for the next tilt (s of plant time) before the orbit counts as lost: three
@@ -25,15 +26,21 @@ pub(super) struct OrbitCheck {
     pub(super) criteria: Criteria,
 }
 
-/// The nominal loop of a live run: the scenario of its law at `rate` (Hz) for `duration` (s),
+/// The nominal loop of a live run: the scenario of its law on the robot (the controller's
+/// `model` and the `plant`'s parameters) at `rate` (Hz) for `duration` (s),
 /// and the check against its orbit (`tilting plan margins`' criterion: the same law at 1 kHz
 /// over a perfect network, simulated here in about 0.1 s); no check when the law has no orbit.
 pub(super) async fn nominal(
     law: &LawSpec,
+    (model, plant): (Params, Params),
     rate: f64,
     duration: f64,
 ) -> anyhow::Result<(Scenario, Option<OrbitCheck>)> {
     let scenario = Scenario {
+        params: model,
+        plant_params: (plant != model).then_some(plant),
+        // The robot lands by its own law (its parameter file's `impact`).
+        impact: plant.impact,
         law: *law,
         control_period: 1.0 / rate,
         duration,

@@ -18,7 +18,8 @@ pub struct ScenarioArgs {
     /// reference).
     #[command(flatten)]
     pub law: LawArgs,
-    /// Landing impact law: paper or striking-edge [default: paper]
+    /// Landing impact law: paper, striking-edge or physical [default: the params file's
+    /// `impact`, else paper]
     #[arg(long, value_name = "LAW")]
     pub impact: Option<ImpactLaw>,
     /// Simulated time (s) [default: 10]
