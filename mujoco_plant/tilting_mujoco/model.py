@@ -14,14 +14,13 @@ applies tau on beta. The arm does not collide.
 
 The contact mode is sensed as a robot would: a touch sensor under each half of the plate sums
 the ground's normal force there; a half carries the plate when its force exceeds 0.5 N (both:
-flat, the left only: tilted left, the right only: tilted right). A half leaves the ground at the
-first step its force is at or below 0.5 N, and touches it again only once its force has stayed
-above for 0.3 ms (debounced, as a contact switch is): a lifting edge of the soft contact
-flickers, touching for 0.1 to 0.2 ms at a few newtons, which would count as landings and tilts;
-a landing's force is hundreds of newtons and lasts. The transition is dated at the first step
-of the touch. MuJoCo computes the forces of the state at the start of each step, so a lift-off
-is seen at most one step (0.1 ms) late, and a landing's mode reaches the published state up to
-0.3 ms late.
+flat, the left only: tilted left, the right only: tilted right). Debounced, as a contact switch
+is: a half touches or leaves the ground once its force has stayed on the other side of 0.5 N for
+0.3 ms. Without it the soft contact's edges flicker after a landing (an edge lifting for 0.1 ms,
+touching again at a few newtons when the torque changes), which counted as landings and tilts of
+1e-4 rad. A transition is dated at the first step of the change (its event's time and states);
+the mode of a published state may lag it by up to 0.3 ms (MuJoCo computes the forces of the
+state at the start of each step).
 """
 
 import math
@@ -205,8 +204,8 @@ class MujocoPlant:
         self.data = mujoco.MjData(self.model)
         self.warn_ids = [(int(getattr(mujoco.mjtWarning, n)), n, why) for n, why in DIVERGENCE_WARNINGS]
         self.mode = mode
-        # Which halves touch the ground (debounced), and for a half not touching whose force is
-        # above the threshold: since which step (t, x before, x after, steps so far).
+        # Which halves touch the ground (debounced), and for a half whose force is on the other
+        # side of the threshold: since which step (t, x before, x after, steps so far).
         self.on = [mode != RIGHT, mode != LEFT]
         self.pending = [None, None]
         self.tilts = 0
@@ -303,17 +302,17 @@ class MujocoPlant:
             t_s = d.time
             x_s = (float(q[2]), float(q[3]), float(v[2]), float(v[3]))
             mujoco.mj_step(m, d)
-            first = None  # the step a touch confirmed now began at
+            first = None  # the step a change confirmed now began at
             for i, force in enumerate((s[0], s[1])):
-                if force <= CONTACT_THRESHOLD:
-                    self.on[i], self.pending[i] = False, None
-                elif not self.on[i]:
-                    pend = self.pending[i] or (t_s, x_prev or x_s, x_s, 0)
-                    pend = pend[:3] + (pend[3] + 1,)
-                    self.pending[i] = pend
-                    if pend[3] >= debounce:
-                        self.on[i], self.pending[i] = True, None
-                        first = pend if first is None or pend[0] < first[0] else first
+                if (force > CONTACT_THRESHOLD) == self.on[i]:
+                    self.pending[i] = None
+                    continue
+                pend = self.pending[i] or (t_s, x_prev or x_s, x_s, 0)
+                pend = pend[:3] + (pend[3] + 1,)
+                self.pending[i] = pend
+                if pend[3] >= debounce:
+                    self.on[i], self.pending[i] = not self.on[i], None
+                    first = pend if first is None or pend[0] < first[0] else first
             self.check_airborne(t_s)
             to = mode_of(self.on[0], self.on[1], self.mode)
             if to != self.mode:

@@ -26,13 +26,15 @@ the end one JSON summary on stdout, with the fields of the Rust plant's (`PlantS
 """
 
 import argparse
-import collections
+import gc
 import json
 import math
 import signal
 import sys
 import threading
 import time
+
+import numpy as np
 
 from . import wire
 from .model import FLAT, INTEGRATORS, LEFT, MODE_NAMES, PRESETS, RIGHT, Contact, Fault, MujocoPlant
@@ -41,16 +43,39 @@ from .params import Params
 ORBIT_X0 = (0.0, math.pi / 2 - 0.000214877415, 0.0, 0.498257789692)
 
 
-def percentile(values, q):
-    s = sorted(values)
-    return s[min(len(s) - 1, int(q * len(s)))] if s else 0.0
+class Window:
+    """The last 4096 samples of a figure in a numpy ring, and the largest of the whole run. Its
+    percentiles (the Rust plant's rule: the sorted window's element at floor(q n)) take a
+    partition in C: the status thread takes them 10 times a second, and sorting Python lists of
+    4096 floats held the GIL for over a millisecond each time, delaying the loop."""
 
+    SIZE = 4096
 
-def window(values, largest, count=None):
-    w = dict(p50=percentile(values, 0.5), p99=percentile(values, 0.99), max=largest)
-    if count is not None:
-        w.update(p999=percentile(values, 0.999), count=count, window=values.maxlen)
-    return w
+    def __init__(self):
+        self.v = np.zeros(self.SIZE)
+        self.n = 0
+        self.largest = 0.0
+
+    def add(self, x):
+        self.v[self.n % self.SIZE] = x
+        self.n += 1
+        if x > self.largest:
+            self.largest = x
+
+    def percentiles(self, *qs):
+        m = min(self.n, self.SIZE)
+        if m == 0:
+            return [0.0] * len(qs)
+        idx = [min(m - 1, int(q * m)) for q in qs]
+        part = np.partition(self.v[:m], idx)
+        return [float(part[i]) for i in idx]
+
+    def summary(self, count=False):
+        p50, p99, p999 = self.percentiles(0.5, 0.99, 0.999)
+        w = dict(p50=p50, p99=p99, max=self.largest)
+        if count:
+            w.update(p999=p999, count=self.n, window=self.SIZE)
+        return w
 
 
 class Node:
@@ -65,9 +90,7 @@ class Node:
         self.published_seq = -1  # newest state published
         self.t_pub = {}  # seq -> monotonic time of its first publication
         self.newest = None  # (seq, tau) of the newest valid torque received
-        self.latency_us = collections.deque(maxlen=4096)
-        self.max_latency = 0.0
-        self.n_latency = 0
+        self.latency_us = Window()
         self.controller_alive = self.controller_seen = False
         expected = wire.id_bytes(args.controller_id) if args.controller_id else None
         lapse = args.lockstep_timeout_ms * 1e-3 if args.clock == "lockstep" else args.watchdog * args.period
@@ -77,10 +100,8 @@ class Node:
             torques_reordered=0, torques_late=0, torques_lost=0, torques_applied=0,
             deadline_misses=0, watchdog_trips=0, safe_periods=0, overruns=0,
         )
-        self.jitter_us = collections.deque(maxlen=4096)
-        self.step_us = collections.deque(maxlen=4096)
-        self.age = collections.deque(maxlen=4096)
-        self.max_jitter = self.max_overrun = self.max_step = self.max_age = 0.0
+        self.jitter_us, self.step_us, self.age = Window(), Window(), Window()
+        self.max_overrun = 0.0
         self.safe_modes = []
         self.state = wire.STARTING
         self.seq = 0
@@ -122,10 +143,7 @@ class Node:
                 self.newest = (seq, tau)
                 t0 = self.t_pub.get(seq)
                 if t0 is not None:
-                    lat = (now - t0) * 1e6
-                    self.latency_us.append(lat)
-                    self.max_latency = max(self.max_latency, lat)
-                    self.n_latency += 1
+                    self.latency_us.add((now - t0) * 1e6)
                 self.cv.notify_all()
 
     def on_controller_alive(self, sample):
@@ -142,17 +160,17 @@ class Node:
     def status_bytes(self, seq):
         with self.cv:
             c, state = dict(self.c), self.state
-            lat, jit, age = list(self.latency_us), list(self.jitter_us), list(self.age)
+            lat = self.latency_us.percentiles(0.5, 0.99)
+        jit, age = self.jitter_us.percentiles(0.5, 0.99), self.age.percentiles(0.5, 0.99)
         sim = self.sim
         return wire.pack_status(
             (
                 seq, sim.t, state, sim.mode, sim.tilts, seq,
                 c["torques_received"], c["torques_dropped"], c["torques_stale"],
                 c["deadline_misses"], c["watchdog_trips"],
-                percentile(jit, 0.5), percentile(jit, 0.99), self.max_overrun,
-                percentile(lat, 0.5), percentile(lat, 0.99),
+                *jit, self.max_overrun, *lat,
                 c["torques_late"], c["torques_lost"], c["torques_reordered"],
-                percentile(age, 0.5), percentile(age, 0.99), self.max_age,
+                *age, self.age.largest,
             ),
             self.fault,
         )
@@ -209,8 +227,7 @@ class Node:
                 self.c["torques_late"] += seq < k
                 self.last_applied = seq
             age = k - seq
-            self.age.append(age)
-            self.max_age = max(self.max_age, float(age))
+            self.age.add(float(age))
             return tau, True
         return tau_prev, False
 
@@ -224,8 +241,7 @@ class Node:
                 seq = k if ev.t >= k * self.a.period else k - 1
                 self.pub_event.put(wire.pack_event(seq, ev))
         cost = (time.perf_counter() - t0) * 1e6
-        self.step_us.append(cost)
-        self.max_step = max(self.max_step, cost)
+        self.step_us.add(cost)
         return events
 
     def t_next(self, k):
@@ -246,9 +262,34 @@ class Node:
             self.safe_modes[-1]["end"] = self.sim.t
         self.set_state(wire.RUNNING, k)
 
+    def sleep_until(self, deadline, answer=None):
+        """Sleeps to `deadline` on the monotonic clock, the last --spin-us busy (yielding the
+        GIL, so a torque arriving then is taken at once). With `answer` (a seq) it returns as
+        soon as the torque answering it is in. Returns whether that torque is in."""
+        spin = self.a.spin_us * 1e-6
+        while not self.done.is_set():
+            now = time.monotonic()
+            with self.cv:
+                if answer is not None and self.newest is not None and self.newest[0] >= answer:
+                    return True
+                if deadline - now > spin:
+                    self.cv.wait(deadline - now - spin) if answer is not None else None
+            if deadline - now > spin:
+                if answer is None:
+                    time.sleep(deadline - now - spin)
+                continue
+            if now >= deadline:
+                return False
+            time.sleep(0)
+        return False
+
     def run_realtime(self, n, record):
+        """State k goes out at the deadline start + k h. Period k is integrated as soon as the
+        answer to k is in (so the integration does not eat into the controller's period), else
+        at the deadline start + (k + 1) h with the torque the age rule gives: the same
+        computation as integrating at the deadline, since the answer to k is the newest torque
+        there can be. Then state k + 1 goes out at its deadline."""
         a, h = self.a, self.a.period
-        spin = a.spin_us * 1e-6
         tau, safe, silent = 0.0, False, 0
         self.last_applied = -1
         start = time.monotonic()
@@ -256,13 +297,7 @@ class Node:
         self.publish_state(0)
         while not self.done.is_set() and k < n:
             deadline = start + (k + 1) * h
-            now = time.monotonic()
-            if deadline - now > spin:
-                time.sleep(deadline - now - spin)
-            while (now := time.monotonic()) < deadline:
-                time.sleep(0)  # yields the GIL: a torque arriving now is taken at once
-            jitter = (now - deadline) * 1e6
-            self.jitter_us.append(jitter)
+            self.sleep_until(deadline, answer=k)
             tau_new, fresh = self.choose_torque(k, tau, safe)
             if fresh:
                 tau, silent = tau_new, 0
@@ -286,11 +321,13 @@ class Node:
                 record.write(f"{k},{self.sim.t!r},{self.sim.mode},{','.join(map(repr, self.sim.x))},{applied!r}\n")
             self.step(k, applied, self.t_next(k))
             k += 1
-            self.publish_state(k)
             late = time.monotonic() - (start + (k + 1) * h)
-            if late > 0:
+            if late > 0:  # the step ended after the next deadline (as the Rust plant counts)
                 self.c["overruns"] += 1
                 self.max_overrun = max(self.max_overrun, late * 1e6)
+            self.sleep_until(deadline)
+            self.jitter_us.add((time.monotonic() - deadline) * 1e6)
+            self.publish_state(k)
         return k
 
     def wait_for_answer(self, seq, safe):
@@ -334,7 +371,7 @@ class Node:
                 self.c["safe_periods"] += 1
             else:
                 self.c["torques_applied"] += 1
-                self.age.append(0)
+                self.age.add(0.0)
                 if safe:
                     safe = False
                     self.leave_safe(k)
@@ -422,7 +459,7 @@ class Node:
         sim, a = self.sim, self.a
         with self.cv:
             c = dict(self.c)
-            lat = self.latency_us
+            lat = self.latency_us.summary(count=True)
         c_ = sim.contact
         return dict(
             result=result,
@@ -437,12 +474,12 @@ class Node:
             tilts=sim.tilts,
             transitions=sim.n_transitions,
             **c,
-            age_periods=window(self.age, self.max_age),
+            age_periods=self.age.summary(),
             safe_modes=self.safe_modes,
             max_overrun_us=self.max_overrun,
-            jitter_us=window(self.jitter_us, max(self.jitter_us, default=0.0)),
-            latency_us=window(lat, self.max_latency, self.n_latency),
-            step_us=window(self.step_us, self.max_step),
+            jitter_us=self.jitter_us.summary(),
+            latency_us=lat,
+            step_us=self.step_us.summary(),
             tilt_peaks=[list(p) for p in sim.peaks.all(sim.t, sim.x[0])[-256:]],
             engine=dict(
                 name="mujoco",
@@ -582,6 +619,9 @@ def main(argv=None):
 
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
-    # zenoh's callback threads wait for the GIL: hand it over within 0.1 ms, not 5 ms.
+    # zenoh's callback threads wait for the GIL: hand it over within 0.1 ms, not 5 ms. And what
+    # exists now (MuJoCo, zenoh, numpy) is never scanned by a full garbage collection.
     sys.setswitchinterval(1e-4)
+    gc.collect()
+    gc.freeze()
     return node.run()
