@@ -502,6 +502,11 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message):
         self.print_usage(sys.stderr)
+        if message.startswith("unrecognized arguments"):
+            message += (
+                " (tilting-plant's flags for an emulated link, imperfect sensors or ROS 2 are not "
+                "this plant's: MuJoCo gives the true state, docs/mujoco.md)"
+            )
         self.exit(1, f"{self.prog}: error: {message}\n")
 
 
@@ -549,8 +554,8 @@ def parser():
     ap.add_argument("--solref", type=floats(2), help="MuJoCo solref TIMECONST,DAMPRATIO (overrides the preset's)")
     ap.add_argument("--solimp", type=floats(5), help="MuJoCo solimp D0,DWIDTH,WIDTH,MID,POWER (overrides the preset's)")
     ap.add_argument("--friction", type=float, help="sliding friction coefficient (overrides the preset's; >= 0.3)")
-    ap.add_argument("--timestep", type=float, help="MuJoCo time step, s (overrides the preset's 1e-4)")
-    ap.add_argument("--integrator", choices=INTEGRATORS, help="MuJoCo's integrator (overrides the preset's Euler)")
+    ap.add_argument("--timestep", type=float, help="MuJoCo time step, s (overrides the preset's 2e-4)")
+    ap.add_argument("--integrator", choices=INTEGRATORS, help="MuJoCo's integrator (overrides the preset's RK4)")
     ap.add_argument("--print-mjcf", action="store_true", help="print the MJCF and exit")
     ap.add_argument("--self-test", action="store_true", help="run the physical checks (no zenoh) and exit")
     return ap
