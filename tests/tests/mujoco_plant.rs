@@ -147,6 +147,51 @@ fn live_runs_the_mujoco_plant() {
     );
 }
 
+/// A fault of the MuJoCo plant is a fault of the live run: started with the plate tilted 1.4
+/// rad and turning at 5 rad/s (its own `--x0`, before the flags `live` appends), it leaves the
+/// ground; it exits with code 3 and the reason, and `live` ends on a fault of the model
+/// (exit code 3) with the plant's fault in `summary.json`.
+#[test]
+fn a_mujoco_fault_ends_the_live_run_as_a_fault() {
+    if !can_run(
+        "a_mujoco_fault_ends_the_live_run_as_a_fault",
+        "mujoco, zenoh",
+    ) {
+        return;
+    }
+    let dir = Scratch::new("mujoco-fault");
+    let out = dir.path().join("out");
+    let cmd = format!("{} --x0=1.4,1.5708,5,0", plant_cmd().join(" "));
+    let args: Vec<String> = [
+        "live",
+        "--robot",
+        &robot("mujoco_fault"),
+        "--out",
+        out.to_str().unwrap(),
+        "--duration",
+        "3",
+        "--plant-cmd",
+        &cmd,
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let status = live.expect_exit(Duration::from_secs(120));
+    assert_eq!(status.code(), Some(3), "{}", live.logs());
+    let summary = live_summary(&out);
+    assert_eq!(summary.result, tilting::live::summary::LiveResult::Failed);
+    let plant = summary.plant.as_ref().expect("the plant's summary");
+    assert_eq!(plant.result, RunResult::Faulted, "{plant:?}");
+    let fault = plant.fault.as_deref().unwrap_or_default();
+    assert!(fault.contains("contact loss"), "{fault}");
+    assert!(
+        live.stdout().contains(&format!("faults: {fault}")),
+        "{}",
+        live.logs()
+    );
+}
+
 /// The MuJoCo plant's own figure for the plate's inertia with the paper's plate (uniform, mass
 /// m_f = 1 kg, length 2f = 1 m): m_f (2f)^2 / 12.
 const PLATE_INERTIA: f64 = 1.0 / 12.0;
