@@ -13,6 +13,7 @@
 use crate::bifurcation::{self, Row, Sweep};
 use crate::gains::{self, Cell};
 use crate::orbit::{self, OrbitProblem, OrbitSolution};
+use crate::peak::PeakSearch;
 use crate::shard::{self, Shard, ShardError};
 use crate::sinusoid::{self, SinusoidError, SinusoidSolution};
 use serde::{Deserialize, Serialize};
@@ -79,6 +80,11 @@ pub struct BifurcationJob {
     pub kd: f64,
     /// Peaks closer than this (rad) count as equal when classifying the period.
     pub period_tol: f64,
+    /// The sweep's `E_av` and start from the orbit of the paper's `k = 500` loop with this
+    /// peak (rad, [`crate::peak`]) instead of the `k = 0` orbit, which a landing law that
+    /// loses energy does not have ([`BifurcationJob::with_peak`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak: Option<f64>,
 }
 
 /// The flags of a bifurcation sweep, before they are checked ([`BifurcationJob::new`]).
@@ -186,7 +192,21 @@ impl BifurcationJob {
             kp: r.kp,
             kd: r.kd,
             period_tol: r.period_tol,
+            peak: None,
         })
+    }
+
+    /// The same sweep about the orbit of the `k = 500` loop with the peak `peak` (rad): its
+    /// `E_av` and its start, as `plan orbit --peak` finds them.
+    pub fn with_peak(mut self, peak: f64) -> Result<Self, JobError> {
+        check(
+            "peak",
+            peak,
+            peak > 0.0 && peak < 1.5,
+            "finite, > 0 and < 1.5 (rad)",
+        )?;
+        self.peak = Some(peak);
+        Ok(self)
     }
 
     /// The sweep from the `k = 0` base orbit (the one with the smallest tilt), and the time its
@@ -194,15 +214,27 @@ impl BifurcationJob {
     pub fn sweep(&self) -> Result<(Sweep, f64), JobError> {
         let pb = OrbitProblem::new(self.params, self.impact, self.kp, self.kd);
         let start = Instant::now();
-        let o = orbit::smallest(&pb).ok_or(JobError::NoOrbit {
-            kp: self.kp,
-            kd: self.kd,
-        })?;
+        let (o, energy_avg) = match self.peak {
+            Some(p) => {
+                let adapted = pb.with_adaptation(ORBIT_K, 0.0);
+                let f = crate::peak::energy_for_peak(&adapted, &PeakSearch::new(p), &|_| {})
+                    .map_err(|e| JobError::Failed(e.to_string()))?;
+                (f.orbit, f.energy_avg_adaptation)
+            }
+            None => {
+                let o = orbit::smallest(&pb).ok_or(JobError::NoOrbit {
+                    kp: self.kp,
+                    kd: self.kd,
+                })?;
+                let e = o.energy_avg;
+                (o, e)
+            }
+        };
         let sw = Sweep {
             problem: pb,
             start_beta0: o.beta0,
             start_beta_dot0: o.beta_dot0,
-            energy_avg: o.energy_avg,
+            energy_avg,
             tilts: self.tilts,
             keep: self.keep,
             period_tol: self.period_tol,

@@ -334,3 +334,55 @@ fn the_later_flips_lie_where_the_sweep_changes_period() {
     let (pb, _) = base();
     check_multipliers(&pb, pt);
 }
+
+#[test]
+fn the_physical_laws_cascade_about_a_planned_peak_is_feigenbaums_and_the_simulations() {
+    // The physical landing law (no k = 0 orbit): the loop K_D = 10 adapted at k = 500 about
+    // its orbit with the peak 0.04 rad (`start_at_peak`), continued in k. Truths it did not
+    // produce: the flips' ratios approach Feigenbaum's universal delta, and plain simulations
+    // of the loop (the sweep) change period where the flips lie.
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        ..Params::default()
+    };
+    let pb = OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 10.0);
+    let st = continuation::start_at_peak(&pb, 500.0, 0.04).unwrap();
+    assert!((st.orbit.max_tilt - 0.04).abs() < 1e-9 && st.orbit.stable);
+    let d = continuation::diagram(
+        &st.base,
+        Param::K,
+        500.0,
+        st.guess,
+        &Settings {
+            ds: 5.0,
+            ds_max: 10.0,
+            ..settings(1300.0, 8)
+        },
+        &|_, _| {},
+    )
+    .unwrap();
+    assert!(d.flips.len() >= 4, "flips {:?}", d.flips);
+    // delta_n -> 4.6692: the third ratio within 5 % (the paper's law's converge as fast).
+    let r = d.ratios[1];
+    assert!(
+        (r - continuation::FEIGENBAUM_DELTA).abs() < 0.05 * continuation::FEIGENBAUM_DELTA,
+        "ratios {:?}",
+        d.ratios
+    );
+    let sweep = Sweep {
+        tilts: 3000,
+        keep: 64,
+        period_tol: 1e-6,
+        ..st.sweep
+    };
+    for n in 0..2 {
+        let (k, next) = (d.flips[n], d.flips[n + 1]);
+        let m = (next - k) / 3.0;
+        let (below, above) = (
+            bifurcation::run_one(&sweep, k - m),
+            bifurcation::run_one(&sweep, k + m),
+        );
+        assert_eq!(below.period, Some(1 << n), "k = {}", k - m);
+        assert_eq!(above.period, Some(2 << n), "k = {}", k + m);
+    }
+}

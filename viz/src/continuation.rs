@@ -38,6 +38,9 @@ pub struct CascadeSweep {
     pub tilts: usize,
     /// Tilts drawn (the last ones).
     pub keep: usize,
+    /// The sweep starts at `k` no lower than this (1/(J s^2)): the paper's figure shows its
+    /// cascade from 1500; a loop whose cascade lies elsewhere starts where its curve does.
+    pub k_min: f64,
 }
 
 impl CascadeSweep {
@@ -46,11 +49,12 @@ impl CascadeSweep {
         k_step: 5.0,
         tilts: 600,
         keep: 150,
+        k_min: 1500.0,
     };
 
-    /// The values of `k` it runs over `[max(k_lo, 1500), k_hi]`.
+    /// The values of `k` it runs over `[max(k_lo, k_min), k_hi]`.
     pub fn ks(&self, (k_lo, k_hi): (f64, f64)) -> Vec<f64> {
-        let k_lo = k_lo.max(1500.0).min(k_hi);
+        let k_lo = k_lo.max(self.k_min).min(k_hi);
         (0..)
             .map(|i| k_lo + self.k_step * i as f64)
             .take_while(|&k| k <= k_hi)

@@ -67,6 +67,10 @@ pub struct ContinuationArgs {
     /// below (--param k only)
     #[arg(long)]
     pub plot: Option<std::path::PathBuf>,
+    /// Start from the adapted loop's orbit with this peak (rad; `plan orbit --peak`) and its
+    /// E_av, instead of the k = 0 orbit's (which the physical landing law has not)
+    #[arg(long, value_name = "RAD")]
+    pub peak: Option<f64>,
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
@@ -166,7 +170,11 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     let lstep = args.lyapunov_step.unwrap_or(span / 200.0);
     check("lyapunov-step", lstep, lstep >= 0.0, "finite and >= 0")?;
     let start = Instant::now();
-    let st = continuation::start(&pb, args.k).map_err(|e| CommandError::Failed(anyhow!(e)))?;
+    let st = match args.peak {
+        Some(p) => continuation::start_at_peak(&pb, args.k, p),
+        None => continuation::start(&pb, args.k),
+    }
+    .map_err(|e| CommandError::Failed(anyhow!(e)))?;
     let (o, sw, base, guess) = (&st.orbit, &st.sweep, st.base, st.guess);
     let setup_s = start.elapsed().as_secs_f64();
     let set = Settings {
@@ -224,13 +232,21 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     };
     let lyapunov_sampled_s = start.elapsed().as_secs_f64();
     if let Some(path) = &args.plot {
-        let ks = CascadeSweep::FULL.ks((ps.first().copied().unwrap_or(p0), to));
+        // The paper's figure from k = 1500; about a planned peak, from where the curve starts.
+        let grid = match args.peak {
+            Some(_) => CascadeSweep {
+                k_min: f64::NEG_INFINITY,
+                ..CascadeSweep::FULL
+            },
+            None => CascadeSweep::FULL,
+        };
+        let ks = grid.ks((ps.first().copied().unwrap_or(p0), to));
         let b = bar(ks.len() as u64, "sweep", args.model.json);
         tilting_viz::continuation::cascade_figure(
             path,
             sw,
             (ps.first().copied().unwrap_or(p0), to),
-            CascadeSweep::FULL,
+            grid,
             &diagram,
             &lyap,
             &lyap_sampled,
@@ -241,7 +257,7 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     }
     let steps = diagram.steps();
     let report = ContinuationReport {
-        energy_avg: o.energy_avg,
+        energy_avg: st.energy_avg,
         p_start: p0,
         steps,
         timing: ContinuationTiming {
@@ -400,6 +416,10 @@ pub struct StabilityArgs {
     /// Draw the chart into this PNG file
     #[arg(long)]
     pub plot: Option<std::path::PathBuf>,
+    /// Start from the adapted loop's orbit with this peak (rad; `plan orbit --peak`) and its
+    /// E_av, instead of the k = 0 orbit's (which the physical landing law has not)
+    #[arg(long, value_name = "RAD")]
+    pub peak: Option<f64>,
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
@@ -451,8 +471,13 @@ pub fn stability(args: &StabilityArgs) -> Result<(), CommandError> {
     }
     let start = Instant::now();
     let b = bar(400, "stability", args.model.json);
-    let region = twopar::region(&pb, ORBIT_K, args.k_max, (p2, (lo, hi)), &|| b.inc(1))
-        .map_err(|e| CommandError::Failed(anyhow!(e)))?;
+    let region = match args.peak {
+        Some(p) => continuation::start_at_peak(&pb, ORBIT_K, p).and_then(|st| {
+            twopar::region_from(&st, ORBIT_K, args.k_max, (p2, (lo, hi)), &|| b.inc(1))
+        }),
+        None => twopar::region(&pb, ORBIT_K, args.k_max, (p2, (lo, hi)), &|| b.inc(1)),
+    }
+    .map_err(|e| CommandError::Failed(anyhow!(e)))?;
     b.finish_and_clear();
     if let Some(path) = &args.plot {
         tilting_viz::continuation::draw_stability(path, &region)

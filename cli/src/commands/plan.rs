@@ -217,6 +217,10 @@ pub struct BifurcationArgs {
     /// Peaks closer than this (rad) count as equal when classifying the period
     #[arg(long, default_value_t = 1e-5)]
     pub period_tol: f64,
+    /// Sweep about the k = 500 loop's orbit with this peak (rad; `plan orbit --peak`): its E_av
+    /// and start, instead of the k = 0 orbit's (which the physical landing law has not)
+    #[arg(long, value_name = "RAD")]
+    pub peak: Option<f64>,
     /// The model, impact law and output format.
     #[command(flatten)]
     pub model: ModelArgs,
@@ -242,11 +246,12 @@ fn bifurcation_job(args: &BifurcationArgs) -> Result<BifurcationJob, CommandErro
         kd: args.kd,
         period_tol: args.period_tol,
     };
-    {
-        let params = args.model.params()?;
-        BifurcationJob::new(params, params.impact, &range)
+    let params = args.model.params()?;
+    let job = BifurcationJob::new(params, params.impact, &range).map_err(job_error)?;
+    match args.peak {
+        Some(p) => job.with_peak(p).map_err(job_error),
+        None => Ok(job),
     }
-    .map_err(job_error)
 }
 
 /// A job's error: a usage error for an invalid input, a failure otherwise.

@@ -197,6 +197,9 @@ pub struct Start {
     /// A Newton guess `(beta0, beta_dot0, t_end)` (rad, rad/s, s) of the orbit the loop
     /// adapted at `k` settles on after 200 tilts.
     pub guess: [f64; 3],
+    /// The adaptation's target `E_av` (J): the `k = 0` orbit's mean energy, or the one
+    /// [`start_at_peak`] found.
+    pub energy_avg: f64,
 }
 
 /// The [`Start`] of the loop `pb` (no adaptation) adapted at `k` (1/(J s^2)). Errors: no
@@ -219,9 +222,36 @@ pub fn start(pb: &OrbitProblem, k: f64) -> Result<Start, String> {
     })?;
     Ok(Start {
         base: pb.with_adaptation(k, o.energy_avg),
+        energy_avg: o.energy_avg,
         orbit: o,
         sweep,
         guess,
+    })
+}
+
+/// The [`Start`] of the loop `pb` adapted at `k` about its orbit with the tilt peak `peak`
+/// (rad): `E_av` from [`crate::peak::energy_for_peak`] instead of a `k = 0` orbit, which a
+/// landing law that loses energy does not have; `orbit` is then the adapted orbit itself.
+pub fn start_at_peak(pb: &OrbitProblem, k: f64, peak: f64) -> Result<Start, String> {
+    let search = crate::peak::PeakSearch::new(peak);
+    let f = crate::peak::energy_for_peak(&pb.with_adaptation(k, 0.0), &search, &|_| {})
+        .map_err(|e| e.to_string())?;
+    let (o, e) = (f.orbit, f.energy_avg_adaptation);
+    let sweep = Sweep {
+        problem: *pb,
+        start_beta0: o.beta0,
+        start_beta_dot0: o.beta_dot0,
+        energy_avg: e,
+        tilts: 0,
+        keep: 1,
+        period_tol: 1e-5,
+    };
+    Ok(Start {
+        base: pb.with_adaptation(k, e),
+        guess: [o.beta0, o.beta_dot0, o.t_end],
+        energy_avg: e,
+        orbit: o,
+        sweep,
     })
 }
 

@@ -327,7 +327,18 @@ pub fn region(
             "the range [{lo}, {hi}] of `{p2}` must contain the loop's value {here} (and not be k)"
         ));
     }
-    let st = super::start(pb, k0)?;
+    region_from(&super::start(pb, k0)?, k0, k_max, (p2, (lo, hi)), tick)
+}
+
+/// [`region`] from a given [`super::Start`] (say [`super::start_at_peak`]'s) of the loop
+/// adapted at `k0`.
+pub fn region_from(
+    st: &super::Start,
+    k0: f64,
+    k_max: f64,
+    (p2, (lo, hi)): (Param, (f64, f64)),
+    tick: &(dyn Fn() + Sync),
+) -> Result<Region, String> {
     stability_region(
         &st.base,
         k0,

@@ -162,6 +162,7 @@ impl Settings {
                 k_step: 50.0,
                 tilts: 150,
                 keep: 40,
+                k_min: 1500.0,
             },
             sampled_step: 0.0,
             kd_range: (13.0, 15.5),
