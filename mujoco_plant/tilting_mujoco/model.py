@@ -183,12 +183,18 @@ class Peaks:
     current: tuple | None = None  # (t, alpha) of the tilt under way
 
     def see(self, t, mode, alpha):
+        """The state at the end of a period."""
         if mode == FLAT:
-            if self.current is not None:
-                self.done.append(self.current)
-                self.current = None
+            self.close()
         elif self.current is None or abs(alpha) > abs(self.current[1]):
             self.current = (t, alpha)
+
+    def close(self):
+        """The tilt under way ended (a landing, seen at its step: the next tilt may start in
+        the same period)."""
+        if self.current is not None:
+            self.done.append(self.current)
+            self.current = None
 
     def all(self, t_now, alpha_now):
         out = list(self.done)
@@ -321,6 +327,8 @@ class MujocoPlant:
             if to != self.mode:
                 t_e, xb, xa = first[:3] if first else (t_s, x_prev or x_s, x_s)
                 self.transitions.append(Transition(t_e, self.mode, to, xb, xa))
+                if self.mode != FLAT:
+                    self.peaks.close()
                 if self.mode == FLAT:
                     self.tilts += 1
                 self.n_transitions += 1
