@@ -120,6 +120,8 @@ enum Plan {
     Bifurcation(plan::BifurcationArgs),
     /// Maximal tilt angle of the orbits over a (K_P, K_D) grid (Fig. 6)
     Gains(plan::GainsArgs),
+    /// Which gains (K_D, k) reach a wanted tilt peak, and how stably: plan orbit --peak on a grid
+    Reach(plan::ReachArgs),
     /// What the stabilised orbit survives: maps over delay × loss and over the control rate
     Margins(margins::MarginsArgs),
     /// Pseudo-arclength continuation of the orbit in k (or --param), its flips, the
@@ -143,6 +145,7 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Sinusoid(args)) => plan::sinusoid(args),
         Command::Plan(Plan::Bifurcation(args)) => plan::bifurcation(args),
         Command::Plan(Plan::Gains(args)) => plan::gains(args),
+        Command::Plan(Plan::Reach(args)) => plan::reach(args),
         Command::Plan(Plan::Margins(args)) => margins::margins(args),
         Command::Plan(Plan::Continuation(args)) => continuation::continuation(args),
         Command::Plan(Plan::Merge(args)) => shard::merge(args),

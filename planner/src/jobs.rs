@@ -547,6 +547,51 @@ pub fn orbit_for_peak(
     })
 }
 
+/// The reach map of `plan reach`: which `(K_D, k)` of the grids `[from, to, step]` reach the
+/// peak `peak` (rad), and how stably ([`crate::peak::reach_map`]); `kp` is `K_P0` (1/s^2).
+pub fn reach(
+    params: Params,
+    impact: ImpactLaw,
+    kp: f64,
+    [kd_from, kd_to, kd_step]: [f64; 3],
+    [k_from, k_to, k_step]: [f64; 3],
+    peak: f64,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<crate::peak::ReachCell>, JobError> {
+    check("kp", kp, kp > 0.0, "finite and > 0")?;
+    check(
+        "peak",
+        peak,
+        peak > 0.0 && peak < 1.5,
+        "finite, > 0 and < 1.5 (rad)",
+    )?;
+    check("kd-from", kd_from, kd_from > 0.0, "finite and > 0")?;
+    check("kd-to", kd_to, kd_to >= kd_from, "finite and >= --kd-from")?;
+    check("kd-step", kd_step, kd_step > 0.0, "finite and > 0")?;
+    check("k-from", k_from, k_from > 0.0, "finite and > 0")?;
+    check("k-to", k_to, k_to >= k_from, "finite and >= --k-from")?;
+    check("k-step", k_step, k_step > 0.0, "finite and > 0")?;
+    let (kds, ks) = (
+        gains::range(kd_from, kd_to, kd_step),
+        gains::range(k_from, k_to, k_step),
+    );
+    if kds.len() * ks.len() > 10_000 {
+        return Err(JobError::Invalid(format!(
+            "invalid grid: {} x {} cells; allowed: at most 10,000",
+            kds.len(),
+            ks.len()
+        )));
+    }
+    if params.restitution != 0.0 {
+        return Err(JobError::Invalid(format!(
+            "invalid `restitution` = {}: the planner plans plastic landings only (0)",
+            params.restitution
+        )));
+    }
+    let pb = OrbitProblem::new(params, impact, kp, kds[0]);
+    Ok(crate::peak::reach_map(&pb, &kds, &ks, peak, tick))
+}
+
 /// Approach 1: the frequency of `beta_d = A sin(w t) + pi/2` (`amplitude` A in rad) whose
 /// ideal-tracking tilt lands at `t_l = T/2 + s t_t` (`landing_offset` s), searched in
 /// `[omega_min, omega_max]` (rad/s).

@@ -101,65 +101,129 @@ fn z_of(s: &OrbitSolution) -> [f64; 3] {
     [s.beta0, s.beta_dot0, s.t_end]
 }
 
-/// The first orbit of the adapted loop (`pb` carries `k` and the gains; its `energy_avg` is
-/// ignored): from a `k = 0` orbit continued in `k`, else from a scan of `E_av`.
-fn seed(pb: &OrbitProblem, target: f64, tick: &dyn Fn(&str)) -> Option<Point> {
+/// The orbits of the adapted loop to start from (`pb` carries `k` and the gains; its
+/// `energy_avg` is ignored), lazily, each batch nearest the wanted peak first: the `k = 0`
+/// orbits continued in `k` at their own `E_av`, then, `E_av` by `E_av` upwards from the energy
+/// of the robot at rest upright, the orbits [`orbit::find_all`] finds.
+fn seeds<'a>(
+    pb: &'a OrbitProblem,
+    target: f64,
+    tick: &'a dyn Fn(&str),
+) -> impl Iterator<Item = Point> + 'a {
     let k = pb.control.law.k;
-    let mut base = *pb;
-    base.control.law.k = 0.0;
-    tick("the k = 0 orbits");
-    let mut cands: Vec<Point> = Vec::new();
-    for s in orbit::find_all(&base) {
-        let e = s.energy_avg;
-        let mut g = z_of(&s);
-        let n = (k / 100.0).ceil().max(1.0) as usize;
-        let mut last = None;
-        for i in 1..=n {
-            let Ok(sol) = orbit::solve(&pb.with_adaptation(k * i as f64 / n as f64, e), g) else {
-                last = None;
-                break;
-            };
-            g = z_of(&sol);
-            last = Some(sol);
-        }
-        if let Some(sol) = last {
-            cands.push((z_of(&sol), e, sol));
-        }
-    }
-    if cands.is_empty() {
-        // The rest energy upright (the plate flat, the arm's mass at l_c above the joint):
-        // a tilting orbit's average lies above it.
-        let p = &pb.params;
-        let rest = p.m_l * p.g * p.lc();
-        for i in 0..40 {
-            let e = rest + 0.1 * (i + 1) as f64;
-            tick(&format!("scanning E_av = {e:.2} J"));
-            let found = orbit::find_all(&pb.with_adaptation(k, e));
-            cands.extend(found.into_iter().map(|s| (z_of(&s), e, s)));
-            if !cands.is_empty() {
-                break;
+    let nearest_first = move |mut v: Vec<Point>| {
+        v.sort_by(|a, b| {
+            (a.2.max_tilt.abs() - target)
+                .abs()
+                .total_cmp(&(b.2.max_tilt.abs() - target).abs())
+        });
+        v
+    };
+    let from_k0 = std::iter::once_with(move || {
+        let mut base = *pb;
+        base.control.law.k = 0.0;
+        tick("the k = 0 orbits");
+        let mut found = Vec::new();
+        for s in orbit::find_all(&base) {
+            let e = s.energy_avg;
+            let mut g = z_of(&s);
+            let n = (k / 100.0).ceil().max(1.0) as usize;
+            let mut last = None;
+            for i in 1..=n {
+                let kk = k * i as f64 / n as f64;
+                let Ok(sol) = orbit::solve(&pb.with_adaptation(kk, e), g) else {
+                    last = None;
+                    break;
+                };
+                g = z_of(&sol);
+                last = Some(sol);
+            }
+            if let Some(sol) = last {
+                found.push((z_of(&sol), e, sol));
             }
         }
-    }
-    // The orbit nearest the wanted peak.
-    cands.into_iter().min_by(|a, b| {
-        (a.2.max_tilt.abs() - target)
-            .abs()
-            .total_cmp(&(b.2.max_tilt.abs() - target).abs())
-    })
+        nearest_first(found)
+    });
+    // The rest energy upright (the plate flat, the arm's mass at l_c above the joint): a
+    // tilting orbit's average lies above it.
+    let p = pb.params;
+    let rest = p.m_l * p.g * p.lc();
+    let scan = (0..40).map(move |i| {
+        let e = rest + 0.1 * (i + 1) as f64;
+        tick(&format!("scanning E_av = {e:.2} J"));
+        let found = orbit::find_all(&pb.with_adaptation(k, e));
+        nearest_first(found.into_iter().map(|s| (z_of(&s), e, s)).collect())
+    });
+    from_k0.chain(scan).flatten()
 }
+
+/// The most seeds [`energy_for_peak`] follows before it gives up.
+const MAX_SEEDS: usize = 8;
 
 /// Finds `E_av` (J) for which the adapted loop of `pb` (gains and `k > 0`; its own `E_av` is
 /// not used) has a periodic orbit with peak `search.peak` (rad). `tick` is called with a short
-/// description of each stage (for a progress display).
+/// description of each stage (for a progress display). Follows the family of each seed
+/// ([`seeds`]) in turn, at most [`MAX_SEEDS`], until one reaches the peak; otherwise reports
+/// the largest peak below it (or the smallest above it) that any family reached.
 pub fn energy_for_peak(
     pb: &OrbitProblem,
     search: &PeakSearch,
     tick: &dyn Fn(&str),
 ) -> Result<PeakOrbit, PeakError> {
+    let target = search.peak;
+    // The largest peak below the target and the smallest above it, with their E_av (rad, J).
+    let mut below: Option<(f64, f64)> = None;
+    let mut above: Option<(f64, f64)> = None;
+    for seed in seeds(pb, target, tick).take(MAX_SEEDS) {
+        match follow(pb, search, seed, tick) {
+            Ok(o) => return Ok(o),
+            Err(PeakError::Unreachable {
+                largest,
+                energy_avg,
+                ..
+            }) => {
+                if below.is_none_or(|b| largest > b.0) {
+                    below = Some((largest, energy_avg));
+                }
+            }
+            Err(PeakError::TooSmall {
+                smallest,
+                energy_avg,
+                ..
+            }) => {
+                if above.is_none_or(|a| smallest < a.0) {
+                    above = Some((smallest, energy_avg));
+                }
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    match (below, above) {
+        (Some((largest, energy_avg)), _) => Err(PeakError::Unreachable {
+            peak: target,
+            largest,
+            energy_avg,
+        }),
+        (None, Some((smallest, energy_avg))) => Err(PeakError::TooSmall {
+            peak: target,
+            smallest,
+            energy_avg,
+        }),
+        (None, None) => Err(PeakError::NoOrbit {
+            k: pb.control.law.k,
+        }),
+    }
+}
+
+/// Follows the family of orbits through `seed` in `E_av` towards the peak.
+fn follow(
+    pb: &OrbitProblem,
+    search: &PeakSearch,
+    (z0, e0, s0): Point,
+    tick: &dyn Fn(&str),
+) -> Result<PeakOrbit, PeakError> {
     let k = pb.control.law.k;
     let target = search.peak;
-    let (z0, e0, s0) = seed(pb, target, tick).ok_or(PeakError::NoOrbit { k })?;
     let mut branch = vec![(e0, s0.max_tilt.abs(), s0.stable)];
     let peak_of = |s: &OrbitSolution| s.max_tilt.abs();
     // The direction of E_av that moves the peak towards the target: from a small probe.
@@ -309,4 +373,86 @@ fn secant(
         orbit: best.2,
         branch,
     })
+}
+
+/// What a cell of the reach map ([`reach_map`]) found for the wanted peak.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "reach", rename_all = "snake_case")]
+pub enum Reach {
+    /// An orbit with the peak: its `E_av` (J), whether it is stable and its largest Floquet
+    /// multiplier's modulus.
+    Reached {
+        /// `E_av` (J).
+        energy_avg: f64,
+        /// All multipliers inside the unit circle.
+        stable: bool,
+        /// The largest multiplier's modulus.
+        rho: f64,
+    },
+    /// The family turns back below the peak: the largest peak it reaches (rad).
+    Below {
+        /// The largest peak (rad).
+        largest: f64,
+    },
+    /// The family turns back above the peak: the smallest peak it reaches (rad).
+    Above {
+        /// The smallest peak (rad).
+        smallest: f64,
+    },
+    /// No periodic tilting orbit found.
+    None,
+}
+
+/// One cell of the reach map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReachCell {
+    /// `K_D` (1/s).
+    pub kd: f64,
+    /// `k` (1/(J s^2)).
+    pub k: f64,
+    /// What the search found.
+    #[serde(flatten)]
+    pub reach: Reach,
+}
+
+/// Which gains reach the peak `peak` (rad): [`energy_for_peak`] on every `(K_D, k)` of the
+/// grid, in parallel (`tick` after each cell), for the loop `pb` (its `K_P0`; its `K_D`, `k`
+/// and `E_av` replaced). `K_P0` is not a dimension: the law depends on `K_P0 + k E_av` only,
+/// so another `K_P0` moves `E_av` by `-dK_P0 / k` and leaves every orbit as it is.
+pub fn reach_map(
+    pb: &OrbitProblem,
+    kds: &[f64],
+    ks: &[f64],
+    peak: f64,
+    tick: &(dyn Fn() + Sync),
+) -> Vec<ReachCell> {
+    use rayon::prelude::*;
+    let cells: Vec<(f64, f64)> = kds
+        .iter()
+        .flat_map(|&kd| ks.iter().map(move |&k| (kd, k)))
+        .collect();
+    cells
+        .par_iter()
+        .map(|&(kd, k)| {
+            let mut p = pb.with_adaptation(k, 0.0);
+            p.control.law.kd = kd;
+            let reach = match energy_for_peak(&p, &PeakSearch::new(peak), &|_| {}) {
+                Ok(f) => Reach::Reached {
+                    energy_avg: f.energy_avg_adaptation,
+                    stable: f.orbit.stable,
+                    rho: f
+                        .orbit
+                        .multipliers
+                        .iter()
+                        .map(|m| m[0].hypot(m[1]))
+                        .fold(0.0, f64::max),
+                },
+                Err(PeakError::Unreachable { largest, .. }) => Reach::Below { largest },
+                Err(PeakError::TooSmall { smallest, .. }) => Reach::Above { smallest },
+                Err(PeakError::NoOrbit { .. }) => Reach::None,
+            };
+            tick();
+            ReachCell { kd, k, reach }
+        })
+        .collect()
 }

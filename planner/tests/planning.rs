@@ -444,3 +444,50 @@ fn a_peak_beyond_the_family_is_refused_naming_the_largest() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn the_reach_maps_stable_and_unstable_cells_are_what_the_simulated_loop_does() {
+    use tilting_planner::bifurcation::{run_one, Sweep};
+    use tilting_planner::peak::{reach_map, Reach};
+    // The physical law, K_D = 10, the peak 0.04 rad: reached at k = 500 and 1500, the first
+    // stable, the second not. The loop run by the simulator from each orbit (300 tilts) keeps
+    // the peak at k = 500 and leaves period 1 at k = 1500.
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        ..Params::default()
+    };
+    let pb = OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 10.0);
+    let cells = reach_map(&pb, &[10.0], &[500.0, 1500.0], 0.04, &|| {});
+    for (c, want_stable) in cells.iter().zip([true, false]) {
+        let Reach::Reached {
+            energy_avg,
+            stable,
+            rho,
+        } = c.reach
+        else {
+            panic!("{c:?}");
+        };
+        assert_eq!(stable, want_stable, "{c:?}");
+        assert_eq!(rho < 1.0, stable);
+        let o = orbit::find_all(&pb.with_adaptation(c.k, energy_avg))
+            .into_iter()
+            .find(|o| (o.max_tilt - 0.04).abs() < 1e-8)
+            .expect("the orbit of the cell");
+        let sweep = Sweep {
+            problem: pb,
+            start_beta0: o.beta0,
+            start_beta_dot0: o.beta_dot0,
+            energy_avg,
+            tilts: 300,
+            keep: 20,
+            period_tol: 1e-6,
+        };
+        let row = run_one(&sweep, c.k);
+        if stable {
+            assert_eq!(row.period, Some(1), "{row:?}");
+            assert!(row.peaks.iter().all(|p| (p - 0.04).abs() < 1e-6), "{row:?}");
+        } else {
+            assert_ne!(row.period, Some(1), "{row:?}");
+        }
+    }
+}

@@ -6,6 +6,7 @@
 //! - [`animate`]: the plate and the arm of a run, moving, as an animated GIF or PNG frames;
 //! - [`continuation`]: Fig. 8b (the continued orbits over the sweep, the Lyapunov exponent)
 //!   and Fig. 8c (the stability region in two parameters);
+//! - [`reach`]: which gains reach a wanted tilt peak (`plan reach`);
 //! - [`figures`]: the paper's Figs. 4 to 8, computed with `tilting-planner` and `tilting-sim`.
 //!
 //! This crate computes nothing of its own beyond what a figure needs to lay itself out: the
@@ -18,3 +19,4 @@ pub mod continuation;
 pub mod figures;
 pub mod margins;
 pub mod plot;
+pub mod reach;

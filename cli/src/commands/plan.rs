@@ -130,6 +130,109 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
     })
 }
 
+/// `reach`: which gains reach a wanted tilt peak.
+#[derive(Debug, Clone, Args)]
+pub struct ReachArgs {
+    /// The wanted tilt peak |alpha| (rad)
+    #[arg(long, value_name = "RAD")]
+    pub peak: f64,
+    /// First K_D (1/s)
+    #[arg(long, default_value_t = 6.0, allow_negative_numbers = true)]
+    pub kd_from: f64,
+    /// Last K_D (1/s)
+    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
+    pub kd_to: f64,
+    /// Step of K_D (1/s)
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub kd_step: f64,
+    /// First k (1/(J s^2))
+    #[arg(long, default_value_t = 250.0, allow_negative_numbers = true)]
+    pub k_from: f64,
+    /// Last k (1/(J s^2))
+    #[arg(long, default_value_t = 1500.0, allow_negative_numbers = true)]
+    pub k_to: f64,
+    /// Step of k (1/(J s^2))
+    #[arg(long, default_value_t = 250.0, allow_negative_numbers = true)]
+    pub k_step: f64,
+    /// K_P0 (1/s^2): not a dimension of the map (the law depends on K_P0 + k E_av only); it
+    /// sets the E_av reported
+    #[arg(long, default_value_t = ORBIT_KP, allow_negative_numbers = true)]
+    pub kp: f64,
+    /// Draw the map into this PNG file
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
+    /// The model, impact law and output format.
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// The JSON of `reach`.
+#[derive(Debug, serde::Serialize)]
+pub struct ReachReport {
+    /// The wanted peak (rad).
+    pub peak: f64,
+    /// K_P0 (1/s^2).
+    pub kp: f64,
+    /// The landing law.
+    pub impact: &'static str,
+    /// One cell per (K_D, k).
+    pub cells: Vec<tilting_planner::peak::ReachCell>,
+}
+
+/// Runs `reach`.
+pub fn reach(args: &ReachArgs) -> Result<(), CommandError> {
+    use tilting_planner::peak::Reach;
+    let params = args.model.params()?;
+    let n = ((args.kd_to - args.kd_from) / args.kd_step + 1.5).max(1.0)
+        * ((args.k_to - args.k_from) / args.k_step + 1.5).max(1.0);
+    let b = bar(n.floor().clamp(1.0, 1e6) as u64, "reach", args.model.json);
+    let cells = jobs::reach(
+        params,
+        params.impact,
+        args.kp,
+        [args.kd_from, args.kd_to, args.kd_step],
+        [args.k_from, args.k_to, args.k_step],
+        args.peak,
+        &|| b.inc(1),
+    )
+    .map_err(job_error)?;
+    b.finish_and_clear();
+    if let Some(path) = &args.plot {
+        tilting_viz::reach::draw_reach(path, &cells, args.peak, params.impact.as_str()).map_err(
+            |e| CommandError::Failed(anyhow::anyhow!("cannot draw {}: {e:#}", path.display())),
+        )?;
+    }
+    let report = ReachReport {
+        peak: args.peak,
+        kp: args.kp,
+        impact: params.impact.as_str(),
+        cells,
+    };
+    emit(args.model.json, &report, || {
+        let mut s = format!(
+            "which (K_D, k) reach a tilt peak of {} rad ({} landing law, K_P0 = {}):\n",
+            report.peak, report.impact, report.kp
+        );
+        for c in &report.cells {
+            let what = match c.reach {
+                Reach::Reached {
+                    energy_avg,
+                    stable,
+                    rho,
+                } => format!(
+                    "reached at E_av = {energy_avg:.9} J, {} (largest |multiplier| {rho:.3})",
+                    if stable { "stable" } else { "unstable" }
+                ),
+                Reach::Below { largest } => format!("not reached: at most {largest:.5} rad"),
+                Reach::Above { smallest } => format!("not reached: at least {smallest:.5} rad"),
+                Reach::None => "no tilting orbit found".into(),
+            };
+            s += &format!("  K_D = {:6.2}, k = {:7.1}: {what}\n", c.kd, c.k);
+        }
+        s
+    })
+}
+
 /// A spinner on stderr with a message per stage (hidden with `--json` or off a terminal).
 fn spinner(json: bool) -> indicatif::ProgressBar {
     if json || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
