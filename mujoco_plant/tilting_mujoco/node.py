@@ -426,6 +426,8 @@ class Node:
         try:
             if not a.no_wait:
                 self.wait_for_controller()
+            with self.cv:  # the wait for the controller is not loop latency
+                self.t_pub.pop(0, None)
             self.set_state(wire.RUNNING, 0)
             loop = self.run_lockstep if a.clock == "lockstep" else self.run_realtime
             try:

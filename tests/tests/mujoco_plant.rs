@@ -16,6 +16,10 @@ use tilting_tests::*;
 
 const PERIOD: f64 = 0.001;
 
+/// The tests of this file run one at a time: each runs MuJoCo at full speed or in real time on
+/// a 2-core machine, and the live run's deadline misses went from 3 % to 13 % beside the others.
+static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 /// `env PYTHONPATH=<repo>/mujoco_plant python3 -m tilting_mujoco`, as words.
 fn plant_cmd() -> Vec<String> {
     let path = workspace_root().join("mujoco_plant");
@@ -57,6 +61,7 @@ fn spawn_plant(dir: &Path, args: &[String]) -> Proc {
 /// state ending in a fault that names mjWARN_BADQACC.
 #[test]
 fn mujoco_plant_self_test() {
+    let _serial = SERIAL.blocking_lock();
     if !can_run("mujoco_plant_self_test", "mujoco") {
         return;
     }
@@ -73,6 +78,7 @@ fn mujoco_plant_self_test() {
 /// orbit's size, the recording holds every state, and the summary names the command.
 #[test]
 fn live_runs_the_mujoco_plant() {
+    let _serial = SERIAL.blocking_lock();
     if !can_run("live_runs_the_mujoco_plant", "mujoco, zenoh") {
         return;
     }
@@ -126,21 +132,27 @@ fn live_runs_the_mujoco_plant() {
     // The recording saw (almost) every state and the tilts the plant counted.
     assert!(summary.record.states >= 4900, "{context}");
     assert!(summary.record.tilts >= 8, "{context}");
-    assert!(plant.tilts >= 8 && plant.tilts <= 14, "{context}");
-    // Both ways, each peak of the orbit's size (0.041 rad in our model at 1 kHz).
+    assert!(plant.tilts >= 8 && plant.tilts <= 16, "{context}");
+    // Both ways, each peak of the orbit's size (0.041 rad in our model at 1 kHz). Rarely (at
+    // most once in the 60 s runs of docs/mujoco.md, more often on a busy machine, when torques
+    // come late) the soft contact rebounds after a landing: a tilt of about 2e-4 rad back over
+    // the edge it came from. Those are left out of the size check, and there are at most two.
     let peaks: Vec<f64> = plant.tilt_peaks.iter().map(|p| p[1]).collect();
+    let (rebounds, orbit): (Vec<f64>, Vec<f64>) = peaks.iter().partition(|a| a.abs() < 1e-3);
+    assert!(rebounds.len() <= 2, "{peaks:?}");
+    assert!(orbit.len() >= 8, "{peaks:?}");
     assert!(
-        peaks.iter().any(|a| *a > 0.0) && peaks.iter().any(|a| *a < 0.0),
+        orbit.iter().any(|a| *a > 0.0) && orbit.iter().any(|a| *a < 0.0),
         "{peaks:?}"
     );
     assert!(
-        peaks.iter().all(|a| (0.02..0.07).contains(&a.abs())),
+        orbit.iter().all(|a| (0.02..0.07).contains(&a.abs())),
         "{peaks:?}"
     );
     // The loop keeps up: a plant that fell behind, or never took a torque in time, misses
     // nearly every period. The figure of docs/mujoco.md (60 s, under 1 % with --realtime) is
-    // not asserted here: the tests run beside each other on a busy machine (measured here 2.9 %
-    // with the other tests of this file running).
+    // not asserted here: other test binaries and builds may share the machine (measured here
+    // 1.8 % beside a build; 13 % when the other tests of this file still ran beside it).
     assert!(
         (plant.deadline_misses as f64) < 0.2 * plant.steps as f64,
         "{context}"
@@ -153,6 +165,7 @@ fn live_runs_the_mujoco_plant() {
 /// (exit code 3) with the plant's fault in `summary.json`.
 #[test]
 fn a_mujoco_fault_ends_the_live_run_as_a_fault() {
+    let _serial = SERIAL.blocking_lock();
     if !can_run(
         "a_mujoco_fault_ends_the_live_run_as_a_fault",
         "mujoco, zenoh",
@@ -261,6 +274,7 @@ const TORQUE_TOLERANCE: f64 = 4e-2;
 /// paper's plate, given to our model as `i_f`.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn lockstep_mujoco_follows_our_model_until_the_first_landing() {
+    let _serial = SERIAL.lock().await;
     if !can_run(
         "lockstep_mujoco_follows_our_model_until_the_first_landing",
         "mujoco, zenoh",
