@@ -232,28 +232,8 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     };
     let lyapunov_sampled_s = start.elapsed().as_secs_f64();
     if let Some(path) = &args.plot {
-        // The paper's figure from k = 1500; about a planned peak, from where the curve starts.
-        let grid = match args.peak {
-            Some(_) => CascadeSweep {
-                k_min: f64::NEG_INFINITY,
-                ..CascadeSweep::FULL
-            },
-            None => CascadeSweep::FULL,
-        };
-        let ks = grid.ks((ps.first().copied().unwrap_or(p0), to));
-        let b = bar(ks.len() as u64, "sweep", args.model.json);
-        tilting_viz::continuation::cascade_figure(
-            path,
-            sw,
-            (ps.first().copied().unwrap_or(p0), to),
-            grid,
-            &diagram,
-            &lyap,
-            &lyap_sampled,
-            &|| b.inc(1),
-        )
-        .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))?;
-        b.finish_and_clear();
+        let range = (ps.first().copied().unwrap_or(p0), to);
+        plot(args, path, sw, range, &diagram, (&lyap, &lyap_sampled))?;
     }
     let steps = diagram.steps();
     let report = ContinuationReport {
@@ -272,6 +252,41 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
         lyapunov_sampled: lyap_sampled,
     };
     emit(args.model.json, &report, || human(&report))
+}
+
+/// Draws Fig. 8b of `continuation --plot` into `path`: the sweep of `sw` over `range` of `k`
+/// with the diagram and the exponents.
+fn plot(
+    args: &ContinuationArgs,
+    path: &std::path::Path,
+    sw: &tilting_planner::bifurcation::Sweep,
+    range: (f64, f64),
+    diagram: &Diagram,
+    (lyap, lyap_sampled): (&[Exponent], &[SampledExponent]),
+) -> Result<(), CommandError> {
+    // The paper's figure from k = 1500; about a planned peak, from where the curve starts.
+    let grid = match args.peak {
+        Some(_) => CascadeSweep {
+            k_min: f64::NEG_INFINITY,
+            ..CascadeSweep::FULL
+        },
+        None => CascadeSweep::FULL,
+    };
+    let ks = grid.ks(range);
+    let b = bar(ks.len() as u64, "sweep", args.model.json);
+    tilting_viz::continuation::cascade_figure(
+        path,
+        sw,
+        range,
+        grid,
+        diagram,
+        lyap,
+        lyap_sampled,
+        &|| b.inc(1),
+    )
+    .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))?;
+    b.finish_and_clear();
+    Ok(())
 }
 
 /// The human summary.
