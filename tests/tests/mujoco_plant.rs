@@ -37,8 +37,8 @@ fn can_run(test: &str, modules: &str) -> bool {
     let ok = python_runs(&format!("import {modules}"));
     if !ok {
         eprintln!(
-            "SKIP {test}: `{} -c \"import {modules}\"` failed; install them with `python3 -m pip \
-             install ./mujoco_plant`",
+            "SKIP: {test}: `{} -c \"import {modules}\"` failed; install them with `python3 -m \
+             pip install ./mujoco_plant`",
             python()
         );
     }
