@@ -18,6 +18,7 @@ import os
 import signal
 import socket
 import subprocess
+import tempfile
 import sys
 import threading
 import time
@@ -160,8 +161,8 @@ def main():
     # The plant must not tell the other peers its own (inner) endpoint: with gossip on, the
     # controller learns it and connects there directly, around the proxy (measured: torque ages
     # of 0 periods). So the plant's session is the protocol's default with gossip off.
-    cfg = os.path.abspath("delay_plant.zenoh.json5")
-    with open(cfg, "w") as f:
+    fd, cfg = tempfile.mkstemp(prefix="delay_plant.", suffix=".json5")
+    with os.fdopen(fd, "w") as f:
         f.write('{mode: "peer", scouting: {multicast: {enabled: false}, gossip: {enabled: false},'
                 ' delay: 1000}, timestamping: {enabled: false}, connect: {retry: {period_init_ms:'
                 ' 100, period_max_ms: 1000, period_increase_factor: 2}}}\n')
@@ -177,6 +178,7 @@ def main():
     signal.signal(signal.SIGINT, forward)
     signal.signal(signal.SIGTERM, forward)
     rc = child.wait()
+    os.unlink(cfg)
     stop.set()
     listener.close()
     sys.stdout.flush()
