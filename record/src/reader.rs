@@ -457,6 +457,33 @@ mod tests {
         v
     }
 
+    /// Every chunk carries messages: each chunk record is followed by its message index
+    /// records (a chunk without messages has none, and Foxglove Studio 1.48's reader refuses
+    /// the file: "Chunks without message indexes are not currently supported").
+    #[test]
+    fn every_chunk_has_a_message_index() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, _) = write(dir.path(), 3000, 1000);
+        let bytes = std::fs::read(&path).unwrap();
+        let mut at = mcap::MAGIC.len();
+        let (mut chunks, mut after_chunk) = (0, None);
+        while at + 9 < bytes.len() && bytes[at] != 0x02 {
+            let (op, len) = (
+                bytes[at],
+                u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize,
+            );
+            if let Some(c) = after_chunk.take() {
+                assert_eq!(op, 0x07, "chunk {c} is not followed by a message index");
+            }
+            if op == 0x06 {
+                after_chunk = Some(chunks);
+                chunks += 1;
+            }
+            at += 9 + len;
+        }
+        assert!(chunks >= 2, "{chunks} chunks");
+    }
+
     /// Hostile files: a chunk stating 756,006,335,298 uncompressed bytes (the allocation that
     /// aborted `tilting info` in issue 22) and files with 50 flipped bits each. Every read
     /// returns (no abort, no allocation beyond the limit), yields at most the messages written,

@@ -34,15 +34,43 @@ pub fn json_schema(topic: Topic) -> Value {
         Topic::Reference => of::<Reference>(),
     };
     v["title"] = schema_name(topic).into();
+    one_type_per_field(&mut v);
     v
+}
+
+/// Foxglove's and Lichtblick's schema parsers take one JSON type per field and refuse the
+/// channel otherwise ("Failed to parse channel schema"): a nullable field (`["number",
+/// "null"]`, a rate a plant may not measure) becomes an optional `number`, left out of
+/// `required`, and [`to_json`] leaves it out of the object when it is absent.
+fn one_type_per_field(schema: &mut Value) {
+    let mut optional = Vec::new();
+    if let Some(props) = schema["properties"].as_object_mut() {
+        for (name, p) in props.iter_mut() {
+            if let Some(types) = p["type"].as_array() {
+                let real: Vec<Value> = types.iter().filter(|t| *t != "null").cloned().collect();
+                if real.len() == 1 && real.len() < types.len() {
+                    p["type"] = real[0].clone();
+                    optional.push(name.clone());
+                }
+            }
+        }
+    }
+    if let Some(req) = schema["required"].as_array_mut() {
+        req.retain(|r| !optional.iter().any(|o| r == o));
+    }
 }
 
 /// Decodes and validates a wire payload of `topic` and returns its JSON object (UTF-8).
 pub fn to_json(topic: Topic, wire: &[u8]) -> Result<Vec<u8>, DecodeError> {
     fn enc<T: Message + serde::Serialize>(wire: &[u8]) -> Result<Vec<u8>, DecodeError> {
         let m: T = codec::decode(wire)?;
-        // Serialising a struct of numbers and a string cannot fail.
-        Ok(serde_json::to_vec(&m).unwrap_or_default())
+        // Serialising a struct of numbers and a string cannot fail. An absent (null) field is
+        // left out: its schema names it optional ([`json_schema`]).
+        let mut v = serde_json::to_value(&m).unwrap_or_default();
+        if let Some(o) = v.as_object_mut() {
+            o.retain(|_, x| !x.is_null());
+        }
+        Ok(serde_json::to_vec(&v).unwrap_or_default())
     }
     match topic {
         Topic::State => enc::<PlantState>(wire),
@@ -172,15 +200,11 @@ mod tests {
             assert_eq!(a, b, "{topic}");
             for (k, val) in obj {
                 let p = &props[k];
-                // A nullable field (a rate that may be absent) is `["number", "null"]`.
-                let ty = match &p["type"] {
-                    Value::Array(t) if t.len() == 2 && t[1] == "null" => {
-                        t[0].as_str().unwrap().to_owned() + "?"
-                    }
-                    t => t.as_str().unwrap().to_owned(),
-                };
-                let ok = match ty.as_str() {
-                    "number?" => val.is_number() || val.is_null(),
+                // One JSON type per field, as Foxglove's and Lichtblick's parsers require.
+                let ty = p["type"]
+                    .as_str()
+                    .unwrap_or_else(|| panic!("{topic}.{k}: {p}"));
+                let ok = match ty {
                     "integer" => val.is_u64(),
                     "number" => val.is_number(),
                     "string" => val.is_string(),
@@ -206,7 +230,13 @@ mod tests {
                 .map(|r| r.as_str().unwrap())
                 .collect();
             required.sort();
-            let fields: Vec<&str> = a.iter().map(|k| k.as_str()).collect();
+            // Every field is required but the rates a plant may not measure.
+            let optional = ["alpha_dot", "beta_dot"];
+            let fields: Vec<&str> = a
+                .iter()
+                .map(|k| k.as_str())
+                .filter(|k| topic != Topic::State || !optional.contains(k))
+                .collect();
             assert_eq!(required, fields, "{topic}: every field is required");
             assert_eq!(schema["additionalProperties"], false, "{topic}");
             assert_eq!(schema["title"], schema_name(topic));
@@ -214,10 +244,41 @@ mod tests {
         }
     }
 
-    /// A state without rates is `null` in JSON (never 0), and reads back without rates; the
-    /// JSON goes back to the same wire bytes.
+    /// The strict check of a schema as Foxglove's and Lichtblick's parsers read it: anywhere in
+    /// it, `type` is one of the JSON types as a single string (no list, no `null`), and no
+    /// `anyOf`/`oneOf` of alternatives.
     #[test]
-    fn absent_rates_are_null_in_json() {
+    fn every_schema_has_one_type_per_node() {
+        fn walk(v: &Value, at: &str) {
+            match v {
+                Value::Object(o) => {
+                    if let Some(t) = o.get("type") {
+                        let ok = t.as_str().is_some_and(|t| {
+                            ["object", "number", "integer", "string", "array", "boolean"]
+                                .contains(&t)
+                        });
+                        assert!(ok, "{at}: type {t}");
+                    }
+                    for bad in ["anyOf", "oneOf"] {
+                        assert!(!o.contains_key(bad), "{at}: {bad}");
+                    }
+                    for (k, x) in o {
+                        walk(x, &format!("{at}/{k}"));
+                    }
+                }
+                Value::Array(a) => a.iter().for_each(|x| walk(x, at)),
+                _ => {}
+            }
+        }
+        for t in Topic::ALL {
+            walk(&json_schema(t), &schema_name(t));
+        }
+    }
+
+    /// A state without rates leaves them out of its JSON (never 0), and reads back without
+    /// rates; the JSON goes back to the same wire bytes.
+    #[test]
+    fn absent_rates_are_left_out_of_the_json() {
         let s = PlantState {
             seq: 4,
             time: 0.004,
@@ -229,8 +290,10 @@ mod tests {
         };
         let wire = encode(&s);
         let v: Value = serde_json::from_slice(&to_json(Topic::State, &wire).unwrap()).unwrap();
-        assert_eq!(v["alpha_dot"], Value::Null);
-        assert_eq!(v["beta_dot"], Value::Null);
+        assert!(
+            v.get("alpha_dot").is_none() && v.get("beta_dot").is_none(),
+            "{v}"
+        );
         assert_eq!(v["alpha"].as_f64(), Some(0.01));
         let back: PlantState = serde_json::from_value(v.clone()).unwrap();
         assert_eq!(back, s);
@@ -239,10 +302,12 @@ mod tests {
             wire
         );
         let schema = json_schema(Topic::State);
-        assert_eq!(
-            schema["properties"]["beta_dot"]["type"],
-            serde_json::json!(["number", "null"])
-        );
+        assert_eq!(schema["properties"]["beta_dot"]["type"], "number");
+        assert!(!schema["required"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r == "beta_dot"));
     }
 
     #[test]

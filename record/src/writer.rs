@@ -83,6 +83,18 @@ impl McapWriter {
             .library(concat!("tilting ", env!("CARGO_PKG_VERSION")))
             .create(BufWriter::new(file))
             .map_err(mc)?;
+        // The metadata first: a record outside chunks closes the open chunk, so written after
+        // the schemas and channels it left a first chunk with no message (no message index,
+        // times 0-0), which Foxglove Studio 1.48's MCAP reader refuses to open.
+        writer
+            .write_metadata(&Metadata {
+                name: "tilting".into(),
+                metadata: BTreeMap::from([
+                    ("robot".to_owned(), keys.robot().to_owned()),
+                    ("log_time".to_owned(), "plant time, ns".to_owned()),
+                ]),
+            })
+            .map_err(mc)?;
         let mut json = [0; 5];
         for t in Topic::ALL {
             let key = t.key(keys);
@@ -94,15 +106,6 @@ impl McapWriter {
                 .add_channel(sid, &json_topic(key), JSON_ENCODING, &BTreeMap::new())
                 .map_err(mc)?;
         }
-        writer
-            .write_metadata(&Metadata {
-                name: "tilting".into(),
-                metadata: BTreeMap::from([
-                    ("robot".to_owned(), keys.robot().to_owned()),
-                    ("log_time".to_owned(), "plant time, ns".to_owned()),
-                ]),
-            })
-            .map_err(mc)?;
         Ok(Self {
             writer,
             path: path.to_owned(),

@@ -10,8 +10,9 @@ chunk), and prints one JSON object:
    "channels": {topic: {"message_encoding", "schema_name", "schema_encoding", "count",
                         "fields_ok": bool, "first_log_time", "last_log_time"}},
    "state_seq_consecutive": bool}
-"fields_ok" says every message is a JSON object whose keys are exactly the schema's
-"required" list and whose values have the schema's JSON types.
+"fields_ok" says every message is a JSON object with every key of the schema's "required"
+list, no key the schema does not name, and values of the schema's JSON types (one type per
+field, as Foxglove's parser requires).
 """
 import json
 import sys
@@ -21,9 +22,8 @@ from mcap.stream_reader import StreamReader
 
 
 def type_ok(value, ty):
-    if isinstance(ty, list):
-        # A nullable field (a rate the plant may not measure): ["number", "null"].
-        return any(value is None if t == "null" else type_ok(value, t) for t in ty)
+    if not isinstance(ty, str):
+        return False  # Foxglove's and Lichtblick's parsers take one type per field
     if ty == "integer":
         return isinstance(value, int) and not isinstance(value, bool)
     if ty == "number":
@@ -68,7 +68,9 @@ def main(path):
                     schema = json.loads(schemas[ch.schema_id].data)
                     msg = json.loads(rec.data)
                     props = schema["properties"]
-                    if sorted(msg) != sorted(schema["required"]) or not all(
+                    # Every required key, no key the schema does not name (a rate the plant
+                    # did not measure is left out: optional in the schema).
+                    if not set(schema["required"]) <= set(msg) <= set(props) or not all(
                         type_ok(msg[k], props[k]["type"]) for k in msg
                     ):
                         c["fields_ok"] = False
