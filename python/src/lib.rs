@@ -59,7 +59,8 @@ fn model(params: Option<PathBuf>, impact: &str) -> PyResult<(Params, ImpactLaw)>
     let i: ImpactLaw = impact
         .parse()
         .map_err(|e: String| usage(format!("invalid `--impact` = {impact:?}: {e}")))?;
-    Ok((p, i))
+    // The run's law is the one given: the parameters carry it too (the controller's model).
+    Ok((p.with_impact(i), i))
 }
 
 /// The flags of `tilting simulate` that say what to run.
