@@ -78,11 +78,10 @@ def pump(src, dst, delay, stop):
                 due, data = q[0]
             now = time.monotonic()
             if due > now:
-                # Sleep to just before the due time, then spin: sleep alone wakes 0.1 ms late.
-                if due - now > 3e-4:
-                    time.sleep(due - now - 2e-4)
-                while time.monotonic() < due:
-                    pass
+                # A sleep, not a spin: a spinning thread holds the GIL, and the other three
+                # threads (both directions' reader and writer) then wait for it, so messages
+                # arrive in bunches (measured: 59 % of the torques superseded before applied).
+                time.sleep(due - now)
             with cv:
                 q.popleft()
             if data is None:
@@ -149,6 +148,8 @@ def main():
             break
     if port is None:
         sys.exit("delay_plant: no --listen tcp/127.0.0.1:PORT among the plant's flags")
+    # Hand the GIL over within 0.1 ms, not 5 ms (as the MuJoCo plant does).
+    sys.setswitchinterval(1e-4)
     stop = threading.Event()
     listener = socket.socket()
     listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)

@@ -118,7 +118,7 @@ chain() {
         chose=$(python3 -c '
 import json, sys
 l = json.load(open(sys.argv[1])).get("landing") or {}
-print(l.get("best"), ", ".join(f"{w[\"law\"]} {w[\"residual_rms\"]:.3f}" for w in l.get("laws", [])))' "$d/identify.json")
+print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w in l.get("laws", [])))' "$d/identify.json")
         say "2. identify chose the landing law ${chose%% *} (residuals ${chose#* }); set to physical"
         sed -i 's/^impact = .*/impact = "physical"/' "$d/robot.toml"
         note="${note:+$note; }identify chose ${chose%% *} (residual rms ${chose#* }), physical set"
@@ -210,15 +210,16 @@ import json, os, sys
 out, table, robots, contacts = sys.argv[1], sys.argv[2], sys.argv[3].split(), sys.argv[4].split()
 g = lambda v: "-" if v is None else f"{v:+.1f}"
 head = ("| robot | contact | law | --orbit-peak | plan peak (rad), period (s) | E_av (J) | tilts | alternating | worst after 10th (%) "
-        "| mean (%) | period (%) | unanswered / late | torque age p99 | live's verdict | notes |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+        "| mean (%) | period (%) | settled at tilt | worst after 40th (%) | unanswered | torque age p99 "
+        "| notes |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
 rows = []
 for r in robots:
     for c in contacts:
         d = f"{out}/{r}-{c}"
         if os.path.exists(f"{d}/failed.json"):
             rows.append(f"| {r} | {c} | failed at {json.load(open(f'{d}/failed.json'))['failed']} "
-                        "| | | | | | | | | | | | |")
+                        "| | | | | | | | | | | | | | |")
         if not os.path.exists(f"{d}/rows.jsonl"):
             continue
         for line in open(f"{d}/rows.jsonl"):
@@ -227,8 +228,9 @@ for r in robots:
             fault = f", fault {f['fault']}" if f["fault"] else ""
             rows.append(
                 f"| {r} | {c} | {f['law']} | {trim} | {f['peak']}, {f['plan_period']:.4f} | {f['e_av']:.6f} | {f['tilts']} | {f['alternating']} "
-                f"| {g(f['worst'])} | {g(f['mean'])} | {g(f['period'])} | {f['unanswered']} / {f['late']} "
-                f"| {f['age_p99']} | {f['orbit']}{fault} | {f['note']} |")
+                f"| {g(f['worst'])} | {g(f['mean'])} | {g(f['period'])} | {f['settled'] or 'never'} "
+                f"| {g(f['worst40'])} | {f['unanswered']} of {f['periods']} | {f['age_p99']:.0f}{fault} "
+                f"| {f['note']} |")
 text = head + "\n".join(rows) + "\n"
 open(table, "w").write(text)
 print(text)

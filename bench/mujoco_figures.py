@@ -9,7 +9,8 @@ peak |alpha| exceeds 0.01 rad; `alternating` counts the tilts whose sign differs
 before (the first one counts); after the first 10 tilts: `worst` the largest |peak| error
 relative to PEAK (signed, %), `mean` the mean |peak| relative to PEAK, minus 1 (%);
 `period` the mean time from a tilt to the next tilt of the same sign, relative to PERIOD (%),
-over the same tilts; `low` the lift-offs below 0.01 rad; `unanswered` the states whose
+over the same tilts; diagnostics `settled` (the tilt from which every peak is within 10 %)
+and `worst40` (the worst error after the 40th tilt); `low` the lift-offs below 0.01 rad; `unanswered` the states whose
 torque was never applied (lost, or older than --max-age on arrival), `late` the torques that
 arrived after their state's deadline (with a 50 ms round trip every torque does, so the
 deadline-miss count of the plant is every period), `age_p99` the torques' age in periods.
@@ -30,6 +31,18 @@ def figures(run_dir, peak, period):
     mean = (sum(abs(a) for _, a in after) / len(after) - peak) / peak if after else None
     gaps = [tilts[i + 2][0] - tilts[i][0] for i in range(10, len(tilts) - 2)]
     per = (sum(gaps) / len(gaps) - period) / period if gaps else None
+    # Diagnostics (not criteria): how long the start transient lasts. `settled` is the 1-based
+    # tilt from which every later peak is within 10 % of PEAK (None: never), `worst40` the worst
+    # error after the 40th tilt.
+    all_errs = [(abs(a) - peak) / peak for _, a in tilts]
+    settled = None
+    for i in range(len(all_errs), 0, -1):
+        if abs(all_errs[i - 1]) >= 0.10:
+            settled = i + 1 if i < len(all_errs) else None
+            break
+    else:
+        settled = 1 if all_errs else None
+    w40 = max(all_errs[40:], key=abs) if len(all_errs) > 40 else None
     # The last tilt, for "how long did it last".
     last_t = tilts[-1][0] if tilts else None
     ages = p.get("age_periods") or {}
@@ -44,6 +57,8 @@ def figures(run_dir, peak, period):
         "mean": None if mean is None else 100 * mean,
         "period": None if per is None else 100 * per,
         "low": len(every) - len(tilts),
+        "settled": settled,
+        "worst40": None if w40 is None else 100 * w40,
         "last_tilt_t": last_t,
         "unanswered": p.get("torques_lost"),
         "late": p.get("torques_late"),
