@@ -242,11 +242,15 @@ fn human(id: &Identification, source: &str, out: Option<&PathBuf>) -> String {
             r.std_error[3]
         );
     }
+    if let Some(l) = &id.landing {
+        landing_summary(&mut s, l);
+    }
     let p = &id.params;
     let _ = writeln!(
         s,
         "\nparameters: m_f {:.6} kg, m_l {:.6} kg (prior), l_c {:.6} m, i_l {:.6} kg m^2, \
-         j_m {:.6} kg m^2, n_g {:.6}, b_v {:.6} N m s/rad, tau_c {:.6} N m",
+         j_m {:.6} kg m^2, n_g {:.6}, b_v {:.6} N m s/rad, tau_c {:.6} N m, i_f {:.6} kg m^2, \
+         impact {}, restitution {:.4}",
         p.m_f,
         p.m_l,
         p.lc(),
@@ -254,7 +258,10 @@ fn human(id: &Identification, source: &str, out: Option<&PathBuf>) -> String {
         p.j_m,
         p.n_g,
         p.b_v,
-        p.tau_c
+        p.tau_c,
+        p.i_f,
+        p.impact.as_str(),
+        p.restitution
     );
     let _ = writeln!(s, "not identifiable from motion:");
     for n in &id.not_identifiable {
@@ -281,4 +288,38 @@ fn human(id: &Identification, source: &str, out: Option<&PathBuf>) -> String {
         let _ = writeln!(s, "wrote {} (use it with --params)", o.display());
     }
     s
+}
+
+/// The landings' lines of the human summary: the regressed `c`, the restitution, each law's
+/// coefficient and residual, the best.
+fn landing_summary(s: &mut String, l: &identify::landing::LandingFit) {
+    use std::fmt::Write as _;
+    let _ = writeln!(
+        s,
+        "\nlandings: {} used ({} skipped: a side shorter than {} samples), {} rebounds; \
+         beta_dot+ = beta_dot- + c alpha_dot-: c = {:.5} +- {:.1e}; physical law's restitution \
+         e = {:.4} +- {:.1e}",
+        l.landings.len(),
+        l.skipped,
+        identify::landing::MIN_SIDE,
+        l.rebounds,
+        l.c,
+        l.c_std_error,
+        l.restitution,
+        l.restitution_std_error
+    );
+    for f in &l.laws {
+        let _ = writeln!(
+            s,
+            "  {:<14} c {:.5}  residual RMS {:.3e} rad/s{}",
+            f.law.as_str(),
+            f.c,
+            f.residual_rms,
+            if f.law == l.best {
+                "  <- fits best"
+            } else {
+                ""
+            }
+        );
+    }
 }

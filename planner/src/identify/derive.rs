@@ -83,6 +83,10 @@ pub(super) fn params(
     };
     p.j_m = j_m;
     p.n_g = n_g;
+    // The plate's inertia: its own column (only positive estimates reach here).
+    if let Some(i_f) = value[7] {
+        p.i_f = i_f.max(0.0);
+    }
     // The arm's inertia about its centre of mass: what pi3 (or pi3 + pi5) leaves.
     let lc = p.lc();
     let i_l = match (value[2], sum35) {

@@ -60,6 +60,7 @@ pub fn resimulate(
     let s = &trace.samples;
     let cfg = SimConfig {
         params: *p,
+        impact: p.impact,
         ..SimConfig::default()
     };
     let mut out = Vec::new();

@@ -5,13 +5,14 @@
 //! The geometry (`f`, `g`, and `l`, which only draws the arm) is measured, not identified: it
 //! comes with the prior [`Options::base`], as does the arm's mass `m_l` (weighed), which the
 //! motion cannot tell from `l_c` and `i_l`. What the motion fixes are the seven base
-//! parameters ([`BASE`]); [`Identification::params`] turns them into a `--params` file with the
+//! parameters and the plate's inertia `i_f` ([`BASE`]); [`Identification::params`] turns them into a `--params` file with the
 //! prior's `m_l`, `l`, `f` and `g`, which moves exactly as the base parameters say.
 //!
 //! How rows are made (accelerations without straddling a torque step, an impact or a mode
-//! transition): [`rows`].
+//! transition): [`rows`]. The landings (which law, the restitution): [`landing`].
 
 pub mod fit;
+pub mod landing;
 pub mod load;
 pub mod refine;
 pub mod rows;
@@ -34,6 +35,7 @@ pub const BASE: [(&str, &str, &str); N_BASE] = [
     ("pi5", "(n_g^2 - 1) j_m", "kg m^2"),
     ("pi6", "b_v", "N m s/rad"),
     ("pi7", "tau_c", "N m"),
+    ("pi8", "i_f", "kg m^2"),
 ];
 
 /// A regressor whose scaled condition number exceeds this is refused as singular.
@@ -99,7 +101,7 @@ impl Default for Options {
 /// One base parameter's estimate.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Estimate {
-    /// `pi1` ... `pi7`, or `pi3+pi5` when only their sum is seen.
+    /// `pi1` ... `pi8`, or `pi3+pi5` when only their sum is seen.
     pub name: String,
     /// The physical parameters it combines.
     pub combination: String,
@@ -155,6 +157,10 @@ pub struct Identification {
     /// than the least squares'.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refinement: Option<refine::Refinement>,
+    /// The landings ([`landing`]): each one's jump, the law that fits them, the restitution;
+    /// `None` when the recording has no usable landing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub landing: Option<landing::LandingFit>,
     /// The state `(alpha, beta, alpha_dot, beta_dot)` at each sample as the fit saw it
     /// (smoothed, or recorded), `None` where unused; not serialised.
     #[serde(skip)]
@@ -294,6 +300,11 @@ pub fn identify(
                 .into(),
         );
         out[4] = out[2].clone();
+        out[7] = Some(
+            "the plate's inertia enters only the plate's equation while tilted: the \
+                       recording has no tilted interval (record tilts)"
+                .into(),
+        );
     }
     if r.sliding_fwd + r.sliding_bwd == 0 {
         for i in [5, 6] {
@@ -314,20 +325,45 @@ pub fn identify(
             .collect();
         (cols, names)
     };
+    // The plate's inertia and the rotor's share are one combination: the constant parts of
+    // M11, M12 and M22 are pi3 + pi8, pi3 + pi4 and pi3 + pi5, three numbers for four base
+    // parameters (the direction pi3 + 1, pi4 - 1, pi5 - 1, pi8 - 1 moves no row). So the
+    // first fit holds i_f at the prior's (its term moved to the right-hand side) and i_f gets
+    // its column only where the rotor's share is lumped ([`plate_inertia_column`]).
+    let i_f_prior = p.i_f;
+    if out[7].is_none() {
+        out[7] = Some(format!(
+            "with the rotor's share (pi4, pi5) seen, i_f is not separable from it: the \
+             constant parts of M11, M12, M22 are pi3 + i_f, pi3 + pi4, pi3 + pi5 (three \
+             numbers for four parameters); the prior's i_f = {i_f_prior} kept"
+        ));
+    }
     let (mut cols, names) = active(&out);
-    let mut fit = solve(&r, &cols, &names)?;
+    let mut fit = solve(&r, &cols, &names, i_f_prior)?;
     // The rotor's share (pi4, pi5) is a fraction of a percent of the arm's inertia: under
     // sensor noise it may not be told from zero. Then it is left out (lumped into pi3, as for
     // a direct drive) rather than let its noise spill into pi1 and pi3; what column 2 then
     // estimates is pi3 + pi5 (the flat rows, where its column is beta_ddot, carry it).
     let mut lumped = false;
-    if let Some(why) = rotor_unseen(&fit, &cols, corr) {
+    if let Some(why) =
+        rotor_unseen(&fit, &cols, corr).or_else(|| plate_inertia_column(&fit, &cols, corr))
+    {
         out[3] = Some(why.clone());
         out[4] = Some(why);
-        let (c, n) = active(&out);
-        fit = solve(&r, &c, &n)?;
-        cols = c;
         lumped = true;
+    }
+    if lumped {
+        out[7] = None;
+        let (c, n) = active(&out);
+        fit = solve(&r, &c, &n, i_f_prior)?;
+        cols = c;
+    }
+    // The plate's inertia: left out (the prior's kept) when the tilts do not show it.
+    if let Some(why) = plate_inertia_unseen(&fit, &cols, corr) {
+        out[7] = Some(why);
+        let (c, n) = active(&out);
+        fit = solve(&r, &c, &n, i_f_prior)?;
+        cols = c;
     }
     let lump = merge35 || lumped;
     if lumped {
@@ -366,12 +402,24 @@ pub fn identify(
             not_identifiable: None,
         });
     }
-    let rms_tau = (r.rhs.iter().map(|t| t * t).sum::<f64>() / r.rhs.len() as f64).sqrt();
     let mut warnings = Vec::new();
     warnings.extend(refinement.as_ref().and_then(not_converged));
-    let friction = check_friction(&value, &se, rms_tau, &mut warnings)?;
-    let (params, not_identifiable) =
+    // The torque rows' RMS (N m): a friction below FRICTION_FLOOR of it is zero to any torque
+    // sensor.
+    let torques: Vec<f64> = r.rhs.iter().copied().filter(|t| *t != 0.0).collect();
+    let rms_tau = (torques.iter().map(|t| t * t).sum::<f64>() / torques.len().max(1) as f64).sqrt();
+    let noise = fit.residual_rms.max(FRICTION_FLOOR * rms_tau);
+    let friction = check_friction(&value, &se, noise, &mut warnings)?;
+    let (mut params, not_identifiable) =
         derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
+    let landing = landing::fit(trace, tau, &params);
+    if let Some(l) = &landing {
+        params.impact = l.best;
+        params.restitution = match l.best {
+            tilting_plant::ImpactLaw::Physical => l.restitution_written(),
+            _ => 0.0,
+        };
+    }
     Ok(Identification {
         base,
         condition_number: fit.condition,
@@ -388,6 +436,7 @@ pub fn identify(
         velocities: opts.velocities,
         fit: None,
         refinement,
+        landing,
         states,
     })
 }
@@ -414,7 +463,16 @@ fn refine_friction(
         (None, Some(p3), Some(p5)) => p3 + p5,
         _ => return None,
     };
-    let start = [j, opts.base.g * value[1]?, value[5]?, value[6]?];
+    // The refinement keeps tau_c >= 0 (a negative Coulomb friction pushes the arm): started
+    // from a least squares' tau_c below 0 (zero within its noise) no step is admissible, and it
+    // stayed there, its small standard error then refusing the recording (MuJoCo's flat
+    // excitation: tau_c = -8.8e-5 N m). Negative friction starts from 0.
+    let start = [
+        j,
+        opts.base.g * value[1]?,
+        value[5]?.max(0.0),
+        value[6]?.max(0.0),
+    ];
     let r = refine::refine(trace, tau, states, start, window)?;
     for (k, i) in [(2, 5), (3, 6)] {
         let ls = se[i].unwrap_or(f64::INFINITY);
@@ -537,6 +595,48 @@ fn rotor_unseen(fit: &Fit, cols: &[usize], corr: f64) -> Option<String> {
     })
 }
 
+/// Why the rotor's columns are taken as the plate's inertia: `pi4` and `pi5` above the noise
+/// but equal within [`ROTOR_T_MIN`] standard errors of their difference. `pi5 - pi4 =
+/// n_g (n_g - 1) j_m` is zero for a direct drive (then both are) or for `n_g = 0`: an inertia
+/// that turns with the plate and not with the arm, which is what `i_f` is (a plate inertia
+/// `I` fits `pi4 = pi5 = -I` when `i_f` is held at 0).
+fn plate_inertia_column(fit: &Fit, cols: &[usize], corr: f64) -> Option<String> {
+    let at = |c: usize| cols.iter().position(|&k| k == c);
+    let (i4, i5) = (at(3)?, at(4)?);
+    let (p4, p5) = (fit.x[i4], fit.x[i5]);
+    let var = fit.cov[(i4, i4)] + fit.cov[(i5, i5)] - 2.0 * fit.cov[(i4, i5)];
+    let sd = var.max(0.0).sqrt() * corr;
+    ((p5 - p4).abs() < ROTOR_T_MIN * sd).then(|| {
+        format!(
+            "the rotor's share shows an inertia turning with the plate, not a rotor (pi4 = \
+             {p4:.3e}, pi5 = {p5:.3e} kg m^2, equal within {ROTOR_T_MIN} standard errors of \
+             their difference {sd:.1e}: n_g (n_g - 1) j_m = 0 with n_g != 1): estimated as the \
+             plate's inertia i_f (pi8), the rotor lumped into pi3 (and i_l)"
+        )
+    })
+}
+
+/// Smallest ratio of the plate's inertia `i_f` (`pi8`) to its standard error for it to count
+/// as seen: 1, its standard error must not exceed its value.
+pub const PLATE_T_MIN: f64 = 1.0;
+
+/// Why the plate's inertia is not seen, if the fit's `i_f` has a standard error above its
+/// value ([`PLATE_T_MIN`]) or is negative (no plate has that: a negative estimate is noise, or
+/// the model's other terms traded against it).
+fn plate_inertia_unseen(fit: &Fit, cols: &[usize], corr: f64) -> Option<String> {
+    let i = cols.iter().position(|&k| k == 7)?;
+    let (v, s) = (fit.x[i], fit.se[i] * corr);
+    if v <= 0.0 || v.abs() < PLATE_T_MIN * s {
+        return Some(format!(
+            "the plate's inertia is not seen in this recording's tilts (i_f = {v:.2e} +- \
+             {s:.1e} kg m^2: its standard error exceeds its value{}): left out, the prior's \
+             i_f kept; record more and larger tilts to see it",
+            if v < 0.0 { ", or it is negative" } else { "" }
+        ));
+    }
+    None
+}
+
 /// The median spacing of the samples (s); 1 ms for fewer than two.
 fn sample_spacing(trace: &Trace) -> f64 {
     let mut d: Vec<f64> = trace
@@ -552,12 +652,29 @@ fn sample_spacing(trace: &Trace) -> f64 {
     *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-/// The friction estimates `(b_v, tau_c)`, clamped to 0 when negative within their noise (or
-/// below a 1e-6 share of the RMS torque); refused when negative beyond it.
+/// A negative friction estimate within this many standard errors of 0 is zero within its
+/// noise: clamped to 0 (with a warning), not refused.
+pub const FRICTION_ZERO_IN_SE: f64 = 2.0;
+
+/// A negative friction torque below this share of the recording's RMS torque is zero within
+/// the noise of any torque measurement (1e-4: 0.1 mN m of a 10 N m drive), whatever its
+/// standard error says: simulated data has errors that are not white (MuJoCo's flat
+/// excitation without friction gave tau_c = -8.8e-5 N m, our plant's orbit -4.5e-7 N m at 4.5
+/// standard errors).
+pub const FRICTION_FLOOR: f64 = 1e-4;
+
+/// The friction estimates `(b_v, tau_c)`, clamped to 0 when negative within their noise;
+/// refused when clearly negative, naming the field and the value.
+///
+/// The noise is the larger of [`FRICTION_ZERO_IN_SE`] standard errors and `resid` (N m, the
+/// torque of 1 rad/s for `b_v`: the equations' residual RMS or [`FRICTION_FLOOR`] of the RMS
+/// torque): the standard errors hold for white noise, and an integrator's error is not white
+/// (MuJoCo's flat excitation, with no friction, gave tau_c = -8.8e-5 N m at many standard
+/// errors, a torque far below what one equation resolves).
 fn check_friction(
     value: &[Option<f64>; N_BASE],
     se: &[Option<f64>; N_BASE],
-    rms_tau: f64,
+    resid: f64,
     warnings: &mut Vec<String>,
 ) -> Result<(f64, f64), IdentifyError> {
     let mut out = [0.0; 2];
@@ -566,7 +683,7 @@ fn check_friction(
             continue;
         };
         // b_v's scale: the torque of 1 rad/s.
-        if v < 0.0 && -v > 3.0 * s && -v > 1e-6 * rms_tau {
+        if v < 0.0 && -v > FRICTION_ZERO_IN_SE * s && -v > resid {
             return Err(IdentifyError::NegativeFriction {
                 field,
                 value: v,
@@ -586,16 +703,20 @@ fn check_friction(
 struct Fit {
     x: Vec<f64>,
     se: Vec<f64>,
+    /// Covariance of the estimates (the residual variance's, uncorrected).
+    cov: DMatrix<f64>,
     condition: f64,
     residual_rms: f64,
 }
 
 /// Least squares on the columns `cols`, scaled to unit norm (the condition number is the
-/// scaled one); refused when singular, naming the weakest direction.
-fn solve(r: &rows::Rows, cols: &[usize], names: &[String]) -> Result<Fit, IdentifyError> {
+/// scaled one); refused when singular, naming the weakest direction. Without the plate's
+/// inertia's column (7), its term with `i_f` (the prior's) is moved to the right-hand side.
+fn solve(r: &rows::Rows, cols: &[usize], names: &[String], i_f: f64) -> Result<Fit, IdentifyError> {
     let (n, p) = (r.y.len(), cols.len());
     let mut a = DMatrix::from_fn(n, p, |i, j| r.y[i][cols[j]]);
-    let b = DVector::from_column_slice(&r.rhs);
+    let fixed = if cols.contains(&7) { 0.0 } else { i_f };
+    let b = DVector::from_fn(n, |i, _| r.rhs[i] - fixed * r.y[i][7]);
     let scale: Vec<f64> = (0..p).map(|j| a.column(j).norm()).collect();
     for (j, s) in scale.iter().enumerate() {
         if *s > 0.0 {
@@ -633,15 +754,17 @@ fn solve(r: &rows::Rows, cols: &[usize], names: &[String]) -> Result<Fit, Identi
     let sigma2 = rss / dof;
     let v_t = svd.v_t.as_ref().expect("v_t computed");
     let x = (0..p).map(|j| xs[j] / scale[j]).collect();
-    let se = (0..p)
-        .map(|j| {
-            let var: f64 = (0..p).map(|k| (v_t[(k, j)] / sv[k]).powi(2)).sum();
-            (sigma2 * var).sqrt() / scale[j]
-        })
-        .collect();
+    let cov = DMatrix::from_fn(p, p, |i, j| {
+        let c: f64 = (0..p)
+            .map(|k| v_t[(k, i)] * v_t[(k, j)] / (sv[k] * sv[k]))
+            .sum();
+        sigma2 * c / (scale[i] * scale[j])
+    });
+    let se = (0..p).map(|j| cov[(j, j)].max(0.0).sqrt()).collect();
     Ok(Fit {
         x,
         se,
+        cov,
         condition,
         residual_rms: (rss / n as f64).sqrt(),
     })
@@ -656,6 +779,7 @@ fn advice(idx: &[usize]) -> String {
             1 | 2 => "arm motion with varying acceleration over a range of angles",
             3 | 4 => "arm accelerations both while flat and while tilted (the rotor's share)",
             5 => "the arm moving at a range of speeds (viscous friction)",
+            7 => "tilts with varying plate acceleration (the plate's inertia i_f)",
             _ => "the arm moving both ways (Coulomb friction is an offset of the sign of beta_dot)",
         })
         .collect();
@@ -673,9 +797,40 @@ mod tests {
         Fit {
             x: vec![2.0, 1.7, 3.3, p4, p5],
             se: vec![se; 5],
+            cov: DMatrix::from_diagonal_element(5, 5, se * se),
             condition: 1.0,
             residual_rms: 0.0,
         }
+    }
+
+    /// A friction estimate negative within its noise is set to 0 (MuJoCo's flat excitation:
+    /// tau_c = -8.8e-5 N m at many standard errors of 1e-5, below the floor of 1e-4 of a 5 N m
+    /// RMS torque); one clearly negative is refused naming the field and the value.
+    #[test]
+    fn friction_zero_within_its_noise_is_clamped_and_a_negative_one_refused() {
+        let mut value = [None; N_BASE];
+        let mut se = [None; N_BASE];
+        value[6] = Some(-8.8e-5);
+        se[6] = Some(1e-5);
+        let noise = FRICTION_FLOOR * 5.0;
+        let mut w = Vec::new();
+        assert_eq!(
+            check_friction(&value, &se, noise, &mut w).unwrap(),
+            (0.0, 0.0)
+        );
+        assert!(w[0].contains("tau_c") && w[0].contains("set to 0"), "{w:?}");
+        // Within 2 standard errors, whatever the floor.
+        value[6] = Some(-0.019);
+        se[6] = Some(0.01);
+        assert!(check_friction(&value, &se, 0.0, &mut w).is_ok());
+        // Clearly negative: 5 standard errors and 100 times the floor.
+        value[6] = Some(-0.05);
+        let e = check_friction(&value, &se, noise, &mut w).unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.contains("tau_c = -5.0000e-2") && m.contains(">= 0"),
+            "{m}"
+        );
     }
 
     /// A rotor with j_m = 0.01 kg m^2 and n_g = 1.2 (pi4 = (n_g - 1) j_m = 0.002, pi5 =

@@ -1,5 +1,6 @@
 //! The regressor rows of a recording: one or two equations per sample interval, linear in the
-//! seven base parameters of docs/model.md ("Linear in the parameters").
+//! seven base parameters of docs/model.md ("Linear in the parameters") and the plate's inertia
+//! `i_f` (`pi8`, whose column is `alpha_ddot` in the plate's row alone: it enters `M11` only).
 //!
 //! **Accelerations.** A recorded torque is held over a sample interval `[t_k, t_{k+1}]`, so the
 //! acceleration jumps at every sample and is smooth only inside an interval. Each interval gives
@@ -17,12 +18,12 @@ use tilting_proto::Mode;
 use tilting_record::Trace;
 
 /// Number of base parameters.
-pub const N_BASE: usize = 7;
+pub const N_BASE: usize = 8;
 
 /// Rows of the regressor and the right-hand side, with what each mode contributed.
 #[derive(Debug, Clone, Default)]
 pub struct Rows {
-    /// Regressor rows (one per equation), columns `pi1..pi7`.
+    /// Regressor rows (one per equation), columns `pi1..pi8`.
     pub y: Vec<[f64; N_BASE]>,
     /// Right-hand side (N m): the held torque for a torque row, 0 for the plate's row.
     pub rhs: Vec<f64>,
@@ -272,6 +273,7 @@ fn weak_rows(
         plate[1] += w2 * fs * sb + w1 * 2.0 * fs * cb * ad + w0 * gab;
         plate[2] += w2 * (al + be);
         plate[3] += w2 * be;
+        plate[7] += w2 * al;
         arm[1] += w1 * fs * cb * ad + w0 * (fs * sb * ad * (ad + bd) + gab);
         arm[2] += w2 * (al + be);
         arm[3] += w2 * al;
@@ -333,10 +335,12 @@ pub(super) fn segments(trace: &Trace, tau: &[Option<f64>]) -> Vec<(usize, usize)
 
 /// Flat: `(pi3 + pi5) beta_ddot + g cos(beta) pi2 + beta_dot pi6 + sign pi7 = tau`.
 fn flat_row(x: &[f64; 4], bdd: f64, g: f64, sign: f64) -> [f64; N_BASE] {
-    [0.0, g * x[1].cos(), bdd, 0.0, bdd, x[3], sign]
+    [0.0, g * x[1].cos(), bdd, 0.0, bdd, x[3], sign, 0.0]
 }
 
 /// Tilted (`fs` = `f` left, `-f` right): the plate's row (= 0) and the torque row (= tau).
+/// The plate's inertia `i_f` (`pi8`) turns with `alpha` only: `+ i_f alpha_ddot` in the plate's
+/// row, nothing in the arm's.
 fn tilted_rows(
     x: &[f64; 4],
     acc: [f64; 2],
@@ -356,6 +360,7 @@ fn tilted_rows(
         0.0,
         0.0,
         0.0,
+        add,
     ];
     let row2 = [
         0.0,
@@ -365,6 +370,7 @@ fn tilted_rows(
         bdd,
         bd,
         sign,
+        0.0,
     ];
     (row1, row2)
 }
