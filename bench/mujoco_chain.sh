@@ -21,7 +21,12 @@
 #
 # Env: TILTING (./target/release/tilting), OUT (runs/mujoco-chain-<UTC time>), ROBOTS ("a b"),
 # CONTACTS ("stiff mid moderate"), EXC_S (60), TILT_S (30), RUN_S (60), JOBS (1: chains one
-# after another; 2 runs two chains side by side, which adds load and misses).
+# after another; 2 runs two chains side by side, which adds load and misses), RUNS (the live
+# runs of step 4: LAW-plain|trim[-planstart], LAW physical or paper; -planstart: the plant
+# starts on the planned orbit's start state, `--mode left --x0` from plan.json, instead of the
+# paper's, the plant's default; default the four from the paper's start),
+# REUSE (1: keep a chain's recordings when OUT has them, identify and plan again, and run only
+# the RUNS without a summary.json yet; the figures of all RUNS are computed again).
 # Needs: cargo build --release -p tilting; python3 -m pip install ./mujoco_plant.
 set -uo pipefail
 TABLE=${1:-/tmp/mujoco_chain.md}
@@ -34,6 +39,7 @@ EXC_S=${EXC_S:-60}
 TILT_S=${TILT_S:-30}
 RUN_S=${RUN_S:-60}
 JOBS=${JOBS:-1}
+RUNS=${RUNS:-physical-plain physical-trim paper-plain paper-trim}
 PAPER_EAV=19.963439703
 PEAK=${PEAK:-0.018}
 PEAK_FALLBACK=${PEAK_FALLBACK:-0.016}
@@ -64,20 +70,31 @@ contact_flags() {
     esac
 }
 
+# fail STEP LOG / say TEXT: use the caller's $d and $tag.
+fail() { echo "mujoco_chain: $tag: FAILED at $1 (see $2)" >&2; echo "{\"failed\": \"$1\"}" >"$d/failed.json"; return 1; }
+say() { echo "mujoco_chain: $tag: $*" >&2; }
+
 # chain ROBOT CONTACT: one chain in $OUT/ROBOT-CONTACT; its figures in rows.jsonl there.
 chain() {
     local robot=$1 contact=$2
     local d="$OUT/$robot-$contact" tag="$robot/$contact"
-    rm -rf "$d"
-    mkdir -p "$d"
+    local reuse=0
+    if [ "${REUSE:-0}" = 1 ] && [ -s "$d/exc/run.mcap" ] && [ -s "$d/tilt/run.mcap" ]; then
+        reuse=1
+        rm -f "$d/failed.json"
+    else
+        rm -rf "$d"
+        mkdir -p "$d"
+    fi
     robot_toml "$robot" >"$d/true.toml" || { echo "$tag: FAILED at setup: unknown robot" >&2; return 1; }
     local cf
     cf=$(contact_flags "$contact") || { echo "$tag: FAILED at setup: unknown contact" >&2; return 1; }
     grep -E '^(m_l|l|f) ' "$d/true.toml" >"$d/prior.toml"
     local plant="python3 -m tilting_mujoco $cf"
-    fail() { echo "mujoco_chain: $tag: FAILED at $1 (see $2)" >&2; echo "{\"failed\": \"$1\"}" >"$d/failed.json"; return 1; }
-    say() { echo "mujoco_chain: $tag: $*" >&2; }
 
+    if [ $reuse = 1 ]; then
+        say "1. the recordings of $d kept (REUSE=1)"
+    else
     say "1a. excitation run, ${EXC_S} s (live --reference excitation, paper's model in the controller)"
     "$T" live --plant-cmd "$plant" --plant-params "$d/true.toml" --duration "$EXC_S" \
         --reference excitation --seed 0 --out "$d/exc" >"$d/exc.out" 2>&1 ||
@@ -87,6 +104,7 @@ chain() {
         --orbit-peak 0.04 --seed 0 --out "$d/tilt" >"$d/tilt.out" 2>&1
     [ -s "$d/tilt/run.mcap" ] && grep -q '"tilts": *[1-9]' "$d/tilt/summary.json" ||
         { fail "1b tilting run (no recording or no tilt)" "$d/tilt.out"; return 1; }
+    fi
 
     say "2. identify (exc + tilt, prior l, f, m_l)"
     local note=""
@@ -123,7 +141,10 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
         sed -i 's/^impact = .*/impact = "physical"/' "$d/robot.toml"
         note="${note:+$note; }identify chose ${chose%% *} (residual rms ${chose#* }), physical set"
     fi
-    if ! grep -q '^i_f' "$d/robot.toml"; then
+    # The true i_f only while identify does not estimate the landing: once it does (a `landing`
+    # object in its JSON) the plate's inertia is its estimate, as i_f or as a rotor on the
+    # plate (j_m with n_g near 0: the same inertia of the plate).
+    if ! grep -q '"landing"' "$d/identify.json" && ! grep -q '^i_f' "$d/robot.toml"; then
         grep '^i_f' "$d/true.toml" >>"$d/robot.toml"
         note="${note:+$note; }true i_f appended"
     fi
@@ -153,14 +174,40 @@ print(repr(p["energy_avg_adaptation"]), repr(s["period"]), file=open(sys.argv[2]
 print(repr(p["energy_avg_adaptation"]), repr(s["period"]))' "$d/plan.json" "$d/plan.txt") ||
         { fail "3 plan orbit (reading its JSON)" "$d/plan.json"; return 1; }
     say "3. E_av $e_av J, period $period s"
+    printf '%s\n' "$note" >"$d/note.txt"
+    runs_only "$robot" "$contact"
+}
 
+# runs_only ROBOT CONTACT: step 4 and 5 of a chain whose robot.toml and plan.json exist.
+runs_only() {
+    local robot=$1 contact=$2
+    local d="$OUT/$robot-$contact" tag="$robot/$contact"
+    local cf plant note e_av period peak x0
+    cf=$(contact_flags "$contact")
+    plant="python3 -m tilting_mujoco $cf"
+    note=$(cat "$d/note.txt" 2>/dev/null)
+    read -r e_av period peak x0 < <(python3 -c '
+import json, math, sys
+p = json.load(open(sys.argv[1]))
+s = p["solutions"][0]
+# The planned orbit starts at alpha = 0 on the left edge, beta = pi/2 + beta0.
+print(repr(p["energy_avg_adaptation"]), repr(s["period"]), round(s["max_tilt"], 6),
+      "0,%r,0,%r" % (math.pi / 2 + s["beta0"], s["beta_dot0"]))' "$d/plan.json") ||
+        { fail "4 (reading plan.json)" "$d/plan.json"; return 1; }
     local link=(--plant-cmd "python3 $HERE/delay_plant.py $plant --watchdog 100"
         --plant-params "$d/true.toml" --duration "$RUN_S" --delay 0.025 --predict 0.05
         --max-age 100 --seed 0)
-    local run law trim
-    for run in physical-plain physical-trim paper-plain paper-trim; do
-        law=${run%-*} trim=${run#*-}
+    local run law trim start rest
+    rm -f "$d/rows.jsonl"
+    for run in $RUNS; do
+        law=${run%%-*} rest=${run#*-} trim=${rest%%-*} start=paper
+        [ "$run" != "${run%-planstart}" ] && start=plan
         local args=("${link[@]}")
+        if [ "${REUSE:-0}" = 1 ] && [ -s "$d/$run/summary.json" ]; then
+            say "4. $run kept (REUSE=1)"
+        else
+        # The plan's orbit start instead of the plant's default (the paper's orbit start).
+        [ "$start" = plan ] && args[1]="python3 $HERE/delay_plant.py $plant --watchdog 100 --mode left --x0=$x0"
         if [ "$law" = physical ]; then
             args+=(--params "$d/robot.toml" --energy-avg "$e_av")
         else
@@ -169,17 +216,18 @@ print(repr(p["energy_avg_adaptation"]), repr(s["period"]))' "$d/plan.json" "$d/p
         [ "$trim" = trim ] && args+=(--orbit-peak "$peak")
         local what="plain adapted law"
         [ "$trim" = trim ] && what="--orbit-peak $peak"
-        say "4. live ${RUN_S} s over a 50 ms round trip, $law law, $what"
+        say "4. live ${RUN_S} s over a 50 ms round trip, $law law, $what, from the $start orbit's start"
         "$T" live "${args[@]}" --out "$d/$run" >"$d/$run.out" 2>&1
         [ -s "$d/$run/summary.json" ] || { fail "4 live $run" "$d/$run.out"; return 1; }
+        fi
         python3 "$HERE/mujoco_figures.py" "$d/$run" "$peak" "$period" | python3 -c '
 import json, sys
 f = json.load(sys.stdin)
 f.update(robot=sys.argv[1], contact=sys.argv[2], law=sys.argv[3], trim=sys.argv[4],
          e_av=float(sys.argv[5]), plan_period=float(sys.argv[6]), note=sys.argv[7],
-         peak=float(sys.argv[8]))
+         peak=float(sys.argv[8]), start=sys.argv[9])
 print(json.dumps(f))' "$robot" "$contact" "$law" "$trim" \
-            "$([ "$law" = physical ] && echo "$e_av" || echo "$PAPER_EAV")" "$period" "$note" "$peak" \
+            "$([ "$law" = physical ] && echo "$e_av" || echo "$PAPER_EAV")" "$period" "$note" "$peak" "$start" \
             >>"$d/rows.jsonl" || { fail "5 figures of $run" "$d/$run/summary.json"; return 1; }
         say "5. $run: $(tail -n1 "$d/rows.jsonl" | python3 -c '
 import json, sys
@@ -209,17 +257,17 @@ python3 - "$OUT" "$TABLE" "$ROBOTS" "$CONTACTS" <<'PY'
 import json, os, sys
 out, table, robots, contacts = sys.argv[1], sys.argv[2], sys.argv[3].split(), sys.argv[4].split()
 g = lambda v: "-" if v is None else f"{v:+.1f}"
-head = ("| robot | contact | law | --orbit-peak | plan peak (rad), period (s) | E_av (J) | tilts | alternating | worst after 10th (%) "
+head = ("| robot | contact | law | --orbit-peak | start | plan peak (rad), period (s) | E_av (J) | tilts | alternating | worst after 10th (%) "
         "| mean (%) | period (%) | settled at tilt | worst after 40th (%) | unanswered | torque age p99 "
         "| notes |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
 rows = []
 for r in robots:
     for c in contacts:
         d = f"{out}/{r}-{c}"
         if os.path.exists(f"{d}/failed.json"):
             rows.append(f"| {r} | {c} | failed at {json.load(open(f'{d}/failed.json'))['failed']} "
-                        "| | | | | | | | | | | | | | |")
+                        "| | | | | | | | | | | | | | | |")
         if not os.path.exists(f"{d}/rows.jsonl"):
             continue
         for line in open(f"{d}/rows.jsonl"):
@@ -227,7 +275,7 @@ for r in robots:
             trim = "yes" if f["trim"] == "trim" else "no"
             fault = f", fault {f['fault']}" if f["fault"] else ""
             rows.append(
-                f"| {r} | {c} | {f['law']} | {trim} | {f['peak']}, {f['plan_period']:.4f} | {f['e_av']:.6f} | {f['tilts']} | {f['alternating']} "
+                f"| {r} | {c} | {f['law']} | {trim} | {f.get('start', 'paper')} | {f['peak']}, {f['plan_period']:.4f} | {f['e_av']:.6f} | {f['tilts']} | {f['alternating']} "
                 f"| {g(f['worst'])} | {g(f['mean'])} | {g(f['period'])} | {f['settled'] or 'never'} "
                 f"| {g(f['worst40'])} | {f['unanswered']} of {f['periods']} | {f['age_p99']:.0f}{fault} "
                 f"| {f['note']} |")
