@@ -163,7 +163,7 @@ fn live_runs_the_mujoco_plant() {
 /// A fault of the MuJoCo plant is a fault of the live run: started with the plate tilted 1.4
 /// rad and turning at 5 rad/s (its own `--x0`, before the flags `live` appends), it leaves the
 /// ground; it exits with code 3 and the reason, and `live` ends on a fault of the model
-/// (exit code 3) with the plant's fault in `summary.json`.
+/// (exit code 3) with the plant's fault in `summary.json` and its report.
 #[test]
 fn a_mujoco_fault_ends_the_live_run_as_a_fault() {
     let _serial = SERIAL.blocking_lock();
@@ -198,7 +198,11 @@ fn a_mujoco_fault_ends_the_live_run_as_a_fault() {
     let plant = summary.plant.as_ref().expect("the plant's summary");
     assert_eq!(plant.result, RunResult::Faulted, "{plant:?}");
     let fault = plant.fault.as_deref().unwrap_or_default();
-    assert!(fault.contains("contact loss"), "{fault}");
+    // It leaves the ground (measured: contact loss after 50 ms), or would fall past pi/2.
+    assert!(
+        fault.contains("contact loss") || fault.contains("fall"),
+        "{fault}"
+    );
     assert!(
         live.stdout().contains(&format!("faults: {fault}")),
         "{}",
