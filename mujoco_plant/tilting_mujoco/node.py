@@ -104,7 +104,9 @@ class Node:
         self.max_overrun = 0.0
         self.safe_modes = []
         self.state = wire.STARTING
-        self.seq = 0
+        # (seq, time) of the newest state published: a status names that sample (one tuple, so
+        # the status thread never pairs a seq with the time of a period stepped since).
+        self.sample = (0, 0.0)
         self.fault = ""
         self.last_bad_log = 0.0
 
@@ -157,15 +159,15 @@ class Node:
 
     # -- publishing ----------------------------------------------------------------------------
 
-    def status_bytes(self, seq):
+    def status_bytes(self):
         with self.cv:
             c, state = dict(self.c), self.state
             lat = self.latency_us.percentiles(0.5, 0.99)
         jit, age = self.jitter_us.percentiles(0.5, 0.99), self.age.percentiles(0.5, 0.99)
-        sim = self.sim
+        sim, (seq, t) = self.sim, self.sample
         return wire.pack_status(
             (
-                seq, sim.t, state, sim.mode, sim.tilts, seq,
+                seq, t, state, sim.mode, sim.tilts, seq,
                 c["torques_received"], c["torques_dropped"], c["torques_stale"],
                 c["deadline_misses"], c["watchdog_trips"],
                 *jit, self.max_overrun, *lat,
@@ -176,18 +178,18 @@ class Node:
         )
 
     def publish_state(self, seq):
-        self.seq = seq  # the status thread's seq: sim.t is within its period from now on
+        self.sample = (seq, self.sim.t)
         with self.cv:
             self.published_seq = max(self.published_seq, seq)
             self.t_pub.setdefault(seq, time.monotonic())
             self.t_pub.pop(seq - 64, None)
         self.pub_state.put(wire.pack_state(seq, self.sim.t, self.sim.mode, self.sim.x))
 
-    def set_state(self, state, seq):
+    def set_state(self, state):
         with self.cv:
             changed, self.state = self.state != state, state
         if changed:
-            self.pub_status.put(self.status_bytes(seq))
+            self.pub_status.put(self.status_bytes())
 
     def safe_torque(self):
         """Safe mode `hold`: beta_ddot = K_P (pi/2 - beta) - K_D beta_dot through the arm's
@@ -255,12 +257,12 @@ class Node:
         if len(self.safe_modes) < 100:
             self.safe_modes.append(dict(start=self.sim.t, end=None, cause=cause))
         print(f"tilting_mujoco: safe mode at seq {k}: {cause}", file=sys.stderr, flush=True)
-        self.set_state(wire.SAFE, k)
+        self.set_state(wire.SAFE)
 
     def leave_safe(self, k):
         if self.safe_modes and self.safe_modes[-1]["end"] is None:
             self.safe_modes[-1]["end"] = self.sim.t
-        self.set_state(wire.RUNNING, k)
+        self.set_state(wire.RUNNING)
 
     def sleep_until(self, deadline, answer=None):
         """Sleeps to `deadline` on the monotonic clock, the last --spin-us busy (yielding the
@@ -417,10 +419,10 @@ class Node:
 
         def status_loop():  # 10 Hz
             while not status_stop.wait(0.1):
-                self.pub_status.put(self.status_bytes(self.seq))
+                self.pub_status.put(self.status_bytes())
 
         threading.Thread(target=status_loop, daemon=True).start()
-        self.pub_status.put(self.status_bytes(0))
+        self.pub_status.put(self.status_bytes())
         n = math.inf if a.duration is None else round(a.duration / a.period)
         result, code, k = "stopped", 0, 0
         try:
@@ -428,7 +430,7 @@ class Node:
                 self.wait_for_controller()
             with self.cv:  # the wait for the controller is not loop latency
                 self.t_pub.pop(0, None)
-            self.set_state(wire.RUNNING, 0)
+            self.set_state(wire.RUNNING)
             loop = self.run_lockstep if a.clock == "lockstep" else self.run_realtime
             try:
                 k = loop(n, record)
@@ -445,8 +447,8 @@ class Node:
                     record.write(f"{k},{self.sim.t!r},{self.sim.mode},{','.join(map(repr, self.sim.x))},\n")
                 record.close()
             status_stop.set()
-            self.set_state(wire.FAULTED if code == 3 else wire.STOPPED, k)
-            self.pub_status.put(self.status_bytes(k))
+            self.set_state(wire.FAULTED if code == 3 else wire.STOPPED)
+            self.pub_status.put(self.status_bytes())
             time.sleep(0.05)  # let the last messages leave
             token.undeclare()
             watch.undeclare()
