@@ -73,23 +73,22 @@ fn mujoco_plant_self_test() {
     assert!(p.stdout().contains("self-test passed"), "{}", p.logs());
 }
 
-/// `tilting live --plant-cmd`: the MuJoCo plant runs the loop in real time at 1 kHz for 5 s
-/// with the status line, recording and summary of a normal run. The plant's summary is read
-/// into the Rust plant's type; the run tilts both ways about twice a second with peaks of the
-/// orbit's size, the recording holds every state, and the summary names the command.
-#[test]
-fn live_runs_the_mujoco_plant() {
-    let _serial = SERIAL.blocking_lock();
-    if !can_run("live_runs_the_mujoco_plant", "mujoco, zenoh") {
-        return;
-    }
-    let dir = Scratch::new("mujoco-live");
-    let out = dir.path().join("out");
+/// Share of the periods whose torque may come late for a live run to count as keeping up
+/// (measured: 1.8 % beside a build, 13 % beside the other tests of this file, 44 % once while
+/// other engineers' test suites filled both cores).
+const KEEPS_UP: f64 = 0.1;
+
+/// One 5 s `tilting live --plant-cmd` run with the MuJoCo plant in `dir`: its summary, after the
+/// checks that hold however busy the machine is (it completed every period, the recording
+/// holds every state, the summary names the command and carries the plant's own), and a
+/// context for failure messages.
+fn live_run(dir: &Path, attempt: u32) -> (tilting::live::summary::LiveSummary, String) {
+    let out = dir.join(format!("out{attempt}"));
     let cmd = plant_cmd().join(" ");
     let args: Vec<String> = [
         "live",
         "--robot",
-        &robot("mujoco_live"),
+        &robot(&format!("mujoco_live{attempt}")),
         "--out",
         out.to_str().unwrap(),
         "--duration",
@@ -100,7 +99,7 @@ fn live_runs_the_mujoco_plant() {
     .iter()
     .map(|s| s.to_string())
     .collect();
-    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir.path());
+    let mut live = Proc::spawn("live", &bin("tilting"), &args, dir);
     let status = live.expect_exit(Duration::from_secs(120));
     let summary = live_summary(&out);
     let plant_log = std::fs::read_to_string(out.join("plant.log")).unwrap_or_default();
@@ -112,9 +111,9 @@ fn live_runs_the_mujoco_plant() {
     );
     let plant = summary.plant.as_ref().expect("the MuJoCo plant's summary");
     eprintln!(
-        "live --plant-cmd: {status}; plant: {:?}, {} steps, {} tilts, {} deadline misses, \
-         latency p50 {:.0} us p99 {:.0} us, step p50 {:.0} us; recorded {} states, {} tilts; \
-         peaks {:?}; orbit {:?}",
+        "live --plant-cmd (attempt {attempt}): {status}; plant: {:?}, {} steps, {} tilts, {} \
+         deadline misses, latency p50 {:.0} us p99 {:.0} us, step p50 {:.0} us; recorded {} \
+         states, {} tilts; peaks {:?}; orbit {:?}",
         plant.result,
         plant.steps,
         plant.tilts,
@@ -130,8 +129,41 @@ fn live_runs_the_mujoco_plant() {
     assert_eq!(plant.result, RunResult::Completed, "{context}");
     assert_eq!(plant.steps, 5000, "{context}");
     assert!(plant.fault.is_none(), "{context}");
-    // The recording saw (almost) every state and the tilts the plant counted.
     assert!(summary.record.states >= 4900, "{context}");
+    (summary, context)
+}
+
+/// `tilting live --plant-cmd`: the MuJoCo plant runs the loop in real time at 1 kHz for 5 s
+/// with the status line, recording and summary of a normal run. The plant's summary is read
+/// into the Rust plant's type; the run tilts both ways about twice a second with peaks of the
+/// orbit's size, and the recording saw the tilts. A run whose loop did not keep up (over
+/// [`KEEPS_UP`] of its periods missed: a machine too busy for a 1 kHz loop, which disturbs the
+/// orbit) is run once more; the orbit is checked on the one that kept up.
+#[test]
+fn live_runs_the_mujoco_plant() {
+    let _serial = SERIAL.blocking_lock();
+    if !can_run("live_runs_the_mujoco_plant", "mujoco, zenoh") {
+        return;
+    }
+    let dir = Scratch::new("mujoco-live");
+    let kept_up = |s: &tilting::live::summary::LiveSummary| {
+        let p = s.plant.as_ref().expect("the plant's summary");
+        (p.deadline_misses as f64) < KEEPS_UP * p.steps as f64
+    };
+    let mut run = live_run(dir.path(), 1);
+    if !kept_up(&run.0) {
+        run = live_run(dir.path(), 2);
+    }
+    let (summary, context) = run;
+    let plant = summary.plant.as_ref().expect("the plant's summary");
+    assert!(
+        kept_up(&summary),
+        "twice the loop did not keep up: {} of {} periods missed their torque, over {} %; \
+         the machine is too busy for a 1 kHz loop\n{context}",
+        plant.deadline_misses,
+        plant.steps,
+        KEEPS_UP * 100.0
+    );
     assert!(summary.record.tilts >= 8, "{context}");
     assert!(plant.tilts >= 8 && plant.tilts <= 16, "{context}");
     // Both ways, each peak of the orbit's size (0.041 rad in our model at 1 kHz). Rarely (at
@@ -149,14 +181,6 @@ fn live_runs_the_mujoco_plant() {
     assert!(
         orbit.iter().all(|a| (0.02..0.07).contains(&a.abs())),
         "{peaks:?}"
-    );
-    // The loop keeps up: a plant that fell behind, or never took a torque in time, misses
-    // nearly every period. The figure of docs/mujoco.md (60 s, under 1 % with --realtime) is
-    // not asserted here: other test binaries and builds may share the machine (measured here
-    // 1.8 % beside a build; 13 % when the other tests of this file still ran beside it).
-    assert!(
-        (plant.deadline_misses as f64) < 0.2 * plant.steps as f64,
-        "{context}"
     );
 }
 
