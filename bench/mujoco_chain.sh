@@ -118,13 +118,18 @@ chain() {
             # holds) pull b_v negative beyond its noise, and identify refuses. Then the arm from
             # the excitation alone, and the plate's mass weighed (in the prior), as a user would.
             say "2. refused again ($(tail -n1 "$d/identify2.err")); the excitation alone, m_f weighed"
-            note="identify: excitation only, --no-refine, m_f weighed"
+            note="identify: excitation only, --no-refine, m_f weighed, i_f from the plate's size"
             grep -E '^m_f ' "$d/true.toml" >>"$d/prior.toml"
             "$T" identify "$d/exc/run.mcap" --params "$d/prior.toml" --no-refine \
                 --out "$d/robot.toml" --json >"$d/identify.json" 2>"$d/identify3.err" ||
                 { fail "2 identify" "$d/identify3.err"; return 1; }
-            # The flat motion does not see m_f: keep the weighed one.
+            # The flat motion does not see the plate: its weighed m_f, and its inertia from its
+            # size and mass (the true robot's i_f; a uniform plate's m_f (2f)^2 / 12 is 0.089
+            # and 0.071 for robots a and b). Without it the plan is a point-mass plate's, and on
+            # MuJoCo the loop ran an orbit of 0.063 rad for a plan of 0.018 (robot a, mid).
             sed -i "s/^m_f = .*/$(grep -E '^m_f ' "$d/true.toml")/" "$d/robot.toml"
+            sed -i '/^i_f/d' "$d/robot.toml"
+            grep -E '^i_f ' "$d/true.toml" >>"$d/robot.toml"
         fi
     fi
     if ! grep -q '^impact' "$d/robot.toml"; then
