@@ -107,6 +107,19 @@ pub struct LandingFit {
 }
 
 impl LandingFit {
+    /// The best law when the landings tell it from the others: its residual RMS at most
+    /// [`DECISIVE`] times every other law's. Under sensor noise (angles only, 1 mrad) the
+    /// rates around a landing are too noisy for that (all three laws' residuals within 10 %
+    /// of each other on the README's robot) and the prior's law should stay.
+    pub fn decisive(&self) -> Option<ImpactLaw> {
+        let best = self.laws.iter().find(|l| l.law == self.best)?;
+        self.laws
+            .iter()
+            .filter(|l| l.law != self.best)
+            .all(|l| best.residual_rms <= DECISIVE * l.residual_rms)
+            .then_some(self.best)
+    }
+
     /// The restitution to write: the estimate in `[0, MAX_RESTITUTION]`, 0 when no landing
     /// rebounded.
     pub fn restitution_written(&self) -> f64 {
@@ -122,11 +135,22 @@ impl LandingFit {
 /// (their mass matrix predicts each law's `c`); `None` without a usable landing.
 /// `tau[k]` is the torque (N m) held over sample `k`'s interval (`None` where unknown).
 pub fn fit(trace: &Trace, tau: &[Option<f64>], p: &Params) -> Option<LandingFit> {
-    let s = &trace.samples;
-    // Landing clusters: the events at one instant (a landing and a tilt at once), the first
-    // leaving a tilted mode for flat.
+    let clusters = clusters(&trace.events);
+    let mut landings = Vec::new();
+    let mut skipped = 0;
+    for c in 0..clusters.len() {
+        match one(trace, tau, p, &clusters, c) {
+            Some(l) => landings.push(l),
+            None => skipped += 1,
+        }
+    }
+    regress(landings, skipped, p)
+}
+
+/// The landings of `events`: the events at one instant (a landing and a tilt at once) as
+/// `(t, from, to)`, the first leaving a tilted mode for flat.
+fn clusters(ev: &[tilting_record::EventRecord]) -> Vec<(f64, Mode, Mode)> {
     let mut clusters: Vec<(f64, Mode, Mode)> = Vec::new();
-    let ev = &trace.events;
     let mut i = 0;
     while i < ev.len() {
         let mut j = i;
@@ -138,118 +162,131 @@ pub fn fit(trace: &Trace, tau: &[Option<f64>], p: &Params) -> Option<LandingFit>
         }
         i = j + 1;
     }
-    let mut landings = Vec::new();
-    let mut skipped = 0;
-    for (c, &(te, from, to)) in clusters.iter().enumerate() {
-        let prev = if c > 0 {
-            clusters[c - 1].0
-        } else {
-            f64::NEG_INFINITY
-        };
-        let next = clusters.get(c + 1).map_or(f64::INFINITY, |n| n.0);
-        // Samples strictly before the event in the tilt, strictly after it up to the next.
-        let k = s.partition_point(|x| x.t < te);
-        let rates = s
-            .get(k.saturating_sub(1))
-            .is_some_and(|x| x.x[3].is_finite());
-        let most = if rates { SIDE_RATES } else { SIDE };
-        let before: Vec<usize> = (0..k)
-            .rev()
-            .take_while(|&i| s[i].mode == from && s[i].t > prev)
+    clusters
+}
+
+/// The landing `c` of `clusters` estimated from the samples on each side (`None` when a side
+/// has too few samples).
+fn one(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    p: &Params,
+    clusters: &[(f64, Mode, Mode)],
+    c: usize,
+) -> Option<LandingEstimate> {
+    let s = &trace.samples;
+    let (te, from, to) = clusters[c];
+    let prev = if c > 0 {
+        clusters[c - 1].0
+    } else {
+        f64::NEG_INFINITY
+    };
+    let next = clusters.get(c + 1).map_or(f64::INFINITY, |n| n.0);
+    // Samples strictly before the event in the tilt, strictly after it up to the next.
+    let k = s.partition_point(|x| x.t < te);
+    let rates = s
+        .get(k.saturating_sub(1))
+        .is_some_and(|x| x.x[3].is_finite());
+    let most = if rates { SIDE_RATES } else { SIDE };
+    let before: Vec<usize> = (0..k)
+        .rev()
+        .take_while(|&i| s[i].mode == from && s[i].t > prev)
+        .take(most)
+        .collect();
+    let start = s[k..].iter().position(|x| x.t > te).map(|d| k + d);
+    let after: Vec<usize> = start.map_or(Vec::new(), |a| {
+        (a..s.len())
+            .take_while(|&i| s[i].t < next)
             .take(most)
-            .collect();
-        let start = s[k..].iter().position(|x| x.t > te).map(|d| k + d);
-        let after: Vec<usize> = start.map_or(Vec::new(), |a| {
-            (a..s.len())
-                .take_while(|&i| s[i].t < next)
-                .take(most)
-                .collect()
-        });
-        if before.len() < MIN_SIDE || after.len() < MIN_SIDE {
-            skipped += 1;
-            continue;
-        }
-        let pre = |t: f64| side(trace, &before, t);
-        // The landing instant: the root of alpha before, between the samples around the event.
-        let (t_lo, t_hi) = (s[before[0]].t, s[after[0]].t);
-        let mut tl = te;
-        if let Some(poly) = pre(te) {
-            let root = newton_root(&poly, te, t_lo, t_hi);
-            if let Some(r) = root {
-                tl = r;
-            }
-        }
-        let (Some(b), Some(mut a)) = (pre(tl), side(trace, &after, tl)) else {
-            skipped += 1;
-            continue;
-        };
-        let mut b = b;
-        // The side before likewise, where the last sample's rates are recorded: carried
-        // forward under its held torque to alpha = 0 (two Newton steps on the landing instant).
-        let last = &s[before[0]];
-        if let (Some(u), true) = (
-            tau.get(before[0]).copied().flatten(),
-            last.x.iter().all(|v| v.is_finite()),
-        ) {
-            let mut t = tl;
-            let mut x = integrate(p, from, last.x, u, t - last.t);
-            for _ in 0..2 {
-                if x[2] != 0.0 {
-                    t -= x[0] / x[2];
-                    x = integrate(p, from, last.x, u, t - last.t);
-                }
-            }
-            if x.iter().all(|v| v.is_finite()) && t > last.t && t < s[after[0]].t {
-                tl = t;
-                b.v = [x[0], x[1]];
-                b.d = [x[2], x[3]];
-            }
-        }
-        // The side after, over the partial interval from the landing to the first sample
-        // after it: the torque held there is the one before the landing, in the new mode's
-        // dynamics, while the polynomial carries the next intervals' (the controller answers
-        // the new mode at the next sample: measured 1.2 % of the jump off on the paper's
-        // orbit). So the state at that sample is integrated back to the landing instant
-        // under the held torque with the identified parameters.
-        let k_int = s.partition_point(|x| x.t <= tl).saturating_sub(1);
-        let first = &s[after[0]];
-        if let (Some(u), true) = (tau.get(k_int).copied().flatten(), first.mode == to) {
-            // The sample itself where its rates are recorded (a polynomial through the next
-            // samples spans the torque's jump there: on the paper's orbit the plate rests
-            // until the next sample, whose torque tips it).
-            let recorded = first.x.iter().all(|v| v.is_finite()).then_some(first.x);
-            let fitted = || side(trace, &after, first.t).map(|a| [a.v[0], a.v[1], a.d[0], a.d[1]]);
-            if let Some(x) = recorded.or_else(fitted) {
-                let x = if to == Mode::Flat {
-                    [0.0, x[1], 0.0, x[3]]
-                } else {
-                    x
-                };
-                let back = integrate(p, to, x, u, tl - first.t);
-                if back.iter().all(|v| v.is_finite()) {
-                    a.v = [back[0], back[1]];
-                    a.d = [back[2], back[3]];
-                }
-            }
-        }
-        let (ad, bd) = (b.d[0], b.d[1]);
-        // The plate leaves the landing at rest unless it rebounds over the same edge: flat,
-        // or a tilt over the other edge, which starts from alpha_dot = 0 (a polynomial
-        // through a flat spell and a tilt's start would only blur that).
-        let ad1 = if to == from { a.d[0] } else { 0.0 };
-        let bd1 = a.d[1];
-        let fast = ad.abs() >= MIN_SPEED;
-        landings.push(LandingEstimate {
-            t: tl,
-            from,
-            to,
-            beta: 0.5 * (b.v[1] + a.v[1]),
-            before: [ad, bd],
-            after: [ad1, bd1],
-            c: fast.then(|| (bd1 - bd) / ad),
-            e: fast.then(|| -ad1 / ad),
-        });
+            .collect()
+    });
+    if before.len() < MIN_SIDE || after.len() < MIN_SIDE {
+        return None;
     }
+    let pre = |t: f64| side(trace, &before, t);
+    // The landing instant: the root of alpha before, between the samples around the event.
+    let (t_lo, t_hi) = (s[before[0]].t, s[after[0]].t);
+    let mut tl = te;
+    if let Some(poly) = pre(te) {
+        let root = newton_root(&poly, te, t_lo, t_hi);
+        if let Some(r) = root {
+            tl = r;
+        }
+    }
+    let (Some(b), Some(mut a)) = (pre(tl), side(trace, &after, tl)) else {
+        return None;
+    };
+    let mut b = b;
+    // The side before likewise, where the last sample's rates are recorded: carried
+    // forward under its held torque to alpha = 0 (two Newton steps on the landing instant).
+    let last = &s[before[0]];
+    if let (Some(u), true) = (
+        tau.get(before[0]).copied().flatten(),
+        last.x.iter().all(|v| v.is_finite()),
+    ) {
+        let mut t = tl;
+        let mut x = integrate(p, from, last.x, u, t - last.t);
+        for _ in 0..2 {
+            if x[2] != 0.0 {
+                t -= x[0] / x[2];
+                x = integrate(p, from, last.x, u, t - last.t);
+            }
+        }
+        if x.iter().all(|v| v.is_finite()) && t > last.t && t < s[after[0]].t {
+            tl = t;
+            b.v = [x[0], x[1]];
+            b.d = [x[2], x[3]];
+        }
+    }
+    // The side after, over the partial interval from the landing to the first sample
+    // after it: the torque held there is the one before the landing, in the new mode's
+    // dynamics, while the polynomial carries the next intervals' (the controller answers
+    // the new mode at the next sample: measured 1.2 % of the jump off on the paper's
+    // orbit). So the state at that sample is integrated back to the landing instant
+    // under the held torque with the identified parameters.
+    let k_int = s.partition_point(|x| x.t <= tl).saturating_sub(1);
+    let first = &s[after[0]];
+    if let (Some(u), true) = (tau.get(k_int).copied().flatten(), first.mode == to) {
+        // The sample itself where its rates are recorded (a polynomial through the next
+        // samples spans the torque's jump there: on the paper's orbit the plate rests
+        // until the next sample, whose torque tips it).
+        let recorded = first.x.iter().all(|v| v.is_finite()).then_some(first.x);
+        let fitted = || side(trace, &after, first.t).map(|a| [a.v[0], a.v[1], a.d[0], a.d[1]]);
+        if let Some(x) = recorded.or_else(fitted) {
+            let x = if to == Mode::Flat {
+                [0.0, x[1], 0.0, x[3]]
+            } else {
+                x
+            };
+            let back = integrate(p, to, x, u, tl - first.t);
+            if back.iter().all(|v| v.is_finite()) {
+                a.v = [back[0], back[1]];
+                a.d = [back[2], back[3]];
+            }
+        }
+    }
+    let (ad, bd) = (b.d[0], b.d[1]);
+    // The plate leaves the landing at rest unless it rebounds over the same edge: flat,
+    // or a tilt over the other edge, which starts from alpha_dot = 0 (a polynomial
+    // through a flat spell and a tilt's start would only blur that).
+    let ad1 = if to == from { a.d[0] } else { 0.0 };
+    let bd1 = a.d[1];
+    let fast = ad.abs() >= MIN_SPEED;
+    Some(LandingEstimate {
+        t: tl,
+        from,
+        to,
+        beta: 0.5 * (b.v[1] + a.v[1]),
+        before: [ad, bd],
+        after: [ad1, bd1],
+        c: fast.then(|| (bd1 - bd) / ad),
+        e: fast.then(|| -ad1 / ad),
+    })
+}
+
+/// The law the landings follow: `c` by regression, the physical law's `e`, each law's
+/// residual, the best.
+fn regress(landings: Vec<LandingEstimate>, skipped: usize, p: &Params) -> Option<LandingFit> {
     if landings.is_empty() {
         return None;
     }
@@ -338,6 +375,10 @@ pub fn fit(trace: &Trace, tau: &[Option<f64>], p: &Params) -> Option<LandingFit>
         best,
     })
 }
+
+/// A law is told from the others when its residual RMS is at most this share of theirs: on
+/// clean recordings the law a run was made with fits 1e-7 of the others' residuals or better.
+pub const DECISIVE: f64 = 0.5;
 
 /// The state `x` of mode `mode` carried over `dt` s (negative: backwards) under the torque
 /// `u` with the parameters `p`: classical Runge-Kutta, eight steps (a partial sample interval:

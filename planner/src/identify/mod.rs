@@ -245,6 +245,72 @@ pub enum IdentifyError {
     },
 }
 
+/// Why a base parameter cannot be seen in what the recording holds (`None`: it may be): no
+/// tilted interval (`merge35`: the flat rows see pi3 + pi5 only), no sliding joint.
+fn unseen_in(r: &rows::Rows, merge35: bool) -> Vec<Option<String>> {
+    let mut out = vec![None::<String>; N_BASE];
+    if merge35 {
+        out[0] = Some(
+            "m_f + m_l enters only the plate's equation while tilted: the recording has \
+                       no tilted interval (record tilts)"
+                .into(),
+        );
+        out[3] = Some(
+            "the rotor's share enters only while tilted: flat motion sees pi3 + pi5 \
+                       (record tilts)"
+                .into(),
+        );
+        out[2] = Some(
+            "flat motion sees only pi3 + pi5, the arm's inertia about the joint \
+                       (record tilts)"
+                .into(),
+        );
+        out[4] = out[2].clone();
+        out[7] = Some(
+            "the plate's inertia enters only the plate's equation while tilted: the \
+                       recording has no tilted interval (record tilts)"
+                .into(),
+        );
+    }
+    if r.sliding_fwd + r.sliding_bwd == 0 {
+        for i in [5, 6] {
+            out[i] = Some("no interval with the joint sliding: friction is not seen".into());
+        }
+    }
+    out
+}
+
+/// The base parameters' estimates as reported: value, standard error or why not identifiable,
+/// and the lumped `pi3 + pi5` when it was estimated (`sum35`: value, standard error).
+fn estimates(
+    value: &[Option<f64>; N_BASE],
+    se: &[Option<f64>; N_BASE],
+    out: &[Option<String>],
+    sum35: Option<(f64, f64)>,
+) -> Vec<Estimate> {
+    let mut base: Vec<Estimate> = (0..N_BASE)
+        .map(|i| Estimate {
+            name: BASE[i].0.into(),
+            combination: BASE[i].1.into(),
+            unit: BASE[i].2.into(),
+            value: value[i],
+            std_error: se[i],
+            not_identifiable: out[i].clone(),
+        })
+        .collect();
+    if let Some((v, s)) = sum35 {
+        base.push(Estimate {
+            name: "pi3+pi5".into(),
+            combination: "m_l l_c^2 + i_l + n_g^2 j_m".into(),
+            unit: "kg m^2".into(),
+            value: Some(v),
+            std_error: Some(s),
+            not_identifiable: None,
+        });
+    }
+    base
+}
+
 /// Identifies the robot of `trace`, with `tau[k]` the torque (N m) held over sample `k`'s
 /// interval (`None` where unknown).
 pub fn identify(
@@ -281,36 +347,8 @@ pub fn identify(
             equations: r.y.len(),
         });
     }
-    let mut out = vec![None::<String>; N_BASE];
     let merge35 = r.tilted == 0;
-    if merge35 {
-        out[0] = Some(
-            "m_f + m_l enters only the plate's equation while tilted: the recording has \
-                       no tilted interval (record tilts)"
-                .into(),
-        );
-        out[3] = Some(
-            "the rotor's share enters only while tilted: flat motion sees pi3 + pi5 \
-                       (record tilts)"
-                .into(),
-        );
-        out[2] = Some(
-            "flat motion sees only pi3 + pi5, the arm's inertia about the joint \
-                       (record tilts)"
-                .into(),
-        );
-        out[4] = out[2].clone();
-        out[7] = Some(
-            "the plate's inertia enters only the plate's equation while tilted: the \
-                       recording has no tilted interval (record tilts)"
-                .into(),
-        );
-    }
-    if r.sliding_fwd + r.sliding_bwd == 0 {
-        for i in [5, 6] {
-            out[i] = Some("no interval with the joint sliding: friction is not seen".into());
-        }
-    }
+    let mut out = unseen_in(&r, merge35);
     // Active columns: a merged pi3 + pi5 is column 2 (the flat rows have equal columns).
     let active = |out: &[Option<String>]| -> (Vec<usize>, Vec<String>) {
         let cols: Vec<usize> = (0..N_BASE)
@@ -382,26 +420,7 @@ pub fn identify(
         (fit.x[j], fit.se[j] * corr)
     });
     let refinement = refine_friction(trace, tau, &states, opts, sum35, &mut value, &mut se);
-    let mut base: Vec<Estimate> = (0..N_BASE)
-        .map(|i| Estimate {
-            name: BASE[i].0.into(),
-            combination: BASE[i].1.into(),
-            unit: BASE[i].2.into(),
-            value: value[i],
-            std_error: se[i],
-            not_identifiable: out[i].clone(),
-        })
-        .collect();
-    if let Some((v, s)) = sum35 {
-        base.push(Estimate {
-            name: "pi3+pi5".into(),
-            combination: "m_l l_c^2 + i_l + n_g^2 j_m".into(),
-            unit: "kg m^2".into(),
-            value: Some(v),
-            std_error: Some(s),
-            not_identifiable: None,
-        });
-    }
+    let base = estimates(&value, &se, &out, sum35);
     let mut warnings = Vec::new();
     warnings.extend(refinement.as_ref().and_then(not_converged));
     // The torque rows' RMS (N m): a friction below FRICTION_FLOOR of it is zero to any torque
@@ -414,11 +433,22 @@ pub fn identify(
         derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
     let landing = landing::fit(trace, tau, &params);
     if let Some(l) = &landing {
-        params.impact = l.best;
-        params.restitution = match l.best {
-            tilting_plant::ImpactLaw::Physical => l.restitution_written(),
-            _ => 0.0,
-        };
+        match l.decisive() {
+            Some(best) => {
+                params.impact = best;
+                params.restitution = match best {
+                    tilting_plant::ImpactLaw::Physical => l.restitution_written(),
+                    _ => 0.0,
+                };
+            }
+            None => warnings.push(format!(
+                "the landings do not tell the laws apart (residuals within a factor {} of \
+                 each other: the rates around a landing are too noisy): the prior's law, {}, \
+                 is kept",
+                1.0 / landing::DECISIVE,
+                params.impact.as_str()
+            )),
+        }
     }
     Ok(Identification {
         base,
