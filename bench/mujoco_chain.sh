@@ -133,8 +133,8 @@ chain() {
         fi
     fi
     if ! grep -q '^impact' "$d/robot.toml"; then
-        printf '# appended by bench/mujoco_chain.sh: identify does not estimate the landing yet\nimpact = "physical"\n' >>"$d/robot.toml"
-        note="${note:+$note; }impact appended"
+        printf '# appended by bench/mujoco_chain.sh: identify wrote no landing law\nimpact = "physical"\n' >>"$d/robot.toml"
+        note="${note:+$note; }impact physical appended"
     elif ! grep -q '^impact = "physical"' "$d/robot.toml"; then
         # identify picks the law of the smallest residual; the chain is the physical law's.
         local chose
