@@ -272,7 +272,7 @@ for r in robots:
         d = f"{out}/{r}-{c}"
         if os.path.exists(f"{d}/failed.json"):
             rows.append(f"| {r} | {c} | failed at {json.load(open(f'{d}/failed.json'))['failed']} "
-                        "| | | | | | | | | | | | | | | |")
+                        "| | | | | | | | | | | | | | |")
         if not os.path.exists(f"{d}/rows.jsonl"):
             continue
         for line in open(f"{d}/rows.jsonl"):
