@@ -1007,16 +1007,16 @@ impl Plant {
             let gi = |t: f64| g_at(i, t);
             // A rebound that lands within its first step: the landing lies after the extreme,
             // where `alpha` is positive.
-            let (ta, ga) = if i == 0 && g0[0] == 0.0 && mode != Mode::Flat {
+            let r = if i == 0 && g0[0] == 0.0 && mode != Mode::Flat {
                 let te = locate(&|t| g_at(1, t), t0, g0[1], t1, g1[1], self.cfg.event_tol);
-                (te, gi(te))
+                match gi(te) {
+                    ga if ga > 0.0 => locate(&gi, te, ga, t1, g1[i], self.cfg.event_tol),
+                    _ => te,
+                }
             } else {
-                (t0, g0[i])
-            };
-            let r = if ga > 0.0 {
-                locate(&gi, ta, ga, t1, g1[i], self.cfg.event_tol)
-            } else {
-                ta
+                // As before the rebounds: the joint's event also from g0 = 0 (a slide that
+                // turns back at once), located from t0.
+                locate(&gi, t0, g0[i], t1, g1[i], self.cfg.event_tol)
             };
             roots[n_roots] = (r, EVS[i]);
             n_roots += 1;
