@@ -311,6 +311,27 @@ fn estimates(
     base
 }
 
+/// Writes the landing law the recorded landings decide into `params` (and its restitution), or
+/// keeps the prior's with a warning when they do not tell the laws apart.
+fn write_landing(params: &mut Params, l: &landing::LandingFit, warnings: &mut Vec<String>) {
+    match l.decisive() {
+        Some(best) => {
+            params.impact = best;
+            params.restitution = match best {
+                tilting_plant::ImpactLaw::Physical => l.restitution_written(),
+                _ => 0.0,
+            };
+        }
+        None => warnings.push(format!(
+            "the landings do not tell the laws apart (residuals within a factor {} of \
+             each other: the rates around a landing are too noisy): the prior's law, {}, \
+             is kept",
+            1.0 / landing::DECISIVE,
+            params.impact.as_str()
+        )),
+    }
+}
+
 /// Identifies the robot of `trace`, with `tau[k]` the torque (N m) held over sample `k`'s
 /// interval (`None` where unknown).
 pub fn identify(
@@ -433,22 +454,7 @@ pub fn identify(
         derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
     let landing = landing::fit(trace, tau, &params);
     if let Some(l) = &landing {
-        match l.decisive() {
-            Some(best) => {
-                params.impact = best;
-                params.restitution = match best {
-                    tilting_plant::ImpactLaw::Physical => l.restitution_written(),
-                    _ => 0.0,
-                };
-            }
-            None => warnings.push(format!(
-                "the landings do not tell the laws apart (residuals within a factor {} of \
-                 each other: the rates around a landing are too noisy): the prior's law, {}, \
-                 is kept",
-                1.0 / landing::DECISIVE,
-                params.impact.as_str()
-            )),
-        }
+        write_landing(&mut params, l, &mut warnings);
     }
     Ok(Identification {
         base,
