@@ -521,7 +521,15 @@ fn the_refinement_converges_on_noisy_coulomb_friction() {
             r.iterations, r.converged, id.params.b_v, id.base[5].std_error, id.params.tau_c
         );
         assert!(r.converged, "seed {seed}: {r:?}");
-        assert!(id.warnings.is_empty(), "seed {seed}: {:?}", id.warnings);
+        // No warning but the landing's: under 1 mrad of angle noise the rates around a
+        // landing cannot tell the laws apart, and identify says so (the prior's law kept).
+        let others: Vec<_> = id
+            .warnings
+            .iter()
+            .filter(|w| !w.contains("landings do not tell the laws apart"))
+            .collect();
+        assert!(others.is_empty(), "seed {seed}: {others:?}");
+        assert_eq!(id.params.impact, truth.impact);
         let se = id.base[5].std_error.unwrap();
         assert!(
             (id.params.b_v - truth.b_v).abs() < 3.0 * se,
