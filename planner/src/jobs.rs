@@ -41,6 +41,28 @@ pub enum JobError {
     },
 }
 
+/// A wanted tilt peak (rad), checked.
+fn check_peak(peak: f64) -> Result<f64, JobError> {
+    check(
+        "peak",
+        peak,
+        peak > 0.0 && peak < 1.5,
+        "finite, > 0 and < 1.5 (rad)",
+    )
+}
+
+/// The planner plans plastic landings: a robot that rebounds is refused, naming the key.
+fn check_plastic(params: &Params) -> Result<(), JobError> {
+    if params.restitution != 0.0 {
+        return Err(JobError::Invalid(format!(
+            "invalid `restitution` = {}: the planner plans plastic landings only (0); the \
+             plant simulates rebounds",
+            params.restitution
+        )));
+    }
+    Ok(())
+}
+
 /// `v` if finite and `ok`, otherwise the error naming `--{field}` and `allowed`.
 fn check(field: &str, v: f64, ok: bool, allowed: &str) -> Result<f64, JobError> {
     if v.is_finite() && ok {
@@ -199,12 +221,7 @@ impl BifurcationJob {
     /// The same sweep about the orbit of the `k = 500` loop with the peak `peak` (rad): its
     /// `E_av` and its start, as `plan orbit --peak` finds them.
     pub fn with_peak(mut self, peak: f64) -> Result<Self, JobError> {
-        check(
-            "peak",
-            peak,
-            peak > 0.0 && peak < 1.5,
-            "finite, > 0 and < 1.5 (rad)",
-        )?;
+        check_peak(peak)?;
         self.peak = Some(peak);
         Ok(self)
     }
@@ -519,19 +536,8 @@ pub fn orbit_for_peak(
         k > 0.0,
         "finite and > 0 (the peak is set through E_av)",
     )?;
-    check(
-        "peak",
-        peak,
-        peak > 0.0 && peak < 1.5,
-        "finite, > 0 and < 1.5 (rad)",
-    )?;
-    if params.restitution != 0.0 {
-        return Err(JobError::Invalid(format!(
-            "invalid `restitution` = {}: the planner plans plastic landings only (0); the \
-             plant simulates rebounds",
-            params.restitution
-        )));
-    }
+    check_peak(peak)?;
+    check_plastic(&params)?;
     let pb = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
     let found = crate::peak::energy_for_peak(&pb, &crate::peak::PeakSearch::new(peak), tick)
         .map_err(|e| match e {
@@ -559,12 +565,7 @@ pub fn reach(
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<crate::peak::ReachCell>, JobError> {
     check("kp", kp, kp > 0.0, "finite and > 0")?;
-    check(
-        "peak",
-        peak,
-        peak > 0.0 && peak < 1.5,
-        "finite, > 0 and < 1.5 (rad)",
-    )?;
+    check_peak(peak)?;
     check("kd-from", kd_from, kd_from > 0.0, "finite and > 0")?;
     check("kd-to", kd_to, kd_to >= kd_from, "finite and >= --kd-from")?;
     check("kd-step", kd_step, kd_step > 0.0, "finite and > 0")?;
@@ -582,12 +583,7 @@ pub fn reach(
             ks.len()
         )));
     }
-    if params.restitution != 0.0 {
-        return Err(JobError::Invalid(format!(
-            "invalid `restitution` = {}: the planner plans plastic landings only (0)",
-            params.restitution
-        )));
-    }
+    check_plastic(&params)?;
     let pb = OrbitProblem::new(params, impact, kp, kds[0]);
     Ok(crate::peak::reach_map(&pb, &kds, &ks, peak, tick))
 }
