@@ -69,7 +69,7 @@ pub struct ContinuationArgs {
     pub plot: Option<std::path::PathBuf>,
     /// Start from the adapted loop's orbit with this peak (rad; `plan orbit --peak`) and its
     /// E_av, instead of the k = 0 orbit's (which the physical landing law has not)
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: Option<f64>,
     /// The model, impact law and output format.
     #[command(flatten)]
@@ -433,7 +433,7 @@ pub struct StabilityArgs {
     pub plot: Option<std::path::PathBuf>,
     /// Start from the adapted loop's orbit with this peak (rad; `plan orbit --peak`) and its
     /// E_av, instead of the k = 0 orbit's (which the physical landing law has not)
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: Option<f64>,
     /// The model, impact law and output format.
     #[command(flatten)]

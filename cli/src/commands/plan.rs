@@ -37,7 +37,7 @@ pub struct OrbitArgs {
     pub model: ModelArgs,
     /// Find the adaptation's E_av (J) for which the adapted loop tilts with this peak |alpha|
     /// (rad), for any landing law; k defaults to the paper's 500 [default: off]
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: Option<f64>,
 }
 
@@ -134,7 +134,7 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
 #[derive(Debug, Clone, Args)]
 pub struct ReachArgs {
     /// The wanted tilt peak |alpha| (rad)
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: f64,
     /// First K_D (1/s)
     #[arg(long, default_value_t = 6.0, allow_negative_numbers = true)]
@@ -322,7 +322,7 @@ pub struct BifurcationArgs {
     pub period_tol: f64,
     /// Sweep about the k = 500 loop's orbit with this peak (rad; `plan orbit --peak`): its E_av
     /// and start, instead of the k = 0 orbit's (which the physical landing law has not)
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: Option<f64>,
     /// The model, impact law and output format.
     #[command(flatten)]
