@@ -5,6 +5,10 @@
 //! `schema` feature: field names, JSON types, and the fields' documentation with units as
 //! descriptions), for the JSON the writer emits: every field required, no other field. A test
 //! checks each schema against the JSON of a message.
+//!
+//! Next to each enumeration byte the JSON carries its name ([`NAMES`]: `mode` 1 and
+//! `mode_name` `"left"`, a status' `state_name` `"safe mode"`, ...), so a viewer (Foxglove's
+//! raw messages, a plot's tooltip) shows a word; the numbers stay for plots and programs.
 
 use schemars::generate::SchemaSettings;
 use schemars::JsonSchema;
@@ -35,7 +39,75 @@ pub fn json_schema(topic: Topic) -> Value {
     };
     v["title"] = schema_name(topic).into();
     one_type_per_field(&mut v);
+    for &(t, field, name, values) in NAMES {
+        if t != topic {
+            continue;
+        }
+        let described = v["properties"][field]["description"].clone();
+        let what = described.as_str().unwrap_or(field);
+        v["properties"][name] = serde_json::json!({
+            "type": "string",
+            "enum": values,
+            "description": format!("The name of `{field}` ({}): {what}", values.join(", ")),
+        });
+        if let Some(req) = v["required"].as_array_mut() {
+            req.push(name.into());
+        }
+    }
     v
+}
+
+/// The enumeration bytes of the JSON messages and the names written next to them: topic, the
+/// byte's field, the name's field, and the names of the values 0, 1, ... in order.
+pub const NAMES: &[(Topic, &str, &str, &[&str])] = &[
+    (Topic::State, "mode", "mode_name", MODES),
+    (Topic::Event, "from", "from_name", MODES),
+    (Topic::Event, "to", "to_name", MODES),
+    (Topic::Status, "state", "state_name", STATES),
+    (Topic::Status, "mode", "mode_name", MODES),
+    (Topic::Reference, "kind", "kind_name", KINDS),
+];
+
+/// The contact modes by byte (`tilting_proto::Mode`).
+const MODES: &[&str] = &["flat", "left", "right"];
+/// The run states by byte (`Status::state_name`).
+const STATES: &[&str] = &["starting", "running", "safe mode", "faulted", "stopped"];
+/// The reference kinds by byte (`Reference::HOLD`, `SINUSOID`, `EXCITATION`).
+const KINDS: &[&str] = &["hold", "sinusoid", "excitation"];
+
+/// Adds the names of `topic`'s enumeration bytes to its JSON object `o` (a byte out of range,
+/// which validation refuses first, gets `"?"`).
+fn add_names(topic: Topic, o: &mut serde_json::Map<String, Value>) {
+    for &(t, field, name, values) in NAMES {
+        if t == topic {
+            let n = o.get(field).and_then(Value::as_u64);
+            let v = n.and_then(|n| values.get(n as usize)).unwrap_or(&"?");
+            o.insert(name.into(), Value::from(*v));
+        }
+    }
+}
+
+/// Removes the names from `topic`'s JSON object `o`, refusing one that does not name its byte
+/// (the error names the field).
+fn take_names(topic: Topic, o: &mut serde_json::Map<String, Value>) -> Result<(), FromJsonError> {
+    for &(t, field, name, values) in NAMES {
+        if t != topic {
+            continue;
+        }
+        let Some(got) = o.remove(name) else { continue };
+        let want = o
+            .get(field)
+            .and_then(Value::as_u64)
+            .and_then(|n| values.get(n as usize));
+        if want.is_none_or(|w| got != *w) {
+            return Err(FromJsonError::Name(format!(
+                "invalid `{name}` = {got}: `{field}` = {} is {}",
+                o.get(field).unwrap_or(&Value::Null),
+                want.map_or("out of range".to_owned(), |w| format!("\"{w}\"")),
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Foxglove's and Lichtblick's schema parsers take one JSON type per field and refuse the
@@ -62,7 +134,7 @@ fn one_type_per_field(schema: &mut Value) {
 
 /// Decodes and validates a wire payload of `topic` and returns its JSON object (UTF-8).
 pub fn to_json(topic: Topic, wire: &[u8]) -> Result<Vec<u8>, DecodeError> {
-    fn enc<T: Message + serde::Serialize>(wire: &[u8]) -> Result<Vec<u8>, DecodeError> {
+    fn enc<T: Message + serde::Serialize>(wire: &[u8]) -> Result<Value, DecodeError> {
         let m: T = codec::decode(wire)?;
         // Serialising a struct of numbers and a string cannot fail. An absent (null) field is
         // left out: its schema names it optional ([`json_schema`]).
@@ -70,15 +142,19 @@ pub fn to_json(topic: Topic, wire: &[u8]) -> Result<Vec<u8>, DecodeError> {
         if let Some(o) = v.as_object_mut() {
             o.retain(|_, x| !x.is_null());
         }
-        Ok(serde_json::to_vec(&v).unwrap_or_default())
+        Ok(v)
     }
-    match topic {
+    let mut v = match topic {
         Topic::State => enc::<PlantState>(wire),
         Topic::Torque => enc::<TorqueCommand>(wire),
         Topic::Event => enc::<ModeEvent>(wire),
         Topic::Status => enc::<Status>(wire),
         Topic::Reference => enc::<Reference>(wire),
+    }?;
+    if let Some(o) = v.as_object_mut() {
+        add_names(topic, o);
     }
+    Ok(serde_json::to_vec(&v).unwrap_or_default())
 }
 
 /// A JSON object that is not a valid message of its topic.
@@ -90,25 +166,30 @@ pub enum FromJsonError {
     /// The message does not validate (e.g. a mode byte out of range).
     #[error("{0}")]
     Invalid(#[from] tilting_proto::ValidationError),
+    /// A name that does not name its byte (`mode_name` `"left"` with `mode` 2).
+    #[error("{0}")]
+    Name(String),
 }
 
 /// The wire payload of a JSON object of `topic`: the inverse of [`to_json`], byte for byte
 /// (JSON numbers are written in shortest round-trip form and parsed correctly rounded, and the
 /// wire encoding of a message is unique), after the message's own validation.
 pub fn from_json(topic: Topic, json: &[u8]) -> Result<Vec<u8>, FromJsonError> {
-    fn dec<T: Message + serde::de::DeserializeOwned>(
-        json: &[u8],
-    ) -> Result<Vec<u8>, FromJsonError> {
-        let m: T = serde_json::from_slice(json)?;
+    fn dec<T: Message + serde::de::DeserializeOwned>(v: Value) -> Result<Vec<u8>, FromJsonError> {
+        let m: T = serde_json::from_value(v)?;
         m.validate()?;
         Ok(codec::encode(&m))
     }
+    let mut v: Value = serde_json::from_slice(json)?;
+    if let Some(o) = v.as_object_mut() {
+        take_names(topic, o)?;
+    }
     match topic {
-        Topic::State => dec::<PlantState>(json),
-        Topic::Torque => dec::<TorqueCommand>(json),
-        Topic::Event => dec::<ModeEvent>(json),
-        Topic::Status => dec::<Status>(json),
-        Topic::Reference => dec::<Reference>(json),
+        Topic::State => dec::<PlantState>(v),
+        Topic::Torque => dec::<TorqueCommand>(v),
+        Topic::Event => dec::<ModeEvent>(v),
+        Topic::Status => dec::<Status>(v),
+        Topic::Reference => dec::<Reference>(v),
     }
 }
 
@@ -295,7 +376,9 @@ mod tests {
             "{v}"
         );
         assert_eq!(v["alpha"].as_f64(), Some(0.01));
-        let back: PlantState = serde_json::from_value(v.clone()).unwrap();
+        let back: PlantState =
+            codec::decode(&from_json(Topic::State, &serde_json::to_vec(&v).unwrap()).unwrap())
+                .unwrap();
         assert_eq!(back, s);
         assert_eq!(
             from_json(Topic::State, &serde_json::to_vec(&v).unwrap()).unwrap(),
@@ -321,8 +404,8 @@ mod tests {
             beta_dot: Some(1.0 / 3.0),
             mode: 0,
         };
-        let back: PlantState =
-            serde_json::from_slice(&to_json(Topic::State, &encode(&s)).unwrap()).unwrap();
+        let json = to_json(Topic::State, &encode(&s)).unwrap();
+        let back: PlantState = codec::decode(&from_json(Topic::State, &json).unwrap()).unwrap();
         assert_eq!(back, s);
     }
 
@@ -357,6 +440,48 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("mode"), "{e}");
+    }
+
+    /// Every enumeration byte has its name next to it, the names are the ones the rest of the
+    /// code uses (`Mode::as_str`, `Status::state_name`), and a name that contradicts its byte is
+    /// refused naming the field.
+    #[test]
+    fn enumerations_carry_their_names() {
+        for (topic, wire) in samples() {
+            let v: Value = serde_json::from_slice(&to_json(topic, &wire).unwrap()).unwrap();
+            for &(t, field, name, values) in NAMES.iter().filter(|n| n.0 == topic) {
+                let n = v[field].as_u64().unwrap() as usize;
+                assert_eq!(v[name], values[n], "{t}.{name}");
+            }
+        }
+        for (i, m) in MODES.iter().enumerate() {
+            assert_eq!(tilting_proto::Mode::try_from(i as u8).unwrap().as_str(), *m);
+        }
+        for (i, st) in STATES.iter().enumerate() {
+            let s = Status {
+                state: i as u8,
+                ..Status::default()
+            };
+            assert_eq!(s.state_name(), *st);
+        }
+        let kinds = [Reference::HOLD, Reference::SINUSOID, Reference::EXCITATION];
+        assert_eq!(kinds.map(usize::from), [0, 1, 2]);
+        assert_eq!(KINDS.len(), 3);
+        let (_, wire) = &samples()[0];
+        let mut v: Value = serde_json::from_slice(&to_json(Topic::State, wire).unwrap()).unwrap();
+        assert_eq!(v["mode_name"], "left");
+        v["mode_name"] = "right".into();
+        let e = from_json(Topic::State, &serde_json::to_vec(&v).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`mode_name`") && e.contains("\"left\""), "{e}");
+        // Without the names (an older recording) the JSON still reads.
+        let o = v.as_object_mut().unwrap();
+        o.remove("mode_name");
+        assert_eq!(
+            &from_json(Topic::State, &serde_json::to_vec(&v).unwrap()).unwrap(),
+            wire
+        );
     }
 
     #[test]

@@ -9,7 +9,7 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use tilting_proto::{
-    codec, DecodeError, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand,
+    codec, DecodeError, Keys, ModeEvent, PlantState, Status, Topic, TorqueCommand,
 };
 
 /// Longest time between two chunk closes while messages arrive: what a SIGKILL can lose.
@@ -160,31 +160,30 @@ impl McapWriter {
     /// The JSON object of a payload and the plant time it carries, ns (a torque: the time of
     /// the state it answers, if that state was recorded recently).
     fn decode(&mut self, topic: Topic, wire: &[u8]) -> Result<(Vec<u8>, Option<u64>), DecodeError> {
-        fn json<T: serde::Serialize>(m: &T) -> Vec<u8> {
-            // Serialising a struct of numbers and a string cannot fail.
-            serde_json::to_vec(m).unwrap_or_default()
-        }
+        // The JSON of the schema module (absent rates left out, enumeration names added): the
+        // same bytes the Foxglove server sends.
+        let json = schema::to_json(topic, wire)?;
         Ok(match topic {
             Topic::State => {
                 let s: PlantState = codec::decode(wire)?;
                 let t = ns(s.time);
                 self.seq_times[(s.seq % SEQ_TIMES as u64) as usize] = (s.seq, t);
-                (json(&s), Some(t))
+                (json, Some(t))
             }
             Topic::Torque => {
                 let c: TorqueCommand = codec::decode(wire)?;
                 let (seq, t) = self.seq_times[(c.seq % SEQ_TIMES as u64) as usize];
-                (json(&c), (seq == c.seq).then_some(t))
+                (json, (seq == c.seq).then_some(t))
             }
             Topic::Event => {
                 let e: ModeEvent = codec::decode(wire)?;
-                (json(&e), Some(ns(e.time)))
+                (json, Some(ns(e.time)))
             }
             Topic::Status => {
                 let s: Status = codec::decode(wire)?;
-                (json(&s), Some(ns(s.time)))
+                (json, Some(ns(s.time)))
             }
-            Topic::Reference => (json(&codec::decode::<Reference>(wire)?), None),
+            Topic::Reference => (json, None),
         })
     }
 
