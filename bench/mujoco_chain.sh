@@ -22,9 +22,10 @@
 # Env: TILTING (./target/release/tilting), OUT (runs/mujoco-chain-<UTC time>), ROBOTS ("a b"),
 # CONTACTS ("stiff mid moderate"), EXC_S (60), TILT_S (30), RUN_S (60), JOBS (1: chains one
 # after another; 2 runs two chains side by side, which adds load and misses), RUNS (the live
-# runs of step 4: LAW-plain|trim[-planstart], LAW physical or paper; -planstart: the plant
-# starts on the planned orbit's start state, `--mode left --x0` from plan.json, instead of the
-# paper's, the plant's default; default the four from the paper's start),
+# runs of step 4: LAW-plain|trim[-planstart], LAW physical or paper; -planstart: `live --plan
+# plan.json`, the plant starts on the planned orbit's start state and the re-entry of
+# --orbit-peak hands over there, instead of the paper's orbit start, the plant's default;
+# default the physical law's two from the plan's start, the paper's law's two from its own),
 # REUSE (1: keep a chain's recordings when OUT has them, identify and plan again, and run only
 # the RUNS without a summary.json yet; the figures of all RUNS are computed again).
 # Needs: cargo build --release -p tilting; python3 -m pip install ./mujoco_plant.
@@ -39,7 +40,7 @@ EXC_S=${EXC_S:-60}
 TILT_S=${TILT_S:-30}
 RUN_S=${RUN_S:-60}
 JOBS=${JOBS:-1}
-RUNS=${RUNS:-physical-plain physical-trim paper-plain paper-trim}
+RUNS=${RUNS:-physical-plain-planstart physical-trim-planstart paper-plain paper-trim}
 PAPER_EAV=19.963439703
 PEAK=${PEAK:-0.018}
 PEAK_FALLBACK=${PEAK_FALLBACK:-0.016}
@@ -56,8 +57,10 @@ OUT=$(realpath "$OUT")
 
 robot_toml() { # the true robot, which only the plant sees
     case $1 in
-    a) printf 'm_f = 1.07\nm_l = 0.93\nl = 2.1\nl_c = 2.1\nf = 0.5\ni_f = 0.08\n' ;;
-    b) printf 'm_f = 0.92\nm_l = 1.08\nl = 2.0\nl_c = 2.0\nf = 0.48\ni_f = 0.08\n' ;;
+    # i_f: a 0.5 kg plate of 1 m (with 0.08, a 1 kg plate's, the paper's gains reach at most
+    # 0.0169 rad for robot a and 0.0178 for b: `plan orbit --peak 0.018` refuses).
+    a) printf 'm_f = 1.07\nm_l = 0.93\nl = 2.1\nl_c = 2.1\nf = 0.5\ni_f = 0.04\n' ;;
+    b) printf 'm_f = 0.92\nm_l = 1.08\nl = 2.0\nl_c = 2.0\nf = 0.48\ni_f = 0.04\n' ;;
     *) return 1 ;;
     esac
 }
@@ -211,9 +214,11 @@ print(repr(p["energy_avg_adaptation"]), repr(s["period"]), round(s["max_tilt"], 
         if [ "${REUSE:-0}" = 1 ] && [ -s "$d/$run/summary.json" ]; then
             say "4. $run kept (REUSE=1)"
         else
-        # The plan's orbit start instead of the plant's default (the paper's orbit start).
-        [ "$start" = plan ] && args[1]="python3 $HERE/delay_plant.py $plant --watchdog 100 --mode left --x0=$x0"
-        if [ "$law" = physical ]; then
+        if [ "$law" = physical ] && [ "$start" = plan ]; then
+            # The plan's law and orbit start (`live --plan`: E_av, and the plant starts on the
+            # planned orbit, where --orbit-peak's re-entry also hands over).
+            args+=(--params "$d/robot.toml" --plan "$d/plan.json")
+        elif [ "$law" = physical ]; then
             args+=(--params "$d/robot.toml" --energy-avg "$e_av")
         else
             args+=(--params "$d/robot-paper.toml" --energy-avg "$PAPER_EAV")

@@ -187,6 +187,13 @@ pub struct LawSpec {
     /// Not carried by the planner's message: a controller keeps its own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orbit_peak: Option<f64>,
+    /// The orbit's start, `[beta, beta_dot]` (rad, rad/s) at the lift-off of a left tilt
+    /// (`alpha = 0`, `alpha_dot = 0`): where `live` starts the plant and where the robust
+    /// option's re-entry hands over to the orbit law (a planned orbit's, from `tilting plan
+    /// orbit --json`); `None` (left out of the JSON) for the paper's orbit start
+    /// ([`tilting_plant::paper::orbit_x0`]). Not carried by the planner's message.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orbit_start: Option<[f64; 2]>,
 }
 
 impl Default for LawSpec {
@@ -201,6 +208,7 @@ impl Default for LawSpec {
             torque_limit: None,
             reference: Trajectory::Hold,
             orbit_peak: None,
+            orbit_start: None,
         }
     }
 }
@@ -262,6 +270,9 @@ impl LawSpec {
                 ));
             }
         }
+        if let Some(s) = self.orbit_start {
+            check_orbit_start(s)?;
+        }
         Ok(())
     }
 
@@ -299,11 +310,54 @@ impl std::fmt::Display for LawSpec {
             Some(l) => write!(f, "{l} N m")?,
             None => f.write_str("none")?,
         }
-        match self.orbit_peak {
-            Some(p) => write!(f, ", robust: orbit peak {p} rad"),
+        if let Some(p) = self.orbit_peak {
+            write!(f, ", robust: orbit peak {p} rad")?;
+        }
+        match self.orbit_start {
+            Some([b, bd]) => write!(f, ", orbit start beta = {b} rad, beta_dot = {bd} rad/s"),
             None => Ok(()),
         }
     }
+}
+
+/// Largest `|beta - pi/2|` (rad) of an orbit start: a lift-off with the arm further from
+/// upright is no tilting orbit of this machine (the paper's starts 2e-4 rad from it).
+pub const ORBIT_START_BETA_MAX: f64 = 0.5;
+/// Largest `|beta_dot|` (rad/s) of an orbit start (the paper's is 0.498).
+pub const ORBIT_START_RATE_MAX: f64 = 10.0;
+
+/// Checks an orbit start `[beta, beta_dot]` against [`ORBIT_START_BETA_MAX`] and
+/// [`ORBIT_START_RATE_MAX`], naming the bad component.
+pub fn check_orbit_start([b, bd]: [f64; 2]) -> Result<(), ConfigError> {
+    let out = |value: f64, allowed| ConfigError::OutOfRange {
+        field: "orbit_start",
+        value: value.to_string(),
+        allowed,
+    };
+    if !(b.is_finite() && (b - std::f64::consts::FRAC_PI_2).abs() <= ORBIT_START_BETA_MAX) {
+        return Err(out(
+            b,
+            "beta within 0.5 rad of pi/2 (the arm near upright at lift-off)",
+        ));
+    }
+    if !(bd.is_finite() && bd.abs() <= ORBIT_START_RATE_MAX) {
+        return Err(out(bd, "beta_dot in [-10, 10] rad/s"));
+    }
+    Ok(())
+}
+
+/// Parses `BETA,BETA_DOT` (rad, rad/s) for `--orbit-start`.
+#[cfg(feature = "clap")]
+fn parse_orbit_start(s: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    let [b, bd] = v[..] else {
+        return Err(format!("expected BETA,BETA_DOT (two numbers), got {s:?}"));
+    };
+    check_orbit_start([b, bd]).map_err(|e| e.to_string())?;
+    Ok([b, bd])
 }
 
 /// Largest `--orbit-peak` (rad): far above any orbit of this machine (the paper's tilts reach
@@ -378,6 +432,15 @@ pub struct LawArgs {
     )]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orbit_peak: Option<f64>,
+    /// The orbit's start BETA,BETA_DOT (rad, rad/s) at a left tilt's lift-off: where `live`
+    /// starts the plant and where --orbit-peak's re-entry hands over (from `tilting plan
+    /// orbit --json`: pi/2 + beta0, beta_dot0) [default: the paper's orbit start]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "BETA,BETA_DOT", value_parser = parse_orbit_start, allow_hyphen_values = true)
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orbit_start: Option<[f64; 2]>,
 }
 
 impl LawArgs {
@@ -401,6 +464,7 @@ impl LawArgs {
                 Some(p) => Some(p),
                 None => base.orbit_peak,
             },
+            orbit_start: self.orbit_start.or(base.orbit_start),
         }
     }
 
@@ -417,6 +481,8 @@ impl LawArgs {
             self.reference.map(|r| format!("--reference={r}")),
             num("torque-limit", self.torque_limit),
             num("orbit-peak", self.orbit_peak),
+            self.orbit_start
+                .map(|[b, bd]| format!("--orbit-start={b},{bd}")),
         ]
         .into_iter()
         .flatten()
@@ -439,6 +505,7 @@ impl From<LawSpec> for LawArgs {
             // Only when on, so that a child of an older release reads the flags of the
             // paper's law.
             orbit_peak: l.orbit_peak,
+            orbit_start: l.orbit_start,
         }
     }
 }
@@ -507,6 +574,30 @@ mod tests {
     }
 
     #[test]
+    fn an_orbit_start_off_the_machine_is_refused_naming_it() {
+        let up = std::f64::consts::FRAC_PI_2;
+        for bad in [
+            [up + 0.6, 0.3],
+            [up - 0.6, 0.3],
+            [f64::NAN, 0.3],
+            [up, 11.0],
+            [up, f64::INFINITY],
+        ] {
+            let l = LawSpec {
+                orbit_start: Some(bad),
+                ..LawSpec::default()
+            };
+            let e = l.validate().unwrap_err().to_string();
+            assert!(e.contains("orbit_start"), "{e}");
+            let flag = format!("--orbit-start={},{}", bad[0], bad[1]);
+            assert!(Cli::try_parse_from(["x", flag.as_str()]).is_err(), "{flag}");
+        }
+        assert!(Cli::try_parse_from(["x", "--orbit-start=1.57"]).is_err());
+        let ok = parse(&["--orbit-start=1.5736,-0.3".into()]);
+        assert_eq!(ok.orbit_start, Some([1.5736, -0.3]));
+    }
+
+    #[test]
     fn to_args_round_trips() {
         let sin = Trajectory::Sinusoid {
             amplitude: -0.33,
@@ -548,9 +639,15 @@ mod tests {
                 torque_limit: Some(5.5),
                 reference: sin,
                 orbit_peak: None,
+                orbit_start: None,
             },
             LawSpec {
                 orbit_peak: Some(0.0413),
+                ..LawSpec::default()
+            },
+            LawSpec {
+                orbit_peak: Some(0.018),
+                orbit_start: Some([1.5736, -0.1 / 3.0]),
                 ..LawSpec::default()
             },
         ];
@@ -567,6 +664,7 @@ mod tests {
                 omega: 9.0,
             },
             orbit_peak: None,
+            orbit_start: None,
         };
         for x in specs {
             assert_eq!(parse(&x.to_args()).over(other), x, "{:?}", x.to_args());

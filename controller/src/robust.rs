@@ -34,8 +34,11 @@
 //! nothing to correct): a plate that has landed for good (a safe hold, tilts that died out) never
 //! tilts again by itself. When the plate has been flat for [`IDLE`] the law drives the arm, flat,
 //! along a planned motion that ends in the orbit's own start state: a cubic from the measured
-//! state to rest at `pi/2 - RUN_UP` (over [`SETTLE`]), then a constant acceleration that reaches
-//! `beta = pi/2` with the orbit's `beta_dot` ([`paper::ORBIT_BETA_DOT0`]). There the orbit law
+//! state to rest at `RUN_UP` before the start's `beta` (over [`SETTLE`]), then a constant
+//! acceleration that reaches the start's `beta` with its `beta_dot` (the law's
+//! [`crate::LawSpec::orbit_start`], a planned orbit's; by default the paper's,
+//! [`paper::ORBIT_BETA_DOT0`]: a robot whose orbit lifts off at another speed, such as one
+//! landing by the physical law, re-entered at the paper's speed and overshot). There the orbit law
 //! takes over: its torque tips the plate to the left, as at the start of the paper's orbit (or
 //! the mirror image, to the right, if the last tilt was to the left, so that the tilts keep
 //! alternating). The torque of the whole motion stays below the tilting threshold (`f F_y` =
@@ -96,7 +99,8 @@ enum Phase {
     /// The orbit law (with the trimmed `E_av`).
     Orbit,
     /// The re-entry motion, started at `t0` (s) from `beta0` (rad), `beta_dot0` (rad/s),
-    /// towards a tilt to the left (`side = 1`) or to the right (`side = -1`).
+    /// towards a tilt to the left (`side = 1`) or to the right (`side = -1`), the orbit's start
+    /// mirrored for the right.
     Reentry {
         t0: f64,
         beta0: f64,
@@ -134,6 +138,9 @@ pub struct RobustLaw {
     /// The law is the paper's (model, gains, `E_av`): its orbit's start state is known
     /// ([`paper::ORBIT_BETA0`], [`paper::ORBIT_BETA_DOT0`]).
     papers: bool,
+    /// Where the re-entry hands over, `[beta, beta_dot]` (rad, rad/s) of a left tilt's start:
+    /// the law's [`crate::LawSpec::orbit_start`], or upright at the paper's orbit's speed.
+    handover: [f64; 2],
     memory: Cell<Memory>,
 }
 
@@ -158,11 +165,17 @@ impl RobustLaw {
             && c.law.kp == paper::ORBIT_KP
             && c.law.kd == paper::ORBIT_KD
             && c.law.k == paper::ORBIT_K
-            && c.law.energy_avg == paper::ORBIT_ENERGY_AVG;
+            && c.law.energy_avg == paper::ORBIT_ENERGY_AVG
+            && c.law.orbit_start.is_none();
+        let handover = c
+            .law
+            .orbit_start
+            .unwrap_or([FRAC_PI_2, paper::ORBIT_BETA_DOT0]);
         Self {
             law,
             peak,
             papers,
+            handover,
             memory: Cell::new(Memory {
                 scale: 1.0,
                 tilt: None,
@@ -248,7 +261,7 @@ impl RobustLaw {
             }
         }
         if let Phase::Reentry { t0, .. } = m.phase {
-            if t - t0 >= SETTLE + run_up_time() {
+            if t - t0 >= SETTLE + self.run_up_time() {
                 // The run-up is over: the arm is at the orbit's start state.
                 m.phase = Phase::Orbit;
                 m.flat_since = None;
@@ -260,8 +273,10 @@ impl RobustLaw {
 
     /// The re-entry's desired arm motion at `s` (s) into it: `(beta_d, beta_d_dot,
     /// beta_d_ddot)`.
-    fn reentry_reference(beta0: f64, beta_dot0: f64, side: f64, s: f64) -> (f64, f64, f64) {
-        let a = FRAC_PI_2 - side * RUN_UP;
+    fn reentry_reference(&self, beta0: f64, beta_dot0: f64, side: f64, s: f64) -> (f64, f64, f64) {
+        // The hand-over angle, mirrored about upright for a tilt to the right.
+        let end = FRAC_PI_2 + side * (self.handover[0] - FRAC_PI_2);
+        let a = end - side * RUN_UP;
         if s < SETTLE {
             // Cubic Hermite from (beta0, beta_dot0) to (a, 0) over SETTLE.
             let (tt, h) = (s / SETTLE, SETTLE);
@@ -286,8 +301,8 @@ impl RobustLaw {
                 dd00 * beta0 + dd10 * h * beta_dot0 + dd01 * a,
             )
         } else {
-            let acc = side * run_up_acceleration();
-            let r = (s - SETTLE).min(run_up_time());
+            let acc = side * self.run_up_acceleration();
+            let r = (s - SETTLE).min(self.run_up_time());
             (a + 0.5 * acc * r * r, acc * r, acc)
         }
     }
@@ -305,7 +320,7 @@ impl RobustLaw {
             return 0.0;
         };
         let c = self.law.config();
-        let (bd, bd_dot, bd_ddot) = Self::reentry_reference(beta0, beta_dot0, side, t - t0);
+        let (bd, bd_dot, bd_ddot) = self.reentry_reference(beta0, beta_dot0, side, t - t0);
         let v = bd_ddot + c.law.kd * (bd_dot - x[3]) + c.law.kp * (bd - x[1]);
         let tau = scale * torque_for_beta_ddot(&c.params, mode, x, v);
         match c.law.torque_limit {
@@ -368,15 +383,27 @@ fn at_orbit_start(mode: Mode, x: &State) -> bool {
         && (x[1] - (FRAC_PI_2 + paper::ORBIT_BETA0)).abs() < 5e-3
 }
 
-/// The run-up's constant acceleration (rad/s^2): from rest to the orbit's `beta_dot` over
-/// [`RUN_UP`].
-fn run_up_acceleration() -> f64 {
-    paper::ORBIT_BETA_DOT0 * paper::ORBIT_BETA_DOT0 / (2.0 * RUN_UP)
-}
+/// Slowest hand-over speed (rad/s) of the run-up: an orbit start slower than this is run up
+/// to this speed (the run-up's time is `2 RUN_UP / speed`).
+const MIN_HANDOVER_SPEED: f64 = 0.05;
 
-/// The run-up's duration (s).
-fn run_up_time() -> f64 {
-    paper::ORBIT_BETA_DOT0 / run_up_acceleration()
+impl RobustLaw {
+    /// The run-up's hand-over speed (rad/s), at least [`MIN_HANDOVER_SPEED`].
+    fn handover_speed(&self) -> f64 {
+        self.handover[1].abs().max(MIN_HANDOVER_SPEED)
+    }
+
+    /// The run-up's constant acceleration (rad/s^2): from rest to the hand-over speed over
+    /// [`RUN_UP`].
+    fn run_up_acceleration(&self) -> f64 {
+        let v = self.handover_speed();
+        v * v / (2.0 * RUN_UP)
+    }
+
+    /// The run-up's duration (s).
+    fn run_up_time(&self) -> f64 {
+        self.handover_speed() / self.run_up_acceleration()
+    }
 }
 
 impl TorqueLaw for RobustLaw {

@@ -100,6 +100,7 @@ impl From<&Reference> for LawSpec {
             torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
             // Not on the wire: the controller keeps its own (`Node::on_reference`).
             orbit_peak: None,
+            orbit_start: None,
         }
     }
 }

@@ -57,13 +57,55 @@ pub struct PlannerLawArgs {
     /// --kp and --kd (paper model and impact law), computed by shooting (as `orbit`)
     #[arg(long, conflicts_with = "energy_avg")]
     pub from_orbit: bool,
+    /// Take the law from a plan (`tilting plan orbit [--peak P] --json > plan.json`): its
+    /// K_P0, K_D, k and E_av, and the start of its first stable orbit (where the plant starts
+    /// and where --orbit-peak's re-entry hands over); a flag given as well overrides the
+    /// plan's value. Give the plant the robot file the plan was made for (--params)
+    #[arg(long, value_name = "PLAN.json", conflicts_with = "from_orbit")]
+    pub plan: Option<std::path::PathBuf>,
+}
+
+/// The law of a plan (`tilting plan orbit --json`, a [`crate::jobs::OrbitReport`]): its
+/// gains, the adaptation's `E_av` (J) and the start of its first stable orbit.
+pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<LawSpec> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("--plan {}: cannot read it", path.display()))?;
+    let r: crate::jobs::OrbitReport = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "--plan {}: not the JSON of `tilting plan orbit --json`",
+            path.display()
+        )
+    })?;
+    let Some(o) = r.solutions.iter().find(|o| o.stable) else {
+        anyhow::bail!(
+            "--plan {}: no stable orbit among its {} solutions (a loop cannot hold an \
+             unstable one)",
+            path.display(),
+            r.solutions.len()
+        );
+    };
+    let law = LawSpec {
+        kp: r.kp,
+        kd: r.kd,
+        k: r.k,
+        energy_avg: r.energy_avg_adaptation.unwrap_or(o.energy_avg),
+        orbit_start: Some([std::f64::consts::FRAC_PI_2 + o.beta0, o.beta_dot0]),
+        ..LawSpec::default()
+    };
+    law.validate()
+        .with_context(|| format!("--plan {}", path.display()))?;
+    Ok(law)
 }
 
 impl PlannerLawArgs {
     /// The law the flags describe, checked like the controller checks a reference. With
     /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
     pub fn resolve(&self) -> Result<LawSpec, NodeError> {
-        let mut law = self.law.over(LawSpec::default());
+        let base = match &self.plan {
+            Some(p) => law_of_plan(p).map_err(NodeError::Invalid)?,
+            None => LawSpec::default(),
+        };
+        let mut law = self.law.over(base);
         if self.from_orbit {
             law.energy_avg = orbit_energy_avg(law.kp, law.kd)?;
         }

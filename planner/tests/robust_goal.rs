@@ -69,3 +69,57 @@ fn the_robust_law_holds_g_and_f_ten_percent_off() {
         }
     }
 }
+
+/// A robot that lands by the physical law lifts off at another arm speed than the paper's
+/// (0.33 rad/s for a 0.018 rad orbit, against 0.498). From a plate at rest, the robust law's
+/// re-entry hands over at the start it is given (`orbit_start`, the planned orbit's): the
+/// tilts that follow are the planned orbit's at once. Handed over at the paper's speed instead,
+/// the first tilt overshoots the plan.
+#[test]
+fn the_reentry_hands_over_at_the_planned_orbits_start() {
+    use std::f64::consts::FRAC_PI_2;
+    use tilting_planner::orbit::OrbitProblem;
+    use tilting_planner::peak::{energy_for_peak, PeakSearch};
+    use tilting_plant::Mode;
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        ..Params::default()
+    };
+    let peak = 0.018;
+    let pb =
+        OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
+    let found = energy_for_peak(&pb, &PeakSearch::new(peak), &|_| {}).expect("a 0.018 orbit");
+    let start = [FRAC_PI_2 + found.orbit.beta0, found.orbit.beta_dot0];
+    let run = |orbit_start: Option<[f64; 2]>| {
+        let mut sc = Scenario {
+            params,
+            impact: ImpactLaw::Physical,
+            control_period: 0.001,
+            duration: 12.0,
+            mode: Mode::Flat,
+            x0: [0.0, FRAC_PI_2, 0.0, 0.0],
+            ..Scenario::default()
+        };
+        sc.law.energy_avg = found.energy_avg_adaptation;
+        sc.law.orbit_peak = Some(peak);
+        sc.law.orbit_start = orbit_start;
+        simulate(&sc, SimOptions::default()).expect("valid scenario")
+    };
+    let err = |a: f64| (a.abs() / peak - 1.0).abs();
+    let planned = run(Some(start));
+    assert!(planned.fault.is_none(), "{:?}", planned.fault);
+    let peaks: Vec<f64> = planned.tilt_peaks.iter().map(|p| p.alpha).collect();
+    eprintln!("handed over at the plan's start: peaks {peaks:?}");
+    // At least 15 tilts after the idle plate's 0.5 s and the 2 s re-entry, alternating.
+    assert!(peaks.len() >= 15, "{peaks:?}");
+    assert!(peaks.windows(2).all(|w| w[0] * w[1] < 0.0), "{peaks:?}");
+    // Every tilt within 10 % of the plan, the first included: the hand-over is on the orbit
+    // (its remaining error is the 1 kHz sampling of the hand-over and of the landings).
+    let worst = peaks.iter().map(|&a| err(a)).fold(0.0, f64::max);
+    assert!(worst < 0.10, "worst {worst}: {peaks:?}");
+    // The paper's hand-over speed on this robot: the first tilt is far above the plan.
+    let papers = run(None);
+    let first = papers.tilt_peaks.first().map_or(0.0, |p| p.alpha);
+    eprintln!("handed over at the paper's speed: first peak {first}");
+    assert!(err(first) > 0.3, "first peak {first} against {peak}");
+}

@@ -254,6 +254,13 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
             "flat".into(),
             format!("--x0=0,{},0,0", std::f64::consts::FRAC_PI_2),
         ]);
+    } else if let Some([beta, beta_dot]) = job.reference.orbit_start {
+        // A planned orbit (`--plan`, `--orbit-start`): the plant starts at its lift-off.
+        v.extend([
+            "--mode".into(),
+            "left".into(),
+            format!("--x0=0,{beta},0,{beta_dot}"),
+        ]);
     }
     if let Some(p) = args.params_files().0 {
         v.extend(["--params".into(), p.display().to_string()]);

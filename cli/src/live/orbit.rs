@@ -46,6 +46,15 @@ pub(super) async fn nominal(
         duration,
         ..Scenario::default()
     };
+    let scenario = match law.orbit_start {
+        // A planned orbit: the nominal run starts where the plant does, at its lift-off.
+        Some([beta, beta_dot]) if law.reference.adapts() => Scenario {
+            x0: [0.0, beta, 0.0, beta_dot],
+            mode: tilting_plant::Mode::Left,
+            ..scenario
+        },
+        _ => scenario,
+    };
     let criteria = Criteria::default();
     let sc = scenario.clone();
     let nominal = tokio::task::spawn_blocking(move || margins::nominal_peak(&sc, &criteria))

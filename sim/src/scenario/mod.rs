@@ -115,7 +115,8 @@ impl Scenario {
     ///
     /// The excitation (`reference = "excitation"`) starts from the arm at rest upright on the
     /// flat plate (`x0 = [0, pi/2, 0, 0]`, `mode = "flat"`), where its ramp starts, unless a
-    /// layer gives `x0` or `mode`.
+    /// layer gives `x0` or `mode`. A law with an `orbit_start` (a planned orbit's lift-off)
+    /// starts there, tilting left, unless a layer gives `x0` or `mode`.
     pub fn resolve(layers: &[&ScenarioFile]) -> Self {
         let mut s = Self::default();
         let mut e_given = false;
@@ -161,6 +162,13 @@ impl Scenario {
         if !start_given && !s.law.reference.adapts() {
             s.x0 = [0.0, std::f64::consts::FRAC_PI_2, 0.0, 0.0];
             s.mode = Mode::Flat;
+        }
+        if let (false, true, Some([beta, beta_dot])) =
+            (start_given, s.law.reference.adapts(), s.law.orbit_start)
+        {
+            // The law's own orbit (a planned one): the run starts at its lift-off.
+            s.x0 = [0.0, beta, 0.0, beta_dot];
+            s.mode = Mode::Left;
         }
         s
     }
