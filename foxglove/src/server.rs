@@ -425,9 +425,11 @@ impl Publisher {
             (true, false) => "landing",
             _ => "switch",
         };
+        // Routine (about 4.5 a second on the paper's orbit): debug, so that a safe mode's
+        // warning stands out in a log panel showing info and above.
         self.log_at(
-            Level::Info,
-            format!("t = {:.4} s: {from} -> {to} ({what})", e.time),
+            Level::Debug,
+            format!("plant t = {:.4} s: {from} -> {to} ({what})", e.time),
             log_time,
         );
         self.mode = to;
@@ -466,7 +468,7 @@ impl Publisher {
         };
         self.log_at(
             level,
-            format!("t = {:.4} s: {what}", s.time),
+            format!("plant t = {:.4} s: {what}", s.time),
             scene::nanos(s.time),
         );
     }
@@ -475,9 +477,12 @@ impl Publisher {
         self.log_at(level, message, scene::nanos(self.t));
     }
 
+    /// A log entry stamped with the wall clock (when the server saw it: a log panel shows a
+    /// date and time of day, not 1 January 1970); its message names the plant time, and the
+    /// channel's log time is the plant time of the other channels (`log_time`, ns).
     fn log_at(&mut self, level: Level, message: String, log_time: u64) {
         let entry = Log {
-            timestamp: Some(scene::timestamp(log_time as f64 / 1e9)),
+            timestamp: Some(wall_clock()),
             level: level as i32,
             message,
             name: format!("tilting/{}", self.robot),
@@ -489,6 +494,14 @@ impl Publisher {
             .log_with_meta(&entry, PartialMetadata::with_log_time(log_time));
         self.counts.logs += 1;
     }
+}
+
+/// The wall clock now as a Foxglove timestamp (the Unix epoch if the clock is before it).
+pub fn wall_clock() -> foxglove::messages::Timestamp {
+    let d = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    foxglove::messages::Timestamp::new(d.as_secs() as u32, d.subsec_nanos())
 }
 
 #[cfg(test)]
@@ -544,5 +557,74 @@ mod tests {
         for kind in ["3D!", "Plot!", "RawMessages!", "RosOut!"] {
             assert!(panels.iter().any(|p| p.starts_with(kind)), "{panels:?}");
         }
+        // The torque and the energy on plots of their own (N m and J on one axis hid the
+        // torque), each plot with one unit.
+        let cfg = layout["configById"].as_object().unwrap();
+        let plots: Vec<Vec<&str>> = cfg
+            .iter()
+            .filter(|(k, _)| k.starts_with("Plot!"))
+            .map(|(_, v)| {
+                let paths = v["paths"].as_array().unwrap();
+                paths
+                    .iter()
+                    .filter(|p| p["enabled"] == true)
+                    .map(|p| p["value"].as_str().unwrap())
+                    .collect()
+            })
+            .collect();
+        let with = |s: &str| {
+            plots
+                .iter()
+                .filter(|p| p.iter().any(|v| v.ends_with(s)))
+                .count()
+        };
+        assert_eq!(
+            (with("torque.tau"), with("energy.energy")),
+            (1, 1),
+            "{plots:?}"
+        );
+        assert!(
+            !plots
+                .iter()
+                .any(|p| p.iter().any(|v| v.ends_with("torque.tau"))
+                    && p.iter().any(|v| v.ends_with("energy.energy"))),
+            "{plots:?}"
+        );
+        // The camera looks at the robot: its target inside the paper's robot's extent (x from
+        // the left edge to the right, z from the ground to the arm's length), from -y (theta 0:
+        // the model's plane seen face on), a little above, close enough that the 2 m arm fills
+        // over a third of the view's height.
+        let p = Params::default();
+        let cam = &layout["configById"]["3D!tilting"]["cameraState"];
+        let t: Vec<f64> = cam["targetOffset"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert!(
+            (0.0..=2.0 * p.f).contains(&t[0]) && t[1] == 0.0 && (0.0..=p.l).contains(&t[2]),
+            "{t:?}"
+        );
+        assert_eq!(cam["thetaOffset"], 0);
+        let (d, fov, phi) = (
+            cam["distance"].as_f64().unwrap(),
+            cam["fovy"].as_f64().unwrap(),
+            cam["phi"].as_f64().unwrap(),
+        );
+        let height = 2.0 * d * (fov.to_radians() / 2.0).tan();
+        assert!(
+            p.l / height > 1.0 / 3.0 && (60.0..=90.0).contains(&phi),
+            "view {height} m, phi {phi}"
+        );
+        // The log panel shows info and above: the routine mode changes (debug) do not bury a
+        // safe mode's warning.
+        let min = layout["configById"]["RosOut!log"]["minLogLevel"]
+            .as_i64()
+            .unwrap();
+        assert!(
+            min > Level::Debug as i64 && min <= Level::Warning as i64,
+            "{min}"
+        );
     }
 }
