@@ -185,12 +185,72 @@ impl LiveServer {
         Ok(())
     }
 
+    /// Foxglove clients connected now (0 without a server).
+    pub fn clients(&self) -> usize {
+        self.server.as_ref().map_or(0, Server::clients)
+    }
+
     /// Stops the server once the run is over.
     pub async fn close(self) {
         drop(self.subscribers);
         if let Some(s) = self.server {
             report("live", &s.close().await);
         }
+    }
+}
+
+/// The share of a second's periods missed above which `live` blames a connected viewer: the
+/// shared 2-core test machine, busy with builds, missed 1 to 2 % without a viewer, and a viewer
+/// on the robot's own 2-core machine made it miss 12 to 18 % (issue 31).
+pub const VIEWER_LATE_SHARE: f64 = 0.05;
+
+/// Tells when the loop starts missing deadlines after a Foxglove viewer connected: the share of
+/// the last second's periods missed while a client is connected, against the share missed over
+/// the whole time no client was.
+#[derive(Debug, Default)]
+pub struct ViewerWatch {
+    /// The last counters seen (periods, misses).
+    last: Option<(u64, u64)>,
+    /// Periods and misses while no client was connected.
+    quiet: (u64, u64),
+}
+
+impl ViewerWatch {
+    /// Takes the plant's counters (`periods` stepped, `misses` so far), the clients connected
+    /// and the share missed over the last second (`late`, if known); the warning while a viewer
+    /// is connected and the loop misses over [`VIEWER_LATE_SHARE`] of its periods and over
+    /// twice its share without a viewer.
+    pub fn update(
+        &mut self,
+        clients: usize,
+        periods: u64,
+        misses: u64,
+        late: Option<f64>,
+    ) -> Option<String> {
+        if let Some((p0, m0)) = self.last.replace((periods, misses)) {
+            if clients == 0 {
+                self.quiet.0 += periods.saturating_sub(p0);
+                self.quiet.1 += misses.saturating_sub(m0);
+            }
+        }
+        let before = if self.quiet.0 == 0 {
+            0.0
+        } else {
+            self.quiet.1 as f64 / self.quiet.0 as f64
+        };
+        let share = late.filter(|&l| clients > 0 && l > VIEWER_LATE_SHARE && l > 2.0 * before)?;
+        let without = if self.quiet.0 == 0 {
+            "connected since the start".to_owned()
+        } else {
+            format!("{:.1} % without", before * 100.0)
+        };
+        Some(format!(
+            "LOOP LATE WITH A VIEWER: {:.0} % of the last second's periods missed with {clients} \
+             Foxglove client(s) connected ({without}); a viewer on the robot's machine takes \
+             its CPU: open it on another machine (--foxglove ADDR --foxglove-any) or run with \
+             --realtime",
+            share * 100.0,
+        ))
     }
 }
 
@@ -393,4 +453,38 @@ fn play(
         sent += 1;
     }
     sent
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A viewer is blamed only while connected, above 5 % missed and above twice the share
+    /// missed without one.
+    #[test]
+    fn a_viewer_is_blamed_for_misses_that_came_with_it() {
+        let mut w = ViewerWatch::default();
+        // No viewer, 0.1 % missed: nothing to say.
+        assert_eq!(w.update(0, 1000, 1, Some(0.001)), None);
+        assert_eq!(w.update(0, 2000, 2, Some(0.001)), None);
+        // A viewer and 4 % missed: under the threshold.
+        assert_eq!(w.update(1, 2100, 6, Some(0.04)), None);
+        // A viewer connects; the loop misses 15 %: warned, with both shares.
+        let text = w.update(1, 3000, 152, Some(0.15)).expect("a warning");
+        assert!(
+            text.contains("15 %") && text.contains("0.1 %") && text.contains("--realtime"),
+            "{text}"
+        );
+        // The same misses without a viewer: not the viewer's.
+        assert_eq!(w.update(0, 4000, 302, Some(0.15)), None);
+        // A loaded machine that missed 10 % without a viewer: 15 % with one is not twice that.
+        let mut busy = ViewerWatch::default();
+        busy.update(0, 0, 0, None);
+        busy.update(0, 1000, 100, Some(0.1));
+        assert_eq!(busy.update(1, 2000, 250, Some(0.15)), None);
+        // A viewer connected before the loop started (no time without one): the threshold alone.
+        let mut early = ViewerWatch::default();
+        assert_eq!(early.update(1, 1000, 30, Some(0.03)), None);
+        assert!(early.update(1, 2000, 150, Some(0.12)).is_some());
+    }
 }

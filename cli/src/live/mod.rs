@@ -456,6 +456,7 @@ async fn live(
                 tap: &tap,
                 check,
                 impaired: job.impairment.is_some(),
+                foxglove: &fox,
             };
             let children = monitor::Children {
                 plant: &mut plant,

@@ -97,6 +97,8 @@ pub(super) struct Watch<'a> {
     pub(super) check: Option<OrbitCheck>,
     /// The plant emulates an impaired link.
     pub(super) impaired: bool,
+    /// The Foxglove server (its clients, for the viewer warning).
+    pub(super) foxglove: &'a crate::foxglove::LiveServer,
 }
 
 /// The children a live run watches.
@@ -137,6 +139,7 @@ pub(super) async fn monitor(
     let mut printed = String::new();
     // Five samples a second, one per tick.
     let mut lateness = Lateness::new(5);
+    let mut viewer = crate::foxglove::ViewerWatch::default();
     let end = loop {
         tokio::time::sleep(Duration::from_millis(200)).await;
         // Five ticks a second: `second` marks one of them.
@@ -160,7 +163,7 @@ pub(super) async fn monitor(
         let alarms = if end.is_some() {
             Vec::new()
         } else {
-            w.alarms(router_exit, &mut lateness)
+            w.alarms(router_exit, &mut lateness, &mut viewer)
         };
         let kinds: Vec<&str> = alarms.iter().map(|a| a.0).collect();
         let new_alarm = kinds.iter().any(|k| !alarm_kinds.contains(k));
@@ -206,11 +209,13 @@ impl Watch<'_> {
     /// What is wrong now that the user must hear of at once, each as its kind and its text:
     /// the recording failing, the router exited, a node's liveliness token gone, no state for
     /// [`STATE_SILENCE_S`], over an unimpaired link more than [`LATE_SHARE`] of the last
-    /// second's periods missed (`lateness`, sampled here from the plant's status).
+    /// second's periods missed (`lateness`, sampled here from the plant's status), and the
+    /// loop missing deadlines since a Foxglove viewer connected (`viewer`).
     fn alarms(
         &self,
         router_exit: Option<ExitStatus>,
         lateness: &mut Lateness,
+        viewer: &mut crate::foxglove::ViewerWatch,
     ) -> Vec<(&'static str, String)> {
         let view = self.recorder.view();
         let late = view
@@ -218,6 +223,12 @@ impl Watch<'_> {
             .as_ref()
             .and_then(|st| lateness.update(st.steps, st.deadline_misses));
         let mut v = Vec::new();
+        if let Some(st) = view.last_status.as_ref().filter(|_| !self.impaired) {
+            let clients = self.foxglove.clients();
+            if let Some(text) = viewer.update(clients, st.steps, st.deadline_misses, late) {
+                v.push(("viewer", text));
+            }
+        }
         if let Some(e) = &view.error {
             v.push(("recording", format!("RECORDING FAILED: {e}")));
         }
