@@ -453,3 +453,259 @@ fn live_goes_on_without_foxglove_when_its_port_is_taken() {
     );
     let _ = Duration::ZERO;
 }
+
+// ---- Foxglove's own JavaScript libraries (tests/node: @foxglove/ws-protocol, @mcap/core) ----
+
+/// `tests/node` with its packages installed (`npm ci --prefix tests/node`, as `.ci/run` does),
+/// and node; otherwise why not.
+fn node_ready() -> Result<std::path::PathBuf, String> {
+    let dir = workspace_root().join("tests/node");
+    match Command::new("node").arg("--version").output() {
+        Ok(o) if o.status.success() => {}
+        _ => return Err("node is not installed".into()),
+    }
+    for pkg in [
+        "@foxglove/ws-protocol",
+        "@mcap/core",
+        "@mcap/support",
+        "protobufjs",
+        "ws",
+    ] {
+        if !dir.join("node_modules").join(pkg).is_dir() {
+            return Err(format!(
+                "tests/node/node_modules/{pkg} is missing: run `npm ci --prefix tests/node`"
+            ));
+        }
+    }
+    Ok(dir)
+}
+
+/// Runs `node SCRIPT ARGS` in `tests/node` to the end; its stdout.
+fn node(dir: &Path, script: &str, args: &[&str]) -> String {
+    let o = Command::new("node")
+        .arg(dir.join(script))
+        .args(args)
+        .output()
+        .expect("run node");
+    assert!(o.status.success(), "node {script}\n{}", text(&o));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+/// Starts `ws_client.mjs` offering `subprotocol` (it retries until the server listens).
+fn node_client(dir: &Path, url: &str, subprotocol: &str, out: &Path) -> std::process::Child {
+    Command::new("node")
+        .arg(dir.join("ws_client.mjs"))
+        .args([
+            "--url",
+            url,
+            "--subprotocol",
+            subprotocol,
+            "--seconds",
+            "60",
+            "--out",
+        ])
+        .arg(out)
+        .stdin(Stdio::null())
+        .spawn()
+        .expect("run ws_client.mjs")
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Foxglove's own libraries from npm under node read what we serve and record:
+///
+/// - `@mcap/core`'s `McapIndexedReader` (with `@mcap/support`'s decompressors) reads every
+///   message of a `live` recording through its indexes: per topic as many as our reader, in
+///   total the file's statistics; each decoded with its schema after the strict check of the
+///   viewers' JSON Schema parser (`tests/node/schemas.mjs`);
+/// - `@foxglove/ws-protocol`'s `FoxgloveClient` against `replay --foxglove` of that recording,
+///   once offering `foxglove.sdk.v1` and once `foxglove.sdk.v1.1`: every advertised channel
+///   (five topics and the energy as JSON, tf, scene and log as protobuf) decodes with its
+///   advertised schema, inline under v1, from the connection's schema table under v1.1 (which
+///   the library alone does not pass on: the test says so, so a library that starts to
+///   fails here and the docs get updated); the states are the recording's with their mode
+///   names; the log entries carry the wall clock and name the plant time, mode changes at
+///   debug; a client offering only `foxglove.websocket.v1` is refused with HTTP 400.
+#[test]
+fn foxglove_libraries_from_npm_read_the_server_and_the_recording() {
+    let dir = match node_ready() {
+        Ok(d) => d,
+        Err(why) => {
+            eprintln!("SKIP foxglove_libraries_from_npm_read_the_server_and_the_recording: {why}");
+            return;
+        }
+    };
+    let scratch = Scratch::new("foxglove-node");
+    let out = scratch.path().join("out");
+    let robot = robot("foxnode");
+    {
+        let _turn = realtime_turn();
+        let o = Command::new(bin("tilting"))
+            .args(["live", "--duration", "3", "--robot", &robot, "--out"])
+            .arg(&out)
+            .output()
+            .expect("tilting live");
+        assert!(o.status.success(), "live\n{}", text(&o));
+    }
+    let mcap = out.join("run.mcap");
+    let run = tilting_record::read(&mcap).expect("run.mcap");
+    let keys = tilting_proto::Keys::new(&robot).unwrap();
+
+    // The recording through @mcap/core's indexed reader.
+    let got: serde_json::Value =
+        serde_json::from_str(&node(&dir, "mcap_read.mjs", &[mcap.to_str().unwrap()])).unwrap();
+    let total: u64 = Topic::ALL.iter().map(|&t| run.count(t)).sum();
+    assert_eq!(got["total"].as_u64(), Some(total), "{got}");
+    assert_eq!(got["statisticsMessageCount"].as_u64(), Some(total), "{got}");
+    for t in Topic::ALL {
+        let topic = &got["topics"][tilting_record::json_topic(t.key(&keys))];
+        assert_eq!(topic["count"].as_u64(), Some(run.count(t)), "{t}: {topic}");
+        assert_eq!(topic["errors"], serde_json::json!([]), "{t}: {topic}");
+        assert_eq!(topic["monotonic"], true, "{t}");
+        assert_eq!(topic["schemaEncoding"], "jsonschema", "{t}");
+    }
+    assert!(run.count(Topic::Event) > 0, "no mode change in 3 s");
+
+    let states: HashMap<u64, PlantState> = run
+        .messages()
+        .filter(|e| e.topic == Topic::State)
+        .map(|e| {
+            let s: PlantState = tilting_proto::decode(&e.wire).unwrap();
+            (s.seq, s)
+        })
+        .collect();
+    for (subprotocol, from, library) in [
+        ("foxglove.sdk.v1", "inline", true),
+        ("foxglove.sdk.v1.1", "table", false),
+    ] {
+        let port = free_port();
+        let url = format!("ws://127.0.0.1:{port}");
+        let replay = Command::new(bin("tilting"))
+            .arg("replay")
+            .arg(&mcap)
+            .args([
+                "--robot",
+                &robot,
+                "--speed",
+                "2",
+                "--wait",
+                "30",
+                "--foxglove",
+            ])
+            .arg(format!("127.0.0.1:{port}"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("replay --foxglove");
+        if subprotocol == "foxglove.sdk.v1" {
+            // The library's own subprotocol name (FoxgloveClient.SUPPORTED_SUBPROTOCOL): the
+            // SDK's server refuses it (docs/foxglove.md says so).
+            let refused = scratch.path().join("refused.json");
+            let mut probe = node_client(&dir, &url, "foxglove.websocket.v1", &refused);
+            assert!(probe.wait().unwrap().success());
+            assert_eq!(read_json(&refused)["refused"], 400);
+        }
+        let json = scratch.path().join(format!("{subprotocol}.json"));
+        let mut client = node_client(&dir, &url, subprotocol, &json);
+        let o = replay.wait_with_output().unwrap();
+        assert!(
+            client.wait().unwrap().success(),
+            "{subprotocol}\n{}",
+            text(&o)
+        );
+        assert!(o.status.success(), "replay\n{}", text(&o));
+        let got = read_json(&json);
+        check_node_client(&got, subprotocol, from, library, &robot, &states);
+    }
+}
+
+/// What `ws_client.mjs` saw under `subprotocol`: every channel decoded with its schema (taken
+/// `from` inline or the schema table; the library passing it on or not), the recording's states.
+fn check_node_client(
+    got: &serde_json::Value,
+    subprotocol: &str,
+    from: &str,
+    library: bool,
+    robot: &str,
+    states: &HashMap<u64, PlantState>,
+) {
+    assert_eq!(got["subprotocol"], subprotocol, "{got}");
+    let topics = got["topics"].as_object().unwrap();
+    let want = [
+        ("plant/state", "json", "tilting.PlantState"),
+        ("controller/torque", "json", "tilting.TorqueCommand"),
+        ("plant/event", "json", "tilting.ModeEvent"),
+        ("plant/status", "json", "tilting.Status"),
+        ("planner/reference", "json", "tilting.Reference"),
+        ("energy", "json", "tilting.Energy"),
+        ("tf", "protobuf", "foxglove.FrameTransforms"),
+        ("scene", "protobuf", "foxglove.SceneUpdate"),
+        ("log", "protobuf", "foxglove.Log"),
+    ];
+    assert_eq!(
+        topics.len(),
+        want.len(),
+        "{subprotocol}: {:?}",
+        topics.keys()
+    );
+    for (t, encoding, schema) in want {
+        let ch = &topics[&format!("/tilting/{robot}/{t}")];
+        assert_eq!(
+            (ch["encoding"].as_str(), ch["schemaName"].as_str()),
+            (Some(encoding), Some(schema)),
+            "{subprotocol} {t}: {ch}"
+        );
+        assert_eq!(
+            ch["errors"],
+            serde_json::json!([]),
+            "{subprotocol} {t}: {ch}"
+        );
+        assert!(ch["count"].as_u64().unwrap() > 0, "{subprotocol} {t}: {ch}");
+        assert_eq!(ch["schemaFrom"], from, "{subprotocol} {t}");
+        assert_eq!(ch["libraryHasSchema"], library, "{subprotocol} {t}");
+    }
+    let got_states = got["states"].as_array().unwrap();
+    assert!(
+        got_states.len() as f64 >= 0.9 * states.len() as f64,
+        "{subprotocol}: {} of {} states",
+        got_states.len(),
+        states.len()
+    );
+    for s in got_states {
+        let r = &states[&s["seq"].as_u64().unwrap()];
+        assert_eq!(s["time"].as_f64(), Some(r.time));
+        assert_eq!(s["mode_name"], r.mode().unwrap().as_str());
+    }
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    let logs = got["logs"].as_array().unwrap();
+    assert!(logs
+        .iter()
+        .any(|l| l["message"].as_str().unwrap().contains("(landing)")));
+    for l in logs {
+        let (message, level) = (l["message"].as_str().unwrap(), l["level"].as_i64().unwrap());
+        // Wall clock (a viewer shows today's date), the plant time in the words.
+        let stamp = l["sec"].as_f64().unwrap() + 1e-9 * l["nsec"].as_f64().unwrap();
+        assert!(
+            (now - stamp).abs() < 600.0,
+            "{l}: stamped {stamp}, now {now}"
+        );
+        assert!(message.starts_with("plant t = "), "{l}");
+        // Mode changes are routine: debug (1), below the info (2) a log panel shows.
+        assert_eq!(message.contains(" -> "), level == 1, "{l}");
+    }
+    for e in got["events"].as_array().unwrap() {
+        for (byte, name) in [("from", "from_name"), ("to", "to_name")] {
+            let mode = tilting_proto::Mode::try_from(e[byte].as_u64().unwrap() as u8).unwrap();
+            assert_eq!(e[name], mode.as_str(), "{e}");
+        }
+    }
+    let ids = got["sceneEntityIds"].as_array().unwrap();
+    for id in ["ground", "plate", "arm", "pivot", "title"] {
+        assert!(ids.iter().any(|i| i == id), "{subprotocol}: {ids:?}");
+    }
+}
