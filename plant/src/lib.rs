@@ -15,6 +15,7 @@
 //! - [`imperfect`]: what a real robot adds to the model (sensor noise, encoder quantisation,
 //!   actuator saturation and lag, a mass error), seeded and off by default;
 //! - [`flags`]: the `--params` flag and the `--x0` parser, shared by every command and node;
+//! - [`robot_file`]: the robot file's parameter tables, and its keys as the defaults of flags;
 //! - [`paper`]: the paper's numbers (the stabilised orbit and its gains), used as defaults everywhere.
 //!
 //! The model knows nothing of networks; the `node` feature adds the plant node (paced in real
@@ -43,6 +44,7 @@ pub mod node;
 pub mod ode;
 pub mod paper;
 pub mod params;
+pub mod robot_file;
 pub mod safe;
 pub mod sampled;
 

@@ -193,16 +193,10 @@ impl Params {
         Ok(p)
     }
 
-    /// Reads and validates a TOML parameter file.
+    /// Reads and validates a TOML parameter file; a robot file's `[robot]` table, or
+    /// `FILE.toml#table` for another table of it ([`crate::robot_file::params_from_file`]).
     pub fn from_toml_file(path: &Path) -> Result<Self, ConfigError> {
-        let text = read_text(path)?;
-        Self::from_toml_str(&text).map_err(|e| match e {
-            ConfigError::Parse { message, .. } => ConfigError::Parse {
-                what: path.display().to_string(),
-                message,
-            },
-            other => other,
-        })
+        crate::robot_file::params_from_file(path)
     }
 
     /// The TOML text of these parameters, as `--params` reads it (the hardware keys left out

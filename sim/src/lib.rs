@@ -4,6 +4,8 @@
 //!
 //! - [`scenario`]: what to run (model, start, controller, coupling, run length), its TOML file
 //!   and command-line flags, and validation that names the offending field and its range;
+//! - [`robot`] (feature `clap`): the robot file, one TOML file for a robot and how it runs,
+//!   checked key by key, whose keys are the defaults of the commands' flags;
 //! - [`closed_loop`]: the two couplings ([`run_continuous`]: the law inside the right-hand
 //!   side, the paper's setting; [`run_sampled`]: a zero-order hold at `t_k = k T`, the code a
 //!   lockstep plant node reproduces bit for bit) and [`simulate`], which runs a scenario and
@@ -32,6 +34,8 @@ pub mod flags;
 pub mod network;
 pub mod recording;
 pub mod robustness;
+#[cfg(feature = "clap")]
+pub mod robot;
 pub mod scenario;
 
 pub use closed_loop::{
