@@ -76,9 +76,10 @@ impl LawKind {
 pub enum Controller {
     /// [`LawKind::ComputedTorque`].
     ComputedTorque(ComputedTorque),
-    /// [`LawKind::ComputedTorque`] with the robust option ([`LawSpec::orbit_peak`]): it keeps
-    /// a memory of the states it answered, so it must be called once per sample, in time
-    /// order ([`crate::robust`]).
+    /// [`LawKind::ComputedTorque`] with the robust option ([`LawSpec::orbit_peak`]), or
+    /// launched from rest onto its orbit ([`LawSpec::orbit_start`], [`RobustLaw::launcher`]):
+    /// it keeps a memory of the states it answered, so it must be called once per sample, in
+    /// time order ([`crate::robust`]).
     Robust(RobustLaw),
     /// [`LawKind::ComputedTorque`] on the excitation: its amplitude follows the arm's holding
     /// torque ([`crate::excite`]); it keeps a memory of the states it answered, so it must be
@@ -94,6 +95,9 @@ impl Controller {
                 let law = ComputedTorque::new(cfg)?;
                 if matches!(cfg.law.reference, Trajectory::Excitation { .. }) {
                     Controller::Excitation(Box::new(GovernedExcitation::new(law)))
+                } else if cfg.law.orbit_start.is_some() && cfg.law.reference.adapts() {
+                    // A planned orbit: the plain law, launched from rest by the re-entry.
+                    Controller::Robust(RobustLaw::launcher(law))
                 } else {
                     Controller::ComputedTorque(law)
                 }
@@ -188,10 +192,12 @@ pub struct LawSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orbit_peak: Option<f64>,
     /// The orbit's start, `[beta, beta_dot]` (rad, rad/s) at the lift-off of a left tilt
-    /// (`alpha = 0`, `alpha_dot = 0`): where `live` starts the plant and where the robust
-    /// option's re-entry hands over to the orbit law (a planned orbit's, from `tilting plan
-    /// orbit --json`); `None` (left out of the JSON) for the paper's orbit start
-    /// ([`tilting_plant::paper::orbit_x0`]). Not carried by the planner's message.
+    /// (`alpha = 0`, `alpha_dot = 0`), a planned orbit's (`tilting plan orbit --json`): where
+    /// a simulation starts, and where the re-entry from a plate at rest hands over to the
+    /// orbit law, with the robust option or without it (the plain law is then launched from
+    /// rest, [`crate::robust::RobustLaw::launcher`]); `None` (left out of the JSON) for the
+    /// paper's orbit start ([`tilting_plant::paper::orbit_x0`]) and no launch. Not carried by
+    /// the planner's message.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub orbit_start: Option<[f64; 2]>,
 }

@@ -616,3 +616,36 @@ pub fn sinusoid(
         other => JobError::Failed(other.to_string()),
     })
 }
+
+/// The law of a plan (`tilting plan orbit --json`, a [`crate::jobs::OrbitReport`]): its
+/// gains, the adaptation's `E_av` (J) and the start of its first stable orbit.
+pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<tilting_controller::LawSpec> {
+    use anyhow::Context as _;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("--plan {}: cannot read it", path.display()))?;
+    let r: OrbitReport = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "--plan {}: not the JSON of `tilting plan orbit --json`",
+            path.display()
+        )
+    })?;
+    let Some(o) = r.solutions.iter().find(|o| o.stable) else {
+        anyhow::bail!(
+            "--plan {}: no stable orbit among its {} solutions (a loop cannot hold an \
+             unstable one)",
+            path.display(),
+            r.solutions.len()
+        );
+    };
+    let law = tilting_controller::LawSpec {
+        kp: r.kp,
+        kd: r.kd,
+        k: r.k,
+        energy_avg: r.energy_avg_adaptation.unwrap_or(o.energy_avg),
+        orbit_start: Some([std::f64::consts::FRAC_PI_2 + o.beta0, o.beta_dot0]),
+        ..tilting_controller::LawSpec::default()
+    };
+    law.validate()
+        .with_context(|| format!("--plan {}", path.display()))?;
+    Ok(law)
+}

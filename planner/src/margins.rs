@@ -22,7 +22,7 @@ mod survey;
 
 pub use bands::{band_point, search, BandPoint, Bands, Edge, Knob, Search};
 pub use survey::{
-    InvalidSurvey, MarginsReport, RobotMargins, Survey, SurveyError, SurveyShard, UnitResult,
+    Base, InvalidSurvey, MarginsReport, RobotMargins, Survey, SurveyError, SurveyShard, UnitResult,
     MAX_POINTS,
 };
 

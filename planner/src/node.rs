@@ -65,44 +65,12 @@ pub struct PlannerLawArgs {
     pub plan: Option<std::path::PathBuf>,
 }
 
-/// The law of a plan (`tilting plan orbit --json`, a [`crate::jobs::OrbitReport`]): its
-/// gains, the adaptation's `E_av` (J) and the start of its first stable orbit.
-pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<LawSpec> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("--plan {}: cannot read it", path.display()))?;
-    let r: crate::jobs::OrbitReport = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "--plan {}: not the JSON of `tilting plan orbit --json`",
-            path.display()
-        )
-    })?;
-    let Some(o) = r.solutions.iter().find(|o| o.stable) else {
-        anyhow::bail!(
-            "--plan {}: no stable orbit among its {} solutions (a loop cannot hold an \
-             unstable one)",
-            path.display(),
-            r.solutions.len()
-        );
-    };
-    let law = LawSpec {
-        kp: r.kp,
-        kd: r.kd,
-        k: r.k,
-        energy_avg: r.energy_avg_adaptation.unwrap_or(o.energy_avg),
-        orbit_start: Some([std::f64::consts::FRAC_PI_2 + o.beta0, o.beta_dot0]),
-        ..LawSpec::default()
-    };
-    law.validate()
-        .with_context(|| format!("--plan {}", path.display()))?;
-    Ok(law)
-}
-
 impl PlannerLawArgs {
     /// The law the flags describe, checked like the controller checks a reference. With
     /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
     pub fn resolve(&self) -> Result<LawSpec, NodeError> {
         let base = match &self.plan {
-            Some(p) => law_of_plan(p).map_err(NodeError::Invalid)?,
+            Some(p) => crate::jobs::law_of_plan(p).map_err(NodeError::Invalid)?,
             None => LawSpec::default(),
         };
         let mut law = self.law.over(base);

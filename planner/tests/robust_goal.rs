@@ -123,3 +123,61 @@ fn the_reentry_hands_over_at_the_planned_orbits_start() {
     eprintln!("handed over at the paper's speed: first peak {first}");
     assert!(err(first) > 0.3, "first peak {first} against {peak}");
 }
+
+/// `plan margins` of a planned orbit of the physical law (`--params`, `--plan`): the survey
+/// runs that loop (its nominal last peaks are the plan's, to the 1 kHz sampling), its JSON
+/// (the grid of a shard) carries the loop and reads back, and the paper's survey carries none.
+#[test]
+fn margins_survey_the_planned_orbit_of_another_robot() {
+    use std::f64::consts::FRAC_PI_2;
+    use tilting_planner::margins::{Bands, Base, Criteria, Survey};
+    use tilting_planner::orbit::OrbitProblem;
+    use tilting_planner::peak::{energy_for_peak, PeakSearch};
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        ..Params::default()
+    };
+    let pb =
+        OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
+    let found = energy_for_peak(&pb, &PeakSearch::new(0.018), &|_| {}).expect("a 0.018 orbit");
+    let mut law = tilting_controller::LawSpec::default();
+    law.energy_avg = found.energy_avg_adaptation;
+    law.orbit_start = Some([FRAC_PI_2 + found.orbit.beta0, found.orbit.beta_dot0]);
+    let paper = Survey {
+        delays: vec![0.0],
+        losses: vec![0.0],
+        rate: 1000.0,
+        rates: vec![1000.0],
+        angle_noises: vec![],
+        rate_noises: vec![],
+        mass_errors: vec![],
+        seed: 0,
+        criteria: Criteria {
+            tilts: 40,
+            ..Criteria::default()
+        },
+        bands: Bands::default(),
+        base: None,
+    };
+    let text = serde_json::to_string(&paper).unwrap();
+    assert!(!text.contains("base"), "{text}");
+    let s = Survey {
+        base: Some(Base { params, law }),
+        ..paper.clone()
+    };
+    let back: Survey = serde_json::from_str(&serde_json::to_string(&s).unwrap()).unwrap();
+    assert_eq!(back, s);
+    let r = s.run(&|| {}).expect("a nominal orbit");
+    let p = paper.run(&|| {}).expect("the paper's orbit");
+    eprintln!(
+        "nominal last peaks: planned {}, paper's {}",
+        r.nominal_peak, p.nominal_peak
+    );
+    assert!(
+        (r.nominal_peak / 0.018 - 1.0).abs() < 0.05,
+        "{}",
+        r.nominal_peak
+    );
+    assert!(p.nominal_peak > 0.03, "{}", p.nominal_peak);
+    assert!(r.delay_loss[0].survived, "{:?}", r.delay_loss[0]);
+}

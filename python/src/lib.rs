@@ -352,6 +352,8 @@ fn margins_survey(
         },
         // The robot rows (parameter bands, friction, estimators) are the CLI's only.
         bands: Bands::default(),
+        // The paper's loop (another robot's is the CLI's `--params` and `--plan`).
+        base: None,
     };
     s.check().map_err(usage)?;
     to_json(&s)
@@ -425,6 +427,7 @@ fn margins_points(
         seed: 0,
         criteria: c,
         bands: Bands::default(),
+        base: None,
     };
     probe.check().map_err(usage)?;
     let samples: Vec<Sample> = (0..n)

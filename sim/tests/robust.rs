@@ -175,3 +175,47 @@ fn bad_settings_are_refused_naming_the_field() {
     // Off by default: the paper's law.
     assert_eq!(LawSpec::default().orbit_peak, None);
 }
+
+/// A law given its orbit's start (`orbit_start`) is the plain law launched from rest
+/// (`RobustLaw::launcher`): on the orbit it is the plain law bit for bit (no scale, no trim),
+/// and from a plate at rest, where the plain law never tilts, it runs the re-entry motion and
+/// hands over at that start.
+#[test]
+fn a_law_with_an_orbit_start_is_the_plain_law_launched_from_rest() {
+    let up = FRAC_PI_2;
+    let start = [
+        up + tilting_plant::paper::ORBIT_BETA0,
+        tilting_plant::paper::ORBIT_BETA_DOT0,
+    ];
+    let run_with = |orbit_start, rest: bool| {
+        let mut sc = scenario(30.0, None);
+        sc.law.orbit_start = orbit_start;
+        if rest {
+            sc.mode = Mode::Flat;
+            sc.x0 = [0.0, up, 0.0, 0.0];
+        }
+        run(&sc)
+    };
+    let plain = run_with(None, false);
+    let launched = run_with(Some(start), false);
+    assert_eq!(plain.tilt_peaks.len(), launched.tilt_peaks.len());
+    for (a, b) in plain.tilt_peaks.iter().zip(&launched.tilt_peaks) {
+        assert_eq!((a.t, a.alpha), (b.t, b.alpha));
+    }
+    assert!(plain.stats.tilts > 50, "{}", plain.stats.tilts);
+    // From rest: the plain law stays there; the launched one tilts, alternating, and every
+    // peak is within 10 % of the orbit's from the first (the 1 kHz sampling of the hand-over).
+    assert_eq!(run_with(None, true).stats.tilts, 0);
+    let r = run_with(Some(start), true);
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    let nominal = plain.tilt_peaks.last().unwrap().alpha.abs();
+    let peaks: Vec<f64> = r.tilt_peaks.iter().map(|p| p.alpha).collect();
+    assert!(peaks.len() > 40, "{peaks:?}");
+    assert!(peaks.windows(2).all(|w| w[0] * w[1] < 0.0), "{peaks:?}");
+    let worst = peaks
+        .iter()
+        .map(|a| (a.abs() / nominal - 1.0).abs())
+        .fold(0.0, f64::max);
+    eprintln!("launched from rest: first peak {}, worst {worst}", peaks[0]);
+    assert!(worst < 0.10, "worst {worst}: {peaks:?}");
+}

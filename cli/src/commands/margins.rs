@@ -11,7 +11,7 @@ use anyhow::Context as _;
 use clap::Args;
 use std::path::PathBuf;
 use tilting_planner::margins::{
-    Bands, Criteria, Edge, Knob, MarginsReport, RobotMargins, Survey, SurveyShard,
+    Bands, Base, Criteria, Edge, Knob, MarginsReport, RobotMargins, Survey, SurveyShard,
 };
 use tilting_sim::robustness::Parameter;
 
@@ -60,6 +60,18 @@ pub struct MarginsArgs {
     /// The robot's imperfections to map (at --rate, perfect network).
     #[command(flatten)]
     pub robot: RobotMapArgs,
+    /// The robot's parameter file; its `impact` is the landing law (needs --plan unless the
+    /// paper's robot).
+    #[command(flatten)]
+    pub params: tilting_plant::flags::ParamsArgs,
+    /// Landing impact law: paper, striking-edge or physical [default: the params file's
+    /// `impact`, else paper]
+    #[arg(long, value_name = "LAW", value_parser = super::parse_impact)]
+    pub impact: Option<tilting_plant::ImpactLaw>,
+    /// Survey the orbit of a plan (`tilting plan orbit [--peak P] --json > plan.json`, for the
+    /// same --params): its gains, E_av and start, instead of the paper's stabilised orbit
+    #[arg(long, value_name = "PLAN.json")]
+    pub plan: Option<PathBuf>,
     /// Draw the maps (heat map with the survival boundary, and the rate map) into this PNG
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
@@ -342,7 +354,31 @@ fn survey(args: &MarginsArgs) -> Result<Survey, CommandError> {
             tolerance: args.tolerance,
         },
         bands: bands(&args.robot).map_err(usage)?,
+        base: base(args)?,
     })
+}
+
+/// The loop surveyed: `None` for the paper's stabilised orbit, else the robot of `--params`
+/// and `--impact` under the law of `--plan`.
+fn base(args: &MarginsArgs) -> Result<Option<Base>, CommandError> {
+    let p = args
+        .params
+        .params()
+        .map_err(|e| usage(format!("invalid `--params`: {e}")))?;
+    let params = p.with_impact(p.impact_or(args.impact));
+    let Some(plan) = &args.plan else {
+        if params != tilting_plant::Params::default() {
+            return Err(usage(
+                "`--params` or `--impact` other than the paper's robot needs `--plan` (the \
+                 paper's E_av belongs to the paper's robot): `tilting plan orbit --params \
+                 FILE --peak P --json > plan.json`"
+                    .into(),
+            ));
+        }
+        return Ok(None);
+    };
+    let law = tilting_planner::jobs::law_of_plan(plan).map_err(|e| usage(format!("{e:#}")))?;
+    Ok(Some(Base { params, law }))
 }
 
 /// `tilting plan margins`.

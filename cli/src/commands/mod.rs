@@ -37,7 +37,7 @@ pub struct ModelArgs {
     pub json: bool,
 }
 
-fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
+pub(crate) fn parse_impact(s: &str) -> Result<ImpactLaw, String> {
     s.parse()
 }
 

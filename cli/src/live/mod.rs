@@ -148,6 +148,12 @@ pub struct LiveArgs {
     /// Its stdout is `plant.json` (its last JSON line the summary), its stderr `plant.log`
     #[arg(long, value_name = "CMD")]
     pub plant_cmd: Option<String>,
+    /// Where the plant starts a planned orbit (--plan, --orbit-start): `orbit`, at its
+    /// lift-off, or `rest`, the plate flat and the arm upright at rest, from where the law
+    /// launches the orbit (its re-entry motion, about 2 s) as a robot standing on the floor
+    /// starts [default: rest with --plant-cmd, else orbit]
+    #[arg(long, value_name = "orbit|rest", value_parser = ["orbit", "rest"])]
+    pub start: Option<String>,
     /// `--ros2`: the plant as a ROS 2 node too.
     #[command(flatten)]
     pub ros2: ros2::LiveRos2Args,

@@ -255,12 +255,22 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
             format!("--x0=0,{},0,0", std::f64::consts::FRAC_PI_2),
         ]);
     } else if let Some([beta, beta_dot]) = job.reference.orbit_start {
-        // A planned orbit (`--plan`, `--orbit-start`): the plant starts at its lift-off.
-        v.extend([
-            "--mode".into(),
-            "left".into(),
-            format!("--x0=0,{beta},0,{beta_dot}"),
-        ]);
+        // A planned orbit (`--plan`, `--orbit-start`): the plant starts at its lift-off, or at
+        // rest, from where the law launches it (a robot starts where it stands).
+        let rest = match args.start.as_deref() {
+            Some(s) => s == "rest",
+            None => args.plant_cmd.is_some(),
+        };
+        v.extend(if rest {
+            let up = std::f64::consts::FRAC_PI_2;
+            ["--mode".into(), "flat".into(), format!("--x0=0,{up},0,0")]
+        } else {
+            [
+                "--mode".into(),
+                "left".into(),
+                format!("--x0=0,{beta},0,{beta_dot}"),
+            ]
+        });
     }
     if let Some(p) = args.params_files().0 {
         v.extend(["--params".into(), p.display().to_string()]);

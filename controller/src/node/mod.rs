@@ -87,6 +87,8 @@ struct Node {
     params: tilting_plant::Params,
     /// The robust option of the flags (not on the wire: kept across references).
     orbit_peak: Option<f64>,
+    /// The orbit start of the flags (not on the wire either).
+    orbit_start: Option<[f64; 2]>,
     law: Mutex<Controller>,
     states: DropCounter,
     /// The plausibility window of the states (`tilting_proto::plausible`): a forged state
@@ -246,6 +248,7 @@ impl Node {
         }
         let cfg = ControlConfig::from_wire(self.params, &r).map(|mut c| {
             c.law.orbit_peak = self.orbit_peak;
+            c.law.orbit_start = self.orbit_start;
             c
         });
         match cfg.and_then(Controller::new) {
@@ -486,6 +489,7 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         estimation: Mutex::new(Estimation::new(args.estimator.choice(), model)),
         params: law.config().params,
         orbit_peak: law.config().law.orbit_peak,
+        orbit_start: law.config().law.orbit_start,
         law: Mutex::new(law),
         states: DropCounter::new(keys.plant_state()),
         // The period is learnt by the predictor only; the window bounds jumps by the shortest

@@ -88,17 +88,18 @@ impl Knob {
         matches!(self, Knob::Viscous | Knob::Coulomb | Knob::AngleNoise(_))
     }
 
-    /// The scenario, the robot's hardware and the loop options of this knob at `value`, the
-    /// noise seeded by `seed`; the robust law aims at `nominal` (rad). `None`: not a valid
-    /// robot (an `l_c` above `l`).
+    /// The scenario (`base`'s, the plant perturbed), the robot's hardware and the loop
+    /// options of this knob at `value`, the noise seeded by `seed`; the robust law aims at
+    /// `nominal` (rad). `None`: not a valid robot (an `l_c` above `l`).
     pub fn setup(
         &self,
+        base: &Scenario,
         value: f64,
         robust: bool,
         nominal: f64,
         seed: u64,
     ) -> Option<(Scenario, Imperfections, LoopOptions)> {
-        let mut sc = Scenario::default();
+        let mut sc = base.clone();
         if robust {
             sc.law.orbit_peak = Some(nominal);
         }
@@ -188,6 +189,7 @@ pub struct Search {
 /// One point: the loop at `rate` (Hz) over a perfect network with `knob` at `value`, judged by
 /// `c` against `nominal` (rad).
 pub fn band_point(
+    base: &Scenario,
     knob: Knob,
     robust: bool,
     value: f64,
@@ -196,7 +198,7 @@ pub fn band_point(
     c: &Criteria,
     nominal: f64,
 ) -> BandPoint {
-    let Some((sc, robot, opts)) = knob.setup(value, robust, nominal, seed) else {
+    let Some((sc, robot, opts)) = knob.setup(base, value, robust, nominal, seed) else {
         return BandPoint {
             value,
             survived: false,
@@ -219,6 +221,7 @@ pub fn band_point(
 /// The edge of `s` by bisection (module documentation): `bisections` halvings of the interval
 /// after the start and the end (run in parallel). At most `2 + bisections` runs.
 pub fn search(
+    base: &Scenario,
     s: &Search,
     bisections: u32,
     rate: f64,
@@ -226,7 +229,7 @@ pub fn search(
     c: &Criteria,
     nominal: f64,
 ) -> Edge {
-    let point = |v: f64| band_point(s.knob, s.robust, v, rate, seed, c, nominal);
+    let point = |v: f64| band_point(base, s.knob, s.robust, v, rate, seed, c, nominal);
     let (a, b) = rayon::join(|| point(s.start), || point(s.end));
     let mut edge = Edge {
         knob: s.knob,
@@ -301,16 +304,16 @@ pub struct Bands {
 impl Bands {
     /// No row searched (the default).
     pub fn is_none(&self) -> bool {
-        self.searches().is_empty()
+        self.searches(&tilting_plant::Params::default()).is_empty()
     }
 
     /// The searches in the report's order: each parameter down then up, plain then robust;
     /// viscous then Coulomb friction, plain then robust; angle noise then encoder bits,
     /// observer then finite difference. An upward search whose end is not a valid robot (`l_c`
     /// above `l`, the tip) is left out.
-    pub fn searches(&self) -> Vec<Search> {
+    pub fn searches(&self, base: &tilting_plant::Params) -> Vec<Search> {
         let mut v = Vec::new();
-        let base = Scenario::default().params;
+        let base = *base;
         for &p in &self.parameters {
             for robust in [false, true] {
                 for end in [-self.param_span, self.param_span] {
@@ -403,7 +406,9 @@ impl Bands {
 }
 
 /// The edges of `searches` in parallel, in order; `tick` after each.
+#[allow(clippy::too_many_arguments)] // the survey's settings, as `search`'s
 pub fn edges(
+    base: &Scenario,
     searches: &[Search],
     bisections: u32,
     rate: f64,
@@ -415,7 +420,7 @@ pub fn edges(
     searches
         .par_iter()
         .map(|s| {
-            let e = search(s, bisections, rate, seed, c, nominal);
+            let e = search(base, s, bisections, rate, seed, c, nominal);
             tick();
             e
         })
@@ -483,7 +488,7 @@ mod tests {
             start: 0.0,
             end: 0.1,
         };
-        let e = search(&s, 4, 1000.0, 0, &c, nominal);
+        let e = search(&Scenario::default(), &s, 4, 1000.0, 0, &c, nominal);
         let (edge, beyond) = (e.edge.unwrap(), e.beyond.unwrap());
         assert!(beyond - edge <= 0.1 / 16.0 + 1e-12, "{e:?}");
         assert!(edge >= 0.01, "{e:?}");
@@ -508,9 +513,18 @@ mod tests {
             bisections: 4,
             ..Bands::default()
         };
-        let searches = b.searches();
+        let searches = b.searches(&Default::default());
         assert_eq!(searches.len(), 4);
-        let e = edges(&searches, 4, 1000.0, 0, &c, nominal, &|| {});
+        let e = edges(
+            &Scenario::default(),
+            &searches,
+            4,
+            1000.0,
+            0,
+            &c,
+            nominal,
+            &|| {},
+        );
         let (plain_lo, plain_hi, robust_lo, robust_hi) = (
             e[0].edge.unwrap(),
             e[1].edge.unwrap(),
@@ -535,7 +549,16 @@ mod tests {
             bisections: 5,
             ..Bands::default()
         };
-        let e = edges(&b.searches(), 5, 1000.0, 0, &c, nominal, &|| {});
+        let e = edges(
+            &Scenario::default(),
+            &b.searches(&Default::default()),
+            5,
+            1000.0,
+            0,
+            &c,
+            nominal,
+            &|| {},
+        );
         assert_eq!(e.len(), 2);
         assert_eq!(e[0].knob, Knob::AngleNoise(EstimatorChoice::Observer));
         let (obs, fd) = (e[0].edge.unwrap(), e[1].edge.unwrap());
@@ -563,7 +586,7 @@ mod tests {
             bisections: 3,
             ..Bands::default()
         };
-        let s = b.searches();
+        let s = b.searches(&Default::default());
         let ends: Vec<(Knob, bool, f64)> = s.iter().map(|s| (s.knob, s.robust, s.end)).collect();
         let lc = Knob::Parameter(Parameter::LC);
         assert_eq!(

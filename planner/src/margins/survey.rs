@@ -11,8 +11,9 @@ use crate::shard::{self, Shard, ShardError};
 use serde::{Deserialize, Serialize};
 use tilting_sim::{LoopOptions, Predict, Scenario};
 
-/// What a survey maps: the grids, the criteria and the seed. The loop is the paper's
-/// stabilised orbit ([`Scenario::default`]). Its JSON identifies the grid of a shard.
+/// What a survey maps: the grids, the criteria, the seed and the loop ([`Survey::base`]; the
+/// paper's stabilised orbit, [`Scenario::default`], unless given). Its JSON identifies the
+/// grid of a shard.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Survey {
     /// Total constant delays, state and torque together (s).
@@ -37,6 +38,40 @@ pub struct Survey {
     /// from the grid of a survey written before they existed, which then has none.
     #[serde(default, skip_serializing_if = "Bands::is_none")]
     pub bands: Bands,
+    /// The loop surveyed, when not the paper's stabilised orbit: the robot's model (its
+    /// `impact` is the landing law) and the law, such as a planned orbit of the physical law
+    /// (`tilting plan margins --params robot.toml --plan plan.json`); left out of the JSON
+    /// for the paper's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<Base>,
+}
+
+/// A loop to survey other than the paper's: the model and the law (the plant is the model;
+/// the points perturb it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Base {
+    /// The robot's parameters; `impact` is its landing law.
+    pub params: tilting_plant::Params,
+    /// The law; with an `orbit_start` the runs start at that lift-off (as `simulate`).
+    pub law: tilting_controller::LawSpec,
+}
+
+impl Base {
+    /// The scenario of this loop: the paper's settings otherwise ([`Scenario::default`]).
+    pub fn scenario(&self) -> Scenario {
+        let mut sc = Scenario {
+            params: self.params,
+            impact: self.params.impact,
+            law: self.law,
+            ..Scenario::default()
+        };
+        if let (Some([beta, beta_dot]), true) = (self.law.orbit_start, self.law.reference.adapts())
+        {
+            sc.x0 = [0.0, beta, 0.0, beta_dot];
+            sc.mode = tilting_plant::Mode::Left;
+        }
+        sc
+    }
 }
 
 /// Most points of one map.
@@ -189,14 +224,19 @@ impl Survey {
     pub fn units(&self) -> u64 {
         let network = self.delays.len() * self.losses.len() + self.rates.len();
         let robot = self.angle_noises.len() + self.rate_noises.len() + self.mass_errors.len();
-        let searches = self.bands.searches().len();
+        let searches = self.bands.searches(&self.scenario().params).len();
         (2 * network + robot + searches + 1) as u64
     }
 
-    /// Runs the survey on the paper's loop, the points in parallel; `tick` is called after the
+    /// The loop surveyed: [`Survey::base`]'s, or the paper's stabilised orbit.
+    pub fn scenario(&self) -> Scenario {
+        self.base.map_or_else(Scenario::default, |b| b.scenario())
+    }
+
+    /// Runs the survey on its loop ([`Survey::scenario`]), the points in parallel; `tick` is called after the
     /// nominal run and after each point ([`Survey::units`] in all, from several threads).
     pub fn run(&self, tick: &(dyn Fn() + Sync)) -> Result<MarginsReport, SurveyError> {
-        let (sc, c) = (Scenario::default(), self.criteria);
+        let (sc, c) = (self.scenario(), self.criteria);
         let nominal = nominal_peak(&sc, &c);
         tick();
         if nominal <= 0.0 {
@@ -223,13 +263,13 @@ impl Survey {
         let robot = |which, values: &[f64]| {
             imperfection_map(&sc, rate, which, values, seed, c, nominal, tick)
         };
-        let searches = self.bands.searches();
+        let searches = self.bands.searches(&self.scenario().params);
         let b = self.bands.bisections;
         let maps = Maps {
             angle_noise: robot(Imperfection::AngleNoise, &self.angle_noises),
             rate_noise: robot(Imperfection::RateNoise, &self.rate_noises),
             mass_error: robot(Imperfection::MassError, &self.mass_errors),
-            edges: bands::edges(&searches, b, rate, seed, c, nominal, tick),
+            edges: bands::edges(&sc, &searches, b, rate, seed, c, nominal, tick),
             delay_loss,
             delay_loss_predict,
             rates,
@@ -293,7 +333,12 @@ impl Survey {
         ] {
             u.extend(values.iter().map(|&v| Unit::Robot(which, v)));
         }
-        u.extend(self.bands.searches().into_iter().map(Unit::Band));
+        u.extend(
+            self.bands
+                .searches(&self.scenario().params)
+                .into_iter()
+                .map(Unit::Band),
+        );
         u
     }
 
@@ -310,7 +355,7 @@ impl Survey {
         shard: Shard,
         tick: &(dyn Fn() + Sync),
     ) -> Result<SurveyShard, SurveyError> {
-        let (sc, c) = (Scenario::default(), self.criteria);
+        let (sc, c) = (self.scenario(), self.criteria);
         let nominal = nominal_peak(&sc, &c);
         if nominal <= 0.0 {
             return Err(SurveyError::NoNominalOrbit(c.tilts));
@@ -338,7 +383,7 @@ impl Survey {
                 }
                 Unit::Band(s) => {
                     let b = self.bands.bisections;
-                    UnitResult::Band(bands::search(&s, b, rate, seed, &c, nominal))
+                    UnitResult::Band(bands::search(&sc, &s, b, rate, seed, &c, nominal))
                 }
             };
             tick();
@@ -490,6 +535,7 @@ mod tests {
                 ..Criteria::default()
             },
             bands: Bands::default(),
+            base: None,
         };
         let ticks = std::sync::atomic::AtomicU64::new(0);
         let r = s
