@@ -6,6 +6,8 @@
 //! - [`foxglove`]: the Foxglove flags, `tilting view`, and the server of `live --foxglove`;
 //! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
 //!   and a report;
+//! - [`robot`]: the robot file at the front door (its keys as the flags' defaults) and
+//!   `tilting config`;
 //! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);
 //! - [`security`]: `certs` (a development CA and per-node certificates, the zenoh TLS and
 //!   access-control configurations) and the `tilting-router` binary;
@@ -23,6 +25,7 @@ pub mod error;
 pub mod foxglove;
 pub mod live;
 pub mod record;
+pub mod robot;
 pub mod security;
 pub mod supervise;
 

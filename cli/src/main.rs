@@ -19,6 +19,8 @@ Run:
   live        The main job: plant, controller and planner live on localhost at 1 kHz on the
               paper's stabilised orbit; status line, recording, plot
   simulate    The closed loop offline for one scenario (default: the paper's orbit)
+  config      A robot file (its robot, law, sensors, network, deployment) with flags over
+              it, checked and printed as TOML; every command above takes one
 
 Plan:
   plan        orbit | sinusoid | bifurcation | gains | margins | continuation | stability |
@@ -74,6 +76,9 @@ enum Command {
     /// Simulate the closed loop (plant + computed-torque controller) for one scenario; by
     /// default the paper's stabilised tilting orbit
     Simulate(Box<simulate::SimulateArgs>),
+    /// A robot file with flags given over it, checked and printed as TOML (every key is the
+    /// flag of its name: `[law] kd` is `--kd`)
+    Config(Box<tilting::robot::ConfigArgs>),
     /// Plan: the paper's boundary value problems, stability and sweeps
     #[command(subcommand)]
     Plan(Plan),
@@ -137,10 +142,12 @@ enum Plan {
 
 fn main() -> ExitCode {
     // Usage errors exit with code 2 (clap's convention), --help and --version with 0.
-    let cli = Cli::parse();
+    // A command given a robot file reads its keys as the defaults of its flags.
+    let cli: Cli = tilting::robot::parse();
     let result = match &cli.command {
         Command::Live(args) => live::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Config(args) => tilting::robot::config(args),
         Command::Plan(Plan::Orbit(args)) => plan::orbit(args),
         Command::Plan(Plan::Sinusoid(args)) => plan::sinusoid(args),
         Command::Plan(Plan::Bifurcation(args)) => plan::bifurcation(args),

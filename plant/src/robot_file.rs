@@ -253,7 +253,7 @@ pub fn apply(
     file: &Path,
     strict: bool,
 ) -> Result<clap::Command, String> {
-    cmd.build();
+    // Not built: `mut_arg` on a built command mixes up its arguments.
     for d in defaults {
         let Some(arg) = cmd
             .get_arguments()

@@ -24,7 +24,9 @@ pub struct IdentifyArgs {
     /// which the motion cannot tell from l_c and i_l; default the paper's
     #[arg(long, value_name = "FILE.toml")]
     pub params: Option<PathBuf>,
-    /// Write the identified robot's parameters here, as `--params` reads them
+    /// Write the identified robot's parameters here, as `--params` reads them; into a robot
+    /// file (docs/guide/robot-file.md), as its [robot] table, its other tables kept (and its
+    /// [prior] is the prior unless --params)
     #[arg(long, value_name = "params.toml")]
     pub out: Option<PathBuf>,
     /// Where the velocities and accelerations come from: `angles` (differentiated from the
@@ -92,7 +94,12 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
             args.min_speed
         )));
     }
-    let base = match &args.params {
+    // The prior: --params, else the [prior] table of the robot file --out writes into.
+    let prior = args
+        .params
+        .clone()
+        .or_else(|| args.out.as_deref().and_then(crate::robot::prior_of));
+    let base = match &prior {
         Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into()))?,
         None => Params::default(),
     };
@@ -156,9 +163,14 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
         })?;
     }
     if let Some(out) = &args.out {
-        std::fs::write(out, id.params.to_toml_string()).map_err(|e| {
-            CommandError::Failed(anyhow::anyhow!("cannot write {}: {e}", out.display()))
-        })?;
+        // A robot file gets the robot as its [robot] table; anything else a parameter file.
+        let into_robot = crate::robot::write_params_into(out, &id.params)
+            .map_err(|e| CommandError::Usage(anyhow::anyhow!("--out: {e}")))?;
+        if !into_robot {
+            std::fs::write(out, id.params.to_toml_string()).map_err(|e| {
+                CommandError::Failed(anyhow::anyhow!("cannot write {}: {e}", out.display()))
+            })?;
+        }
     }
     let text = if args.json {
         serde_json::to_string_pretty(&id).map_err(|e| CommandError::Failed(e.into()))? + "\n"

@@ -28,6 +28,10 @@ use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 #[command(mut_arg("reference", |a| a.hide(true)))]
 #[command(mut_arg("torque_limit", |a| a.hide(true)))]
 pub struct OrbitArgs {
+    /// The robot file (TOML, docs/guide/robot-file.md): its [robot] and [law] are the
+    /// defaults of --params and the law's flags [default: none]
+    #[arg(value_name = "ROBOT.toml")]
+    pub robot_file: Option<std::path::PathBuf>,
     /// The law: the gains K_P (--kp) and K_D (--kd), and the adaptation (--k, --energy-avg);
     /// the orbits hold the arm upright without a torque limit.
     #[command(flatten)]
@@ -133,6 +137,10 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
 /// `reach`: which gains reach a wanted tilt peak.
 #[derive(Debug, Clone, Args)]
 pub struct ReachArgs {
+    /// The robot file (TOML, docs/guide/robot-file.md): its [robot] is the default of
+    /// --params [default: none]
+    #[arg(value_name = "ROBOT.toml")]
+    pub robot_file: Option<std::path::PathBuf>,
     /// The wanted tilt peak |alpha| (rad)
     #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: f64,

@@ -10,6 +10,10 @@ use tilting_viz::plot::plot_run;
 /// Flags of `tilting simulate`.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct SimulateArgs {
+    /// The robot file (TOML, docs/guide/robot-file.md): its keys are the defaults of these
+    /// flags, a flag given as well overrides its key [default: none]
+    #[arg(value_name = "ROBOT.toml")]
+    pub robot_file: Option<PathBuf>,
     /// What to run: scenario, network, imperfections, loop options, safe mode.
     #[command(flatten)]
     pub run: tilting_sim::flags::SimulateArgs,

@@ -70,6 +70,10 @@ use tilting_proto::Keys;
 /// Flags of `tilting live`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct LiveArgs {
+    /// The robot file (TOML, docs/guide/robot-file.md): its keys are the defaults of these
+    /// flags, a flag given as well overrides its key [default: none]
+    #[arg(value_name = "ROBOT.toml")]
+    pub robot_file: Option<PathBuf>,
     /// Run length (s of plant time, which is wall-clock time at real time)
     #[arg(
         long,
