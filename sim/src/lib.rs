@@ -33,9 +33,9 @@ pub mod closed_loop;
 pub mod flags;
 pub mod network;
 pub mod recording;
-pub mod robustness;
 #[cfg(feature = "clap")]
 pub mod robot;
+pub mod robustness;
 pub mod scenario;
 
 pub use closed_loop::{
