@@ -44,6 +44,9 @@ RUNS=${RUNS:-physical-plain-planstart physical-trim-planstart paper-plain paper-
 PAPER_EAV=19.963439703
 PEAK=${PEAK:-0.018}
 PEAK_FALLBACK=${PEAK_FALLBACK:-0.016}
+# Extra flags of step 3's `plan orbit` (other gains, e.g. "--kd 10" for a 0.04 rad orbit; the
+# live runs take the plan's gains with `--plan`).
+PLAN_FLAGS=${PLAN_FLAGS:-}
 if [ -z "$T" ] || ! [ -x "$T" ]; then
     echo "mujoco_chain: no tilting binary (build first: cargo build --release -p tilting)" >&2
     exit 2
@@ -160,7 +163,7 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
 
     say "3. plan orbit --peak $PEAK (paper's gains)"
     local peak=$PEAK
-    if ! "$T" plan orbit --params "$d/robot.toml" --peak "$peak" --json >"$d/plan.json" 2>"$d/plan.err"; then
+    if ! "$T" plan orbit --params "$d/robot.toml" --peak "$peak" $PLAN_FLAGS --json >"$d/plan.json" 2>"$d/plan.err"; then
         # The plate's inertia lowers the largest peak the paper's gains reach (0.0169 rad for
         # the paper's robot with i_f 0.08): then the chain goes on at PEAK_FALLBACK, said in
         # the notes, rather than with other gains.
@@ -170,7 +173,7 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
         say "3. plan refused $peak rad (largest $most rad); planning $PEAK_FALLBACK rad instead"
         note="${note:+$note; }$peak refused (largest $most), planned $PEAK_FALLBACK"
         peak=$PEAK_FALLBACK
-        "$T" plan orbit --params "$d/robot.toml" --peak "$peak" --json >"$d/plan.json" 2>"$d/plan.err" ||
+        "$T" plan orbit --params "$d/robot.toml" --peak "$peak" $PLAN_FLAGS --json >"$d/plan.json" 2>"$d/plan.err" ||
             { fail "3 plan orbit --peak $peak" "$d/plan.err"; return 1; }
     fi
     local e_av period
@@ -190,17 +193,15 @@ print(repr(p["energy_avg_adaptation"]), repr(s["period"]))' "$d/plan.json" "$d/p
 runs_only() {
     local robot=$1 contact=$2
     local d="$OUT/$robot-$contact" tag="$robot/$contact"
-    local cf plant note e_av period peak x0
+    local cf plant note e_av period peak
     cf=$(contact_flags "$contact")
     plant="python3 -m tilting_mujoco $cf"
     note=$(cat "$d/note.txt" 2>/dev/null)
-    read -r e_av period peak x0 < <(python3 -c '
-import json, math, sys
+    read -r e_av period peak < <(python3 -c '
+import json, sys
 p = json.load(open(sys.argv[1]))
 s = p["solutions"][0]
-# The planned orbit starts at alpha = 0 on the left edge, beta = pi/2 + beta0.
-print(repr(p["energy_avg_adaptation"]), repr(s["period"]), round(s["max_tilt"], 6),
-      "0,%r,0,%r" % (math.pi / 2 + s["beta0"], s["beta_dot0"]))' "$d/plan.json") ||
+print(repr(p["energy_avg_adaptation"]), repr(s["period"]), round(s["max_tilt"], 6))' "$d/plan.json") ||
         { fail "4 (reading plan.json)" "$d/plan.json"; return 1; }
     local link=(--plant-cmd "python3 $HERE/delay_plant.py $plant --watchdog 100"
         --plant-params "$d/true.toml" --duration "$RUN_S" --delay 0.025 --predict 0.05
