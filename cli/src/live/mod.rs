@@ -10,7 +10,8 @@
 //!   Ctrl-C kills at once);
 //! - a recording in `--out DIR` (default `runs/<UTC timestamp>/`): `run.mcap` (all five
 //!   topics; with `--csv` also `state.csv`, `torque.csv`, `events.csv`, see [`crate::record`]),
-//!   `run.png`, `run.gif` (the last 8 s, moving), `summary.json` ([`summary`]), and the
+//!   `run.png`, `run.gif` (the last 8 s, moving), `summary.json` ([`summary`]), `robot.toml`
+//!   (the robot file with the flags given over it, as `tilting config` prints it), and the
 //!   children's output (`plant.log`, `plant.json`, `controller.log`, `controller.json`);
 //! - a report on stdout: tilts, peak |alpha| of the last tilts, loop latency p50/p99/p99.9,
 //!   deadline misses, faults.
@@ -267,6 +268,13 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
     std::fs::create_dir_all(&job.dir)
         .with_context(|| format!("cannot create the output directory {}", job.dir.display()))
         .map_err(CommandError::Failed)?;
+    if let Some(robot) = crate::robot::merged() {
+        // The run's robot file: the file given (if any) with the flags over it.
+        let path = job.dir.join("robot.toml");
+        std::fs::write(&path, robot.to_toml_string())
+            .with_context(|| format!("cannot write {}", path.display()))
+            .map_err(CommandError::Failed)?;
+    }
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     let signals = Signals::start(&rt);
     let ending = rt
