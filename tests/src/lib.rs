@@ -647,3 +647,32 @@ impl Rogue {
             .await;
     }
 }
+
+/// The environment variable that makes a skip a failure: `1` for a missing package or tool
+/// (what `.ci/run` installs: Python packages, npm modules, the ROS 2 wheels), `all` also for a
+/// missing right (root, `SCHED_FIFO`, network namespaces). `.ci/run` sets `1`, so that CI
+/// proves what the tests claim; unset, a test without its package prints `SKIP` and passes.
+pub const NO_SKIP: &str = "TILTING_NO_SKIP";
+
+/// What a skipped test lacks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Missing {
+    /// A package or tool that `.ci/run` installs.
+    Package,
+    /// A right of the machine (root, real-time scheduling, namespaces).
+    Right,
+}
+
+/// Skips `test` for `why`: prints `SKIP test: why` on stderr, or panics with it when
+/// [`NO_SKIP`] asks for `missing` to fail.
+pub fn skip(test: &str, missing: Missing, why: &str) {
+    let strict = match std::env::var(NO_SKIP).as_deref() {
+        Ok("all") => true,
+        Ok("1") => missing == Missing::Package,
+        _ => false,
+    };
+    if strict {
+        panic!("{test} cannot run here ({NO_SKIP} forbids skipping it): {why}");
+    }
+    eprintln!("SKIP {test}: {why}");
+}

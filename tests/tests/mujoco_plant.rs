@@ -37,11 +37,12 @@ fn plant_cmd() -> Vec<String> {
 fn can_run(test: &str, modules: &str) -> bool {
     let ok = python_runs(&format!("import {modules}"));
     if !ok {
-        eprintln!(
-            "SKIP: {test}: `{} -c \"import {modules}\"` failed; install them with `python3 -m \
-             pip install ./mujoco_plant`",
+        let why = format!(
+            "`{} -c \"import {modules}\"` failed; install them with `python3 -m pip install \
+             ./mujoco_plant`",
             python()
         );
+        skip(test, Missing::Package, &why);
     }
     ok
 }

@@ -44,7 +44,8 @@ const CONTROLLER_ID: &str = "7e417201000000000000000000000d4";
 #[test]
 fn python_controller_self_test() {
     if !python_runs("import struct") {
-        eprintln!("SKIP python_controller_self_test: `{}` not found", python());
+        let why = format!("`{}` not found", python());
+        skip("python_controller_self_test", Missing::Package, &why);
         return;
     }
     // Encodings against the worked examples of docs/protocol.md and the law against the
@@ -67,10 +68,15 @@ fn python_controller_self_test() {
 #[test]
 fn python_controller_drives_the_plant_like_the_rust_one() {
     if !python_runs("import zenoh") {
-        eprintln!(
-            "SKIP python_controller_drives_the_plant_like_the_rust_one: `{} -c \"import zenoh\"` \
-             failed; install it with `python3 -m pip install 'eclipse-zenoh==1.10.2'`",
+        let why = format!(
+            "`{} -c \"import zenoh\"` failed; install it with `python3 -m pip install \
+             'eclipse-zenoh==1.10.2'`",
             python()
+        );
+        skip(
+            "python_controller_drives_the_plant_like_the_rust_one",
+            Missing::Package,
+            &why,
         );
         return;
     }

@@ -62,7 +62,8 @@ const CONTROLLER_ID: &str = "c0417201000000000000000000000b2";
 #[test]
 fn python_plant_self_test() {
     if !python_runs("import struct") {
-        eprintln!("SKIP python_plant_self_test: `{}` not found", python());
+        let why = format!("`{}` not found", python());
+        skip("python_plant_self_test", Missing::Package, &why);
         return;
     }
     // Encodings against the worked examples, the model against the checks of docs/model.md
@@ -130,10 +131,15 @@ async fn start_controller(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
     if !python_runs("import zenoh") {
-        eprintln!(
-            "SKIP rust_controller_drives_the_python_plant_like_the_rust_one: `{} -c \"import \
-             zenoh\"` failed; install it with `python3 -m pip install 'eclipse-zenoh==1.10.2'`",
+        let why = format!(
+            "`{} -c \"import zenoh\"` failed; install it with `python3 -m pip install \
+             'eclipse-zenoh==1.10.2'`",
             python()
+        );
+        skip(
+            "rust_controller_drives_the_python_plant_like_the_rust_one",
+            Missing::Package,
+            &why,
         );
         return;
     }
@@ -350,7 +356,11 @@ fn offline_measuring_angles(duration: f64, period: f64) -> Vec<Row> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn python_plant_measuring_angles_drives_the_rust_observer() {
     if !python_runs("import zenoh") {
-        eprintln!("SKIP python_plant_measuring_angles_drives_the_rust_observer: no zenoh module");
+        skip(
+            "python_plant_measuring_angles_drives_the_rust_observer",
+            Missing::Package,
+            "no zenoh module",
+        );
         return;
     }
     let dir = Scratch::new("python-plant-angles");

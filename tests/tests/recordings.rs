@@ -98,7 +98,12 @@ fn recorded_run(dir: &Scratch, robot: &str, file: &std::path::Path, seconds: &st
 #[test]
 fn the_plants_recording_opens_in_the_python_mcap_reader_with_the_plants_counts() {
     if !python_has_mcap() {
-        eprintln!("SKIP: `{}` has no `mcap`/`zstandard` module", python());
+        let why = format!("`{}` has no `mcap`/`zstandard` module", python());
+        skip(
+            "the_plants_recording_opens_in_the_python_mcap_reader",
+            Missing::Package,
+            &why,
+        );
         return;
     }
     let dir = Scratch::new("mcap-py");
@@ -139,7 +144,12 @@ fn the_plants_recording_opens_in_the_python_mcap_reader_with_the_plants_counts()
 #[test]
 fn a_plant_killed_mid_run_leaves_a_recording_readable_to_its_last_chunk() {
     if !python_has_mcap() {
-        eprintln!("SKIP: `{}` has no `mcap`/`zstandard` module", python());
+        let why = format!("`{}` has no `mcap`/`zstandard` module", python());
+        skip(
+            "a_plant_killed_mid_run_leaves_a_recording_readable",
+            Missing::Package,
+            &why,
+        );
         return;
     }
     let dir = Scratch::new("mcap-kill");

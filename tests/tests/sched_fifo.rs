@@ -33,7 +33,12 @@ const SCHED_FIFO: u32 = 1;
 #[test]
 fn realtime_runs_every_thread_of_the_plant_and_the_controller_fifo() {
     if let Err(e) = tilting::supervise::check_fifo(7) {
-        eprintln!("SKIP realtime_runs_every_thread_of_the_plant_and_the_controller_fifo: {e}");
+        let why = e.to_string();
+        skip(
+            "realtime_runs_every_thread_of_the_plant_and_the_controller_fifo",
+            Missing::Right,
+            &why,
+        );
         return;
     }
     let _turn = realtime_turn();
@@ -74,7 +79,11 @@ fn realtime_without_the_right_is_refused_before_anything_starts() {
     // SAFETY: geteuid(2) has no preconditions.
     if unsafe { libc::geteuid() } != 0 || Command::new("setpriv").arg("--version").output().is_err()
     {
-        eprintln!("SKIP realtime_without_the_right_is_refused_before_anything_starts: needs root and setpriv");
+        skip(
+            "realtime_without_the_right_is_refused_before_anything_starts",
+            Missing::Right,
+            "needs root and setpriv",
+        );
         return;
     }
     let dir = Scratch::new("fifo-refused");
@@ -89,9 +98,11 @@ fn realtime_without_the_right_is_refused_before_anything_starts() {
     // the right to change uid, cannot): then there is nothing to test here.
     let probe = as_nobody().arg("--version").output().expect("run setpriv");
     if !probe.status.success() {
-        eprintln!(
-            "SKIP realtime_without_the_right_is_refused_before_anything_starts: {}",
-            String::from_utf8_lossy(&probe.stderr)
+        let why = String::from_utf8_lossy(&probe.stderr).into_owned();
+        skip(
+            "realtime_without_the_right_is_refused_before_anything_starts",
+            Missing::Right,
+            &why,
         );
         return;
     }
