@@ -3,25 +3,20 @@
 //! its own, and the `effort_command` subscription with its checks and counters.
 
 use crate::attachment::Attachment;
+use crate::mirror::{EffortJudge, Sink};
 use crate::msgs;
 use crate::names::{topic_key, Entity, EntityKind, Qos, RosType, TopicInfo};
-use crate::robot::{self, EffortCommand, EffortLimits, FloodGate, Refusal, Topics};
-use serde::{Deserialize, Serialize};
+use crate::robot::{self, EffortCommand, EffortLimits, FloodGate, Topics};
+use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex};
-use tilting_proto::{ModeEvent, PlantState, Status};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::{Session, Wait};
 
-/// Wall-clock time, ns since the Unix epoch (the attachments' source timestamps).
-pub fn wall_ns() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX))
-}
+pub use crate::mirror::{
+    lower_priority, wall_ns, EffortCounts, Input, MirrorCounts, MirrorTx, MIRROR_NICE,
+};
 
 fn zerr(what: &str, e: impl std::fmt::Display) -> anyhow::Error {
     anyhow::anyhow!("{what}: {e}")
@@ -196,51 +191,6 @@ pub struct RosSubscription {
     _subscriber: Subscriber<()>,
 }
 
-/// What the mirror publishes.
-#[derive(Debug, Clone)]
-pub enum Input {
-    /// A state, with the torque in force (N m) if known.
-    State(PlantState, Option<f64>),
-    /// A mode transition.
-    Event(ModeEvent),
-    /// A status.
-    Status(Status),
-}
-
-/// The counters of a mirror.
-#[derive(Debug, Default)]
-pub struct MirrorCounts {
-    /// Inputs handed to the mirror.
-    pub sent: AtomicU64,
-    /// Inputs dropped because the mirror's queue was full (the loop never waits for it).
-    pub dropped: AtomicU64,
-    /// Samples published.
-    pub published: AtomicU64,
-}
-
-/// The loop's end of a mirror: [`MirrorTx::send`] never blocks.
-#[derive(Clone)]
-pub struct MirrorTx {
-    tx: SyncSender<Input>,
-    counts: Arc<MirrorCounts>,
-}
-
-impl MirrorTx {
-    /// Hands `input` to the mirror's thread, or drops it (counted) when its queue is full.
-    pub fn send(&self, input: Input) {
-        self.counts.sent.fetch_add(1, Ordering::Relaxed);
-        if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) = self.tx.try_send(input)
-        {
-            self.counts.dropped.fetch_add(1, Ordering::Relaxed);
-        }
-    }
-
-    /// The counters.
-    pub fn counts(&self) -> &MirrorCounts {
-        &self.counts
-    }
-}
-
 /// A robot's topics as ROS 2 topics: `joint_states`, `contact_mode` and `/rosout`.
 pub struct Mirror {
     robot: String,
@@ -248,7 +198,6 @@ pub struct Mirror {
     contact_mode: RosPublisher,
     rosout: RosPublisher,
     run_state: Option<u8>,
-    counts: Arc<MirrorCounts>,
 }
 
 impl Mirror {
@@ -267,12 +216,19 @@ impl Mirror {
                 .publisher(&t.rosout, &msgs::LOG, robot::ROSOUT_QOS)
                 .await?,
             run_state: None,
-            counts: Arc::default(),
         })
     }
 
+    /// Runs the mirror on a thread of its own fed by a queue of `capacity` inputs; the thread
+    /// ends when every [`MirrorTx`] is dropped.
+    pub fn spawn(self, capacity: usize) -> std::io::Result<MirrorTx> {
+        crate::mirror::spawn(vec![Box::new(self)], capacity)
+    }
+}
+
+impl Sink for Mirror {
     /// Publishes what `input` becomes in ROS 2.
-    pub fn publish(&mut self, input: &Input) {
+    fn publish(&mut self, input: &Input) -> bool {
         let r = match input {
             Input::State(s, tau) => self
                 .joint_states
@@ -286,76 +242,23 @@ impl Mirror {
                 self.run_state = Some(s.state);
                 match line {
                     Some(l) => self.rosout.put(&l),
-                    None => return,
+                    None => return false,
                 }
             }
         };
         match r {
-            Ok(()) => {
-                self.counts.published.fetch_add(1, Ordering::Relaxed);
+            Ok(()) => true,
+            Err(e) => {
+                tracing::debug!("ROS 2 mirror: {e}");
+                false
             }
-            Err(e) => tracing::debug!("ROS 2 mirror: {e}"),
         }
     }
-
-    /// Runs the mirror on a thread of its own fed by a queue of `capacity` inputs; the thread
-    /// ends when every [`MirrorTx`] is dropped.
-    pub fn spawn(mut self, capacity: usize) -> std::io::Result<MirrorTx> {
-        let (tx, rx): (SyncSender<Input>, Receiver<Input>) = sync_channel(capacity);
-        let counts = self.counts.clone();
-        std::thread::Builder::new()
-            .name("ros2-mirror".into())
-            .spawn(move || {
-                lower_priority();
-                while let Ok(i) = rx.recv() {
-                    self.publish(&i);
-                }
-            })?;
-        Ok(MirrorTx { tx, counts })
-    }
-}
-
-/// Nice value of the mirror's thread: under CPU contention the plant's pacing thread (nice 0)
-/// runs first, and the mirror catches up from its queue.
-pub const MIRROR_NICE: i32 = 10;
-
-/// Lowers the calling thread's scheduling priority to [`MIRROR_NICE`] (Linux: a thread is a
-/// task with its own nice value); best effort, elsewhere nothing.
-fn lower_priority() {
-    #[cfg(target_os = "linux")]
-    // SAFETY: plain system calls on the calling thread's own id; no memory is passed.
-    unsafe {
-        let tid = libc::gettid();
-        if libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, MIRROR_NICE) != 0 {
-            tracing::debug!("ROS 2 mirror: cannot lower the thread's priority");
-        }
-    }
-}
-
-/// Counts of the `effort_command` subscription, by outcome (the plant's summary `ros2`).
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct EffortCounts {
-    /// Samples received.
-    pub received: u64,
-    /// Commands passed on to the loop.
-    pub accepted: u64,
-    /// Refused: no or a malformed attachment.
-    pub no_attachment: u64,
-    /// Refused: not a `Float64MultiArray` or not exactly one value.
-    pub malformed: u64,
-    /// Refused: NaN, infinite or beyond `--max-torque`.
-    pub out_of_bounds: u64,
-    /// Refused: source timestamp older than `--max-age` periods.
-    pub stale: u64,
-    /// Refused: source timestamp in the future.
-    pub future: u64,
-    /// Refused: beyond the flood gate's rate.
-    pub flood: u64,
 }
 
 /// The `effort_command` subscription of the plant.
 pub struct EffortInput {
-    counts: Arc<Mutex<EffortCounts>>,
+    judge: std::sync::Arc<EffortJudge>,
     _sub: RosSubscription,
 }
 
@@ -373,10 +276,8 @@ impl EffortInput {
         F: Fn(EffortCommand) + Send + Sync + 'static,
     {
         let t = Topics::new(robot).map_err(anyhow::Error::msg)?;
-        let counts = Arc::new(Mutex::new(EffortCounts::default()));
-        let c = counts.clone();
-        let gate = Mutex::new(gate);
-        let last_log = Mutex::new(None::<std::time::Instant>);
+        let judge = std::sync::Arc::new(EffortJudge::new(gate));
+        let j = judge.clone();
         let sub = node
             .subscription(
                 &t.effort_command,
@@ -384,49 +285,19 @@ impl EffortInput {
                 robot::EFFORT_QOS,
                 move |payload, att| {
                     let now = wall_ns();
-                    let admitted = gate.lock().unwrap_or_else(|e| e.into_inner()).admit(now);
-                    let verdict =
-                        admitted.and_then(|()| robot::check_effort(payload, att, now, &limits));
-                    let mut k = c.lock().unwrap_or_else(|e| e.into_inner());
-                    k.received += 1;
-                    match verdict {
-                        Ok(cmd) => {
-                            k.accepted += 1;
-                            drop(k);
-                            on_command(cmd);
-                        }
-                        Err(r) => {
-                            count(&mut k, &r);
-                            drop(k);
-                            let mut l = last_log.lock().unwrap_or_else(|e| e.into_inner());
-                            if l.is_none_or(|t| t.elapsed().as_secs() >= 1) {
-                                tracing::warn!("refused: {r}");
-                                *l = Some(std::time::Instant::now());
-                            }
-                        }
+                    if let Some(cmd) =
+                        j.judge(now, || robot::check_effort(payload, att, now, &limits))
+                    {
+                        on_command(cmd);
                     }
                 },
             )
             .await?;
-        Ok(EffortInput { counts, _sub: sub })
+        Ok(EffortInput { judge, _sub: sub })
     }
 
     /// The counts so far.
     pub fn counts(&self) -> EffortCounts {
-        self.counts
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
-    }
-}
-
-fn count(k: &mut EffortCounts, r: &Refusal) {
-    match r {
-        Refusal::Attachment(_) => k.no_attachment += 1,
-        Refusal::Cdr(_) | Refusal::Length(_) => k.malformed += 1,
-        Refusal::NotFinite(_) | Refusal::Beyond { .. } => k.out_of_bounds += 1,
-        Refusal::Stale { .. } => k.stale += 1,
-        Refusal::Future { .. } => k.future += 1,
-        Refusal::Flood(..) => k.flood += 1,
+        self.judge.counts()
     }
 }

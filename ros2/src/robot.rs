@@ -193,6 +193,9 @@ pub enum Refusal {
     /// No or a malformed attachment.
     #[error("effort_command: {0}")]
     Attachment(#[from] AttachmentError),
+    /// DDS: the sample carries no source timestamp (the writer sent no INFO_TS).
+    #[error("effort_command has no source timestamp; allowed: a sample stamped by its writer (DDS INFO_TS)")]
+    NoTimestamp,
     /// The payload is not a `Float64MultiArray`.
     #[error("effort_command: {0}")]
     Cdr(#[from] CdrError),
@@ -250,6 +253,18 @@ pub fn check_effort(
 ) -> Result<EffortCommand, Refusal> {
     let attachment = Attachment::decode(attachment)?;
     let m: Float64MultiArray = msgs::decode(payload, &msgs::FLOAT64_MULTI_ARRAY)?;
+    check_command(&m, attachment, now_ns, limits)
+}
+
+/// The checks of [`check_effort`] on a command already decoded (DDS decodes it, and gives the
+/// attachment's parts as sample info): one finite value within `max_torque`, and the age of the
+/// source timestamp against `now_ns`.
+pub fn check_command(
+    m: &Float64MultiArray,
+    attachment: Attachment,
+    now_ns: i64,
+    limits: &EffortLimits,
+) -> Result<EffortCommand, Refusal> {
     let [tau] = m.data[..] else {
         return Err(Refusal::Length(m.data.len()));
     };

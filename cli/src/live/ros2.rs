@@ -7,14 +7,16 @@ use anyhow::anyhow;
 /// The ROS 2 flags of `tilting live`.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct LiveRos2Args {
-    /// The plant is a ROS 2 node too, in rmw_zenoh's conventions (docs/ros2.md):
-    /// /<robot>/joint_states, /<robot>/contact_mode, /rosout, and the arm torque accepted on
-    /// /<robot>/effort_command (std_msgs/msg/Float64MultiArray)
-    #[arg(long)]
-    pub ros2: bool,
-    /// ROS 2 domain id of --ros2 (ROS_DOMAIN_ID)
-    #[arg(long, default_value_t = 0, value_name = "0-232", requires = "ros2")]
-    pub ros_domain: u32,
+    /// The plant is a ROS 2 node too (docs/ros2.md): /<robot>/joint_states,
+    /// /<robot>/contact_mode, /rosout, and the arm torque accepted on /<robot>/effort_command
+    /// (std_msgs/msg/Float64MultiArray). zenoh (a bare --ros2): rmw_zenoh's conventions; dds:
+    /// over DDS for a stock ROS 2 (and /<robot>/robot_description); both
+    #[arg(long, value_name = "zenoh|dds|both", num_args = 0..=1, default_missing_value = "zenoh",
+          value_parser = |s: &str| s.parse::<tilting_ros2::Route>())]
+    pub ros2: Option<tilting_ros2::Route>,
+    /// ROS 2 domain id of --ros2 [default: ROS_DOMAIN_ID, else 0]
+    #[arg(long, value_name = "0-232", requires = "ros2")]
+    pub ros_domain: Option<u32>,
     /// With --ros2 --secure: accept /<robot>/effort_command, which the router's ACL does not
     /// restrict to the controller's certificate (refused without this flag)
     #[arg(long, requires = "ros2")]
@@ -25,16 +27,12 @@ impl LiveRos2Args {
     /// Usage errors: the domain's range, the robot name as a ROS 2 name, and `--secure`
     /// without `--ros2-allow-commands`.
     pub fn check(&self, robot: &str, secure: bool) -> Result<(), CommandError> {
-        if !self.ros2 {
+        if self.ros2.is_none() {
             return Ok(());
         }
         let usage = |m: String| CommandError::Usage(anyhow!(m));
-        if self.ros_domain > 232 {
-            return Err(usage(format!(
-                "invalid --ros-domain = {}: allowed 0 to 232",
-                self.ros_domain
-            )));
-        }
+        let env = std::env::var("ROS_DOMAIN_ID").ok();
+        tilting_ros2::domain_id(self.ros_domain, env.as_deref()).map_err(usage)?;
         tilting_ros2::robot::Topics::new(robot).map_err(usage)?;
         if secure && !self.ros2_allow_commands {
             return Err(usage(
@@ -49,14 +47,14 @@ impl LiveRos2Args {
 
     /// The plant's flags.
     pub fn plant_args(&self) -> Vec<String> {
-        if !self.ros2 {
+        let Some(route) = self.ros2 else {
             return Vec::new();
+        };
+        // The plant reads ROS_DOMAIN_ID itself (it inherits live's environment).
+        let mut v = vec!["--ros2".into(), route.to_string()];
+        if let Some(d) = self.ros_domain {
+            v.extend(["--ros-domain".into(), d.to_string()]);
         }
-        let mut v = vec![
-            "--ros2".into(),
-            "--ros-domain".into(),
-            self.ros_domain.to_string(),
-        ];
         if self.ros2_allow_commands {
             v.push("--ros2-allow-commands".into());
         }

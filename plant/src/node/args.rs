@@ -109,15 +109,18 @@ pub struct PlantArgs {
     /// Realtime clock: try SCHED_FIFO at this priority for the pacing thread (needs privileges)
     #[arg(long, value_name = "1-99")]
     pub rt_priority: Option<i32>,
-    /// Be a ROS 2 robot too, in rmw_zenoh's conventions (docs/ros2.md): the state on
-    /// /<robot>/joint_states, the mode on /<robot>/contact_mode, events, faults and the safe
-    /// mode on /rosout (from a thread of their own: the loop never waits for them), and the arm
-    /// torque accepted as std_msgs/msg/Float64MultiArray on /<robot>/effort_command
-    #[arg(long)]
-    pub ros2: bool,
-    /// ROS 2 domain id of --ros2 (ROS_DOMAIN_ID)
-    #[arg(long, default_value_t = 0, value_name = "0-232", requires = "ros2")]
-    pub ros_domain: u32,
+    /// Be a ROS 2 robot too (docs/ros2.md): the state on /<robot>/joint_states, the mode on
+    /// /<robot>/contact_mode, events, faults and the safe mode on /rosout (from a thread of
+    /// their own: the loop never waits for them), and the arm torque accepted as
+    /// std_msgs/msg/Float64MultiArray on /<robot>/effort_command. zenoh (a bare --ros2):
+    /// rmw_zenoh's conventions on this session; dds: over DDS for a stock ROS 2 (also the URDF
+    /// on /<robot>/robot_description; ROS_AUTOMATIC_DISCOVERY_RANGE honoured); both
+    #[arg(long, value_name = "zenoh|dds|both", num_args = 0..=1, default_missing_value = "zenoh",
+          value_parser = parse_route)]
+    pub ros2: Option<tilting_ros2::Route>,
+    /// ROS 2 domain id of --ros2 [default: ROS_DOMAIN_ID, else 0]
+    #[arg(long, value_name = "0-232", requires = "ros2")]
+    pub ros_domain: Option<u32>,
     /// With --ros2 and --zenoh-config (the secure deployment, where the router's ACL lets only
     /// the controller's certificate publish torques): accept /<robot>/effort_command anyway
     #[arg(long, requires = "ros2")]
@@ -143,7 +146,18 @@ pub const DEFAULT_MAX_AGE: u64 = 10;
 /// Longest busy-wait before a deadline (µs).
 pub const MAX_SPIN_US: u64 = 1000;
 
+/// `--ros2`'s value (clap's error then names the flag and the allowed routes).
+fn parse_route(s: &str) -> Result<tilting_ros2::Route, String> {
+    s.parse()
+}
+
 impl PlantArgs {
+    /// The ROS 2 domain of `--ros2`: `--ros-domain`, else `ROS_DOMAIN_ID`, else 0 (0 to 232).
+    pub fn ros_domain(&self) -> anyhow::Result<u32> {
+        let env = std::env::var("ROS_DOMAIN_ID").ok();
+        tilting_ros2::domain_id(self.ros_domain, env.as_deref()).map_err(anyhow::Error::msg)
+    }
+
     /// The bound on commanded torques (N m): `--max-torque`, or [`DEFAULT_MAX_TORQUE`].
     pub fn max_torque(&self) -> f64 {
         self.max_torque.unwrap_or(DEFAULT_MAX_TORQUE)
@@ -189,12 +203,17 @@ impl PlantArgs {
         }
         // Checked for both clocks: the same ranges and messages as `simulate`.
         self.network.impairment(self.max_age)?;
-        if self.ros2 {
+        if let Some(route) = self.ros2 {
+            self.ros_domain()?;
             anyhow::ensure!(
-                self.ros_domain <= 232,
-                "invalid --ros-domain = {}: allowed 0 to 232",
-                self.ros_domain
+                cfg!(feature = "dds") || !route.dds(),
+                "--ros2 {route}: this tilting-plant was built without DDS (cargo feature `dds` \
+                 of tilting-plant, on by default); allowed here: --ros2 zenoh"
             );
+            #[cfg(feature = "dds")]
+            if route.dds() {
+                tilting_ros2::dds::DiscoveryRange::from_env().map_err(anyhow::Error::msg)?;
+            }
             tilting_ros2::robot::Topics::new(&self.zenoh.robot).map_err(anyhow::Error::msg)?;
             anyhow::ensure!(
                 self.zenoh.zenoh_config.is_none() || self.ros2_allow_commands,

@@ -160,8 +160,8 @@ async fn run_async(
     let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
     let shared = shared_state(&args, &keys);
     let ros2 = match args.ros2 {
-        true => Some(ros2::Ros2::start(&session, &args, shared.clone()).await?),
-        false => None,
+        Some(_) => Some(ros2::Ros2::start(&session, &args, shared.clone()).await?),
+        None => None,
     };
     let pubs = Arc::new(Publishers {
         state: TypedPublisher::declare(&session, keys.plant_state(), Qos::Control).await?,
@@ -169,7 +169,6 @@ async fn run_async(
         status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Telemetry).await?,
         ros2: ros2.as_ref().map(|r| r.mirror.clone()),
     });
-    let ros_domain = args.ros_domain;
     // Real time over emulated links: states and torques cross them on the wall clock.
     let impairment = args.network.impairment(args.max_age)?;
     let link = match (impairment, args.clock) {
@@ -273,7 +272,7 @@ async fn run_async(
         .await
         .context("pacing thread join")?
         .map_err(|_| anyhow::anyhow!("the pacing thread panicked"))?;
-    summary.ros2 = ros2.as_ref().map(|r| r.summary(ros_domain));
+    summary.ros2 = ros2.as_ref().map(|r| r.summary());
     if let Some(l) = &link {
         l.stop();
     }
