@@ -188,6 +188,7 @@ pub struct Search {
 
 /// One point: the loop at `rate` (Hz) over a perfect network with `knob` at `value`, judged by
 /// `c` against `nominal` (rad).
+#[allow(clippy::too_many_arguments)] // the survey's settings, as `search`'s
 pub fn band_point(
     base: &Scenario,
     knob: Knob,
