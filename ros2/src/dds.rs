@@ -3,8 +3,11 @@
 //! ([`crate::node`]), plus `robot_description`, on RustDDS through Atostek's `ros2-client`
 //! (its node appears in `ros2 node list`: it publishes `ros_discovery_info`).
 //!
-//! Build cost (measured 2026-11 on the shared 2-core VM, a crate depending on `ros2-client`
-//! 0.12.1 with features `dds` and `jazzy` only, cold, release): see [`BUILD_COST`].
+//! Build cost, measured 2026-11-28 on the shared 2-core VM (load average about 3.5), cold release
+//! builds in an empty target directory: `tilting-ros2` alone 62 s wall (86 s CPU); then with
+//! `--features dds` 84 s wall (81 s CPU) more, for 39 crates more (`rustdds`, `ros2-client`,
+//! `speedy`, `netdev`, `netlink-*`, `nix`, `chrono`, ...). `ros2-client` alone, cold, with its 101
+//! crates: 153 s wall (134 s CPU).
 //!
 //! Why `ros2-client` and not its zenoh backend in place of [`crate::node`]: its zenoh feature
 //! pulls `zenoh` and `zenoh-ext` as `zenoh = "1"` with the `unstable` feature, which would
@@ -24,10 +27,6 @@ use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, QosProfile};
 use std::net::{IpAddr, Ipv4Addr};
 use std::sync::Arc;
 use std::time::Duration;
-
-/// What `ros2-client` (features `dds`, `jazzy`) adds to a cold release build, measured on the
-/// shared 2-core VM: crates compiled and wall-clock seconds (docs/ros2.md).
-pub const BUILD_COST: &str = "about 60 crates more (RustDDS, mio, speedy, ...), 75 s cold";
 
 /// How far discovery reaches: ROS 2's `ROS_AUTOMATIC_DISCOVERY_RANGE` (Jazzy and later).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

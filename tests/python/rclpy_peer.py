@@ -47,14 +47,16 @@ def spin_until(executor, cond, timeout):
 
 
 def send_bad(node, pub, executor):
-    """Commands the plant must refuse, 2 ms apart (under its flood gate): 20 with two values,
-    20 NaN, 20 beyond any torque bound."""
+    """Commands the plant must refuse, at least 3 ms apart (far under its flood gate's 4,000/s
+    with bursts of 16): 20 with two values, 20 NaN, 20 beyond any torque bound."""
     sent = {"length": 0, "nan": 0, "beyond": 0}
     for kind, data in (("length", [0.0, 0.0]), ("nan", [math.nan]), ("beyond", [1e9])):
         for _ in range(20):
             pub.publish(Float64MultiArray(data=data))
             sent[kind] += 1
-            executor.spin_once(timeout_sec=0.002)
+            end = time.monotonic() + 0.003
+            while time.monotonic() < end:
+                executor.spin_once(timeout_sec=max(0.0, end - time.monotonic()))
     return sent
 
 

@@ -3,8 +3,8 @@
 //! - over DDS (`--ros2 dds`, `tilting_ros2::dds`): Jazzy's rclpy on rmw_fastrtps_cpp from PyPI
 //!   wheels (`tests/python/rclpy_peer.py`), a listener of `tilting live` and a controller in
 //!   lockstep;
-//! - over rmw_zenoh's conventions (`--ros2`): `pyzeros`, a pure-Python rmw_zenoh client from
-//!   PyPI (`tests/python/pyzeros_peer.py`).
+//! - over rmw_zenoh's conventions (`--ros2 both`: beside DDS): `pyzeros`, a pure-Python
+//!   rmw_zenoh client from PyPI (`tests/python/pyzeros_peer.py`).
 //!
 //! Each runs in a network namespace of its own with only a loopback interface (and
 //! `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`), so no discovery traffic leaves the machine.
@@ -30,25 +30,43 @@ fn ros_python() -> PathBuf {
     venv().join("bin/python")
 }
 
-/// Why the tests cannot run here, if they cannot.
-fn skip_reason() -> Option<String> {
+/// Why the tests cannot run here, if they cannot: a right of the machine (root, namespaces) or
+/// a package (the ROS 2 venv).
+fn skip_reason() -> Option<(Missing, String)> {
     // SAFETY: geteuid(2) has no preconditions.
     if unsafe { libc::geteuid() } != 0 {
-        return Some("not root (the tests run in a network namespace of their own)".into());
+        return Some((
+            Missing::Right,
+            "not root (the tests run in a network namespace of their own)".into(),
+        ));
     }
     if !matches!(Command::new("ip").arg("-V").output(), Ok(o) if o.status.success()) {
-        return Some("iproute2's `ip` is missing".into());
+        return Some((Missing::Package, "iproute2's `ip` is missing".into()));
     }
     let code = "import rclpy, sensor_msgs.msg, std_msgs.msg, rcl_interfaces.msg";
     match Command::new(ros_python()).args(["-c", code]).output() {
         Ok(o) if o.status.success() => None,
-        _ => Some(format!(
-            "`{} -c \"{code}\"` failed; make the venv with `python3 -m venv {v} && {v}/bin/pip \
-             install ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-sensor-msgs \
-             ros-jazzy-std-msgs` (or set TILTING_ROS_VENV)",
-            ros_python().display(),
-            v = venv().display()
+        _ => Some((
+            Missing::Package,
+            format!(
+                "`{} -c \"{code}\"` failed; make the venv with `python3 -m venv {v} && \
+                 {v}/bin/pip install ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp \
+                 ros-jazzy-sensor-msgs ros-jazzy-std-msgs pyzeros` (or set TILTING_ROS_VENV)",
+                ros_python().display(),
+                v = venv().display()
+            ),
         )),
+    }
+}
+
+/// Whether `test` can run; if not, [`skip`]s it.
+fn can_run(test: &str) -> bool {
+    match skip_reason() {
+        None => true,
+        Some((missing, why)) => {
+            skip(test, missing, &why);
+            false
+        }
     }
 }
 
@@ -146,8 +164,7 @@ const SECONDS: f64 = 5.0;
 
 #[test]
 fn an_rclpy_node_receives_joint_states_and_the_urdf_from_live_over_dds() {
-    if let Some(why) = skip_reason() {
-        eprintln!("SKIP an_rclpy_node_receives_joint_states_over_dds: {why}");
+    if !can_run("an_rclpy_node_receives_joint_states_and_the_urdf_from_live_over_dds") {
         return;
     }
     let _turn = realtime_turn();
@@ -193,6 +210,10 @@ fn an_rclpy_node_receives_joint_states_and_the_urdf_from_live_over_dds() {
     // Not asserted a success: on a machine short of CPU, live's orbit verdict can fail while
     // the plant completes its run (checked below); what is judged here is the ROS 2 side.
     let live_status = live.expect_exit(Duration::from_secs(120));
+    if !out.join("summary.json").exists() {
+        listener.interrupt(Duration::from_secs(5));
+        panic!("live wrote no summary: {live_status}\n{}", live.logs());
+    }
     let status = listener.expect_exit(Duration::from_secs(60));
     assert!(
         status.success(),
@@ -316,8 +337,7 @@ const TOLERANCE: f64 = 1e-9;
 
 #[test]
 fn an_rclpy_controller_keeps_the_orbit_through_effort_command_over_dds() {
-    if let Some(why) = skip_reason() {
-        eprintln!("SKIP an_rclpy_controller_keeps_the_orbit_over_dds: {why}");
+    if !can_run("an_rclpy_controller_keeps_the_orbit_through_effort_command_over_dds") {
         return;
     }
     let dir = Scratch::new("ros2-dds-controller");
@@ -463,18 +483,18 @@ struct Pyzeros {
 #[test]
 fn pyzeros_sees_and_commands_the_plant_over_rmw_zenoh() {
     let test = "pyzeros_sees_and_commands_the_plant_over_rmw_zenoh";
-    if let Some(why) = skip_reason() {
-        eprintln!("SKIP {test}: {why}");
+    if !can_run(test) {
         return;
     }
     let code = "import pyzeros, ros2_pyterfaces";
     if !matches!(Command::new(ros_python()).args(["-c", code]).output(), Ok(o) if o.status.success())
     {
-        eprintln!(
-            "SKIP {test}: `{} -c \"{code}\"` failed; install with `{}/bin/pip install pyzeros`",
+        let why = format!(
+            "`{} -c \"{code}\"` failed; install with `{}/bin/pip install pyzeros`",
             ros_python().display(),
             venv().display()
         );
+        skip(test, Missing::Package, &why);
         return;
     }
     let _turn = realtime_turn();
@@ -491,6 +511,7 @@ fn pyzeros_sees_and_commands_the_plant_over_rmw_zenoh() {
             "--duration",
             "12",
             "--ros2",
+            "both",
             "--ros-domain",
             "5",
         ],
@@ -545,4 +566,7 @@ fn pyzeros_sees_and_commands_the_plant_over_rmw_zenoh() {
         (0, 0, 0),
         "{e:?}"
     );
+    // The DDS route ran beside it (`both`), and saw none of pyzeros's commands.
+    assert_eq!(r.route, "both");
+    assert_eq!(r.effort_dds.as_ref().map(|d| d.received), Some(0), "{r:?}");
 }

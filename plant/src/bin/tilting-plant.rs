@@ -5,7 +5,11 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     let args = tilting_plant::node::PlantArgs::parse();
-    tilting_net::init_tracing("warn,tilting_plant=info,tilting_net=info");
+    // RustDDS (--ros2 dds) warns per packet it cannot route (e.g. to its own loopback
+    // announcements): errors only.
+    tilting_net::init_tracing(
+        "warn,tilting_plant=info,tilting_net=info,rustdds=error,ros2_client=error",
+    );
     match tilting_plant::node::run(args) {
         Ok(code) => code,
         Err(e) => {
