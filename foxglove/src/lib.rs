@@ -20,12 +20,18 @@
 //! whose server keeps a bounded backlog per client and drops its oldest messages too. Nothing
 //! on the robot's path ever waits for a WebSocket.
 //!
+//! Viewers connect to a handshake [`front`] that admits the protocol's old name
+//! `foxglove.websocket.v1` (Foxglove Studio 1.48, Lichtblick up to 1.22.0), which the SDK's
+//! server refuses, and relays to that server on a loopback port of its own.
+//!
 //! The address must be loopback unless the caller consents ([`Options::any`]); a port in use
-//! is a clear [`StartError`]. Times are plant time (log times in ns, as in our MCAP files).
+//! is a clear [`StartError`]. Channel log times are plant time (ns, as in our MCAP files); a log
+//! entry's own timestamp is the wall clock, and its text names the plant time.
 
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod front;
 pub mod queue;
 pub mod scene;
 pub mod server;

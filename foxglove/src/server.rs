@@ -1,5 +1,6 @@
 //! [`Server`]: the Foxglove WebSocket server (the SDK's) and the thread that publishes into it.
 
+use crate::front::Front;
 use crate::queue::{self, Drain, Feed, Item};
 use crate::scene;
 use foxglove::messages::{log::Level, FrameTransforms, Log, SceneEntity, SceneUpdate};
@@ -87,6 +88,8 @@ pub struct Server {
     /// The SDK's context of the channels (the server holds it weakly: it lives here).
     _ctx: Arc<Context>,
     handle: foxglove::WebSocketServerHandle,
+    /// The viewers' address, in front of the SDK's server.
+    front: Front,
     feed: Feed,
     drain: Arc<Drain>,
     thread: Option<JoinHandle<Counts>>,
@@ -139,27 +142,32 @@ impl Server {
             connected: AtomicUsize::new(0),
             ever: AtomicUsize::new(0),
         });
+        // The viewers' address is the front's (`front`: it also admits the protocol's old
+        // name); the SDK's server listens on a loopback port of its own behind it.
+        let front = tokio::net::TcpListener::bind(opts.addr)
+            .await
+            .map_err(|cause| StartError::Bind {
+                addr: opts.addr,
+                hint: if cause.kind() == std::io::ErrorKind::AddrInUse {
+                    " (another server holds the port: pass --foxglove with another address, \
+                     e.g. 127.0.0.1:8766)"
+                } else {
+                    ""
+                },
+                cause,
+            })?;
         let handle = foxglove::WebSocketServer::new()
             .name(format!("tilting/{}", opts.keys.robot()))
             .context(&ctx)
-            .bind(opts.addr.ip().to_string(), opts.addr.port())
+            .bind("127.0.0.1", 0)
             .listener(listener.clone())
             .start()
             .await
-            .map_err(|e| match e {
-                foxglove::FoxgloveError::Bind(cause) => StartError::Bind {
-                    addr: opts.addr,
-                    hint: if cause.kind() == std::io::ErrorKind::AddrInUse {
-                        " (another server holds the port: pass --foxglove with another \
-                         address, e.g. 127.0.0.1:8766)"
-                    } else {
-                        ""
-                    },
-                    cause,
-                },
-                e => StartError::Sdk(e.to_string()),
-            })?;
-        let addr = SocketAddr::new(opts.addr.ip(), handle.port());
+            .map_err(|e| StartError::Sdk(e.to_string()))?;
+        let backend = SocketAddr::from(([127, 0, 0, 1], handle.port()));
+        let front =
+            Front::serve(front, backend).map_err(|e| StartError::Sdk(format!("the front: {e}")))?;
+        let addr = front.addr();
         let (feed, drain) = queue::bounded(QUEUE);
         let drain = Arc::new(drain);
         let publisher = Publisher::new(channels, opts);
@@ -171,6 +179,7 @@ impl Server {
         Ok(Self {
             _ctx: ctx,
             handle,
+            front,
             feed,
             drain,
             thread: Some(thread),
@@ -203,6 +212,7 @@ impl Server {
         };
         counts.dropped = self.feed.dropped();
         counts.clients = self.listener.ever.load(Ordering::Relaxed) as u64;
+        drop(self.front);
         self.handle.stop().wait().await;
         counts
     }
