@@ -124,11 +124,14 @@ fn script() -> String {
         .to_string()
 }
 
+/// One joint_states as rclpy_peer.py writes it: stamp (ns), positions, velocities, efforts.
+type Joints = (i64, Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// What `rclpy_peer.py listen` saw.
 #[derive(Debug, serde::Deserialize)]
 struct Listened {
     /// `[stamp ns, position, velocity, effort]` of each joint_states.
-    joint_states: Vec<(i64, Vec<f64>, Vec<f64>, Vec<f64>)>,
+    joint_states: Vec<Joints>,
     modes: Vec<u8>,
     rosout: Vec<(u8, String, String)>,
     names_ok: bool,
