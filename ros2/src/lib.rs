@@ -77,7 +77,8 @@ impl std::str::FromStr for Route {
             "both" => Ok(Route::Both),
             _ => Err(format!(
                 "invalid --ros2 = {s:?}: allowed zenoh (rmw_zenoh, the default of a bare \
-                 --ros2), dds (a stock ROS 2) or both"
+                 --ros2), dds (a stock ROS 2) or both (a bare --ros2 takes the next word as its \
+                 value: write `--ros2 zenoh` before a robot file, or the file first)"
             )),
         }
     }
