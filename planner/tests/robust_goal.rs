@@ -140,9 +140,11 @@ fn margins_survey_the_planned_orbit_of_another_robot() {
     let pb =
         OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
     let found = energy_for_peak(&pb, &PeakSearch::new(0.018), &|_| {}).expect("a 0.018 orbit");
-    let mut law = tilting_controller::LawSpec::default();
-    law.energy_avg = found.energy_avg_adaptation;
-    law.orbit_start = Some([FRAC_PI_2 + found.orbit.beta0, found.orbit.beta_dot0]);
+    let law = tilting_controller::LawSpec {
+        energy_avg: found.energy_avg_adaptation,
+        orbit_start: Some([FRAC_PI_2 + found.orbit.beta0, found.orbit.beta_dot0]),
+        ..tilting_controller::LawSpec::default()
+    };
     let paper = Survey {
         delays: vec![0.0],
         losses: vec![0.0],
