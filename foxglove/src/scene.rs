@@ -12,7 +12,7 @@
 //!
 //! So the plate's left and right edges are `(-f, 0, 0)` and `(f, 0, 0)` in `plate`, and the tip
 //! is `(l, 0, 0)` in `arm`. The primitives ([`entities`]) are frame-locked to these frames: a
-//! slab for the plate, a cylinder and a ball for the arm, an orange line along the active pivot
+//! slab for the plate, a cylinder and a ball for the arm (each named by a small label), an orange line along the active pivot
 //! edge, a ground slab, a title stating the tilt exaggeration, and a red ball flashed at the
 //! edge that strikes the ground at a landing ([`landing_flash`]).
 //!
@@ -178,6 +178,7 @@ pub fn entities(p: &Params, title: &str, t: f64, mode: Mode, flashing: bool) -> 
             rgba(0.2, 0.35, 0.7, 1.0)
         },
     });
+    plate.texts.push(label(f, 0.0, 3.0 * thick, "plate"));
     let mut edge = entity(t, PLATE, "pivot");
     if mode.is_tilted() {
         let x = if mode == Mode::Right { f } else { -f };
@@ -232,6 +233,7 @@ pub fn entities(p: &Params, title: &str, t: f64, mode: Mode, flashing: bool) -> 
         }),
         color: rgba(0.85, 0.45, 0.1, 1.0),
     });
+    arm.texts.push(label(0.6 * l, 0.0, 4.0 * r, "arm"));
     let mut text = entity(t, WORLD, "title");
     text.texts.push(TextPrimitive {
         pose: pose_at(f, 0.0, 1.25 * l, IDENTITY),
@@ -242,6 +244,18 @@ pub fn entities(p: &Params, title: &str, t: f64, mode: Mode, flashing: bool) -> 
         text: format!("{title}\nmode {mode}, t = {t:.2} s"),
     });
     vec![ground, plate, edge, arm, text]
+}
+
+/// A small name written beside a part, at `(x, y, z)` in its frame.
+fn label(x: f64, y: f64, z: f64, text: &str) -> TextPrimitive {
+    TextPrimitive {
+        pose: pose_at(x, y, z, IDENTITY),
+        billboard: true,
+        font_size: 12.0,
+        scale_invariant: true,
+        color: rgba(0.25, 0.25, 0.25, 1.0),
+        text: text.into(),
+    }
 }
 
 /// The landing flash at plant time `t`: a red ball for [`FLASH`] s at the edge that strikes the
@@ -332,6 +346,22 @@ mod tests {
         assert!((right[2] - 2.0 * p.f * 0.2f64.sin()).abs() < 1e-12);
         assert!(check_exaggeration(0.5).is_err() && check_exaggeration(f64::NAN).is_err());
         assert!(title("demo", 5.0).contains("x5"));
+    }
+
+    /// The plate and the arm carry their names; the ground's top is at the ground (z = 0).
+    #[test]
+    fn the_parts_are_named() {
+        let p = Params::default();
+        let e = entities(&p, "t", 0.0, Mode::Left, false);
+        let text = |id: &str| -> Vec<String> {
+            let x = e.iter().find(|x| x.id == id).unwrap();
+            x.texts.iter().map(|t| t.text.clone()).collect()
+        };
+        assert_eq!(text("plate"), ["plate"]);
+        assert_eq!(text("arm"), ["arm"]);
+        let ground = &e.iter().find(|x| x.id == "ground").unwrap().cubes[0];
+        let top = ground.pose.unwrap().position.unwrap().z + 0.5 * ground.size.unwrap().z;
+        assert!(top.abs() < 1e-12, "{top}");
     }
 
     /// A landing from a left tilt strikes the right edge, and from a right tilt the left edge.

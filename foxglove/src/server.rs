@@ -617,6 +617,9 @@ mod tests {
             "{t:?}"
         );
         assert_eq!(cam["thetaOffset"], 0);
+        // The grid below the ground slab's top (z = 0): coplanar, the two flickered.
+        let grid = &layout["configById"]["3D!tilting"]["layers"]["grid"]["position"];
+        assert!(grid[2].as_f64().unwrap() < 0.0, "{grid}");
         let (d, fov, phi) = (
             cam["distance"].as_f64().unwrap(),
             cam["fovy"].as_f64().unwrap(),
