@@ -73,16 +73,6 @@ pub struct PredictArgs {
     pub predict: Option<Predict>,
 }
 
-impl PredictArgs {
-    /// The flag for a child process (none without prediction): parsing it gives `self` back.
-    pub fn to_args(&self) -> Vec<String> {
-        match self.predict {
-            None => Vec::new(),
-            Some(p) => vec![format!("--predict={p}")],
-        }
-    }
-}
-
 /// The predictor of one controller: the model of the plant, the loop's period and delay, and
 /// the answers sent.
 #[derive(Debug, Clone)]
@@ -283,7 +273,8 @@ mod flag_tests {
     }
 
     #[test]
-    fn to_args_round_trips() {
+    fn flag_text_round_trips() {
+        // A value's text reads back the same (a robot file's `predict` key is that text).
         for predict in [
             None,
             Some(Predict::Estimated),
@@ -292,7 +283,8 @@ mod flag_tests {
             Some(Predict::Given(60.0)),
         ] {
             let x = PredictArgs { predict };
-            let argv = std::iter::once("x".to_owned()).chain(x.to_args());
+            let flag = predict.map(|p| format!("--predict={p}"));
+            let argv = std::iter::once("x".to_owned()).chain(flag);
             assert_eq!(Cli::try_parse_from(argv).unwrap().p, x);
         }
         // The bare flag estimates; a delay out of range is refused.

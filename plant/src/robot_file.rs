@@ -288,6 +288,72 @@ pub fn apply(
     Ok(cmd)
 }
 
+/// The flag of a node binary that names its robot file (`tilting-controller --robot-file
+/// RUN/robot.toml`): `tilting live` hands its children the run's robot file instead of its keys
+/// spelled out again as flags.
+pub const NODE_FILE_FLAG: &str = "robot-file";
+
+/// The sections a node reads from its robot file (a key whose flag the node lacks is left out).
+pub const NODE_SECTIONS: [&str; 7] = [
+    "robot", "plant", "law", "run", "network", "sensors", "deploy",
+];
+
+/// Why [`parse_node`] failed.
+#[cfg(feature = "clap")]
+#[derive(Debug)]
+pub enum NodeArgsError {
+    /// The flags (clap's message and exit code).
+    Clap(clap::Error),
+    /// The robot file.
+    File(String),
+}
+
+/// Parses a node's command line `argv` (its first item the program's name) as `C`, with the
+/// keys of the robot file of its `--robot-file` (if given) as the defaults of its flags of the
+/// same names ([`apply`], not strict: a file describes more than one node needs); a flag given
+/// as well overrides the key.
+#[cfg(feature = "clap")]
+pub fn parse_node<C: clap::Parser>(argv: &[std::ffi::OsString]) -> Result<C, NodeArgsError> {
+    let base = C::command();
+    let first = base
+        .clone()
+        .try_get_matches_from(argv)
+        .map_err(NodeArgsError::Clap)?;
+    let file = base
+        .get_arguments()
+        .find(|a| a.get_long() == Some(NODE_FILE_FLAG))
+        .and_then(|a| first.get_raw(a.get_id().as_str()))
+        .and_then(|mut r| r.next_back())
+        .map(PathBuf::from);
+    let cmd = match &file {
+        None => base,
+        Some(f) => {
+            let doc = read_doc(f).map_err(NodeArgsError::File)?;
+            let defaults = flag_defaults(&doc, f, &NODE_SECTIONS).map_err(NodeArgsError::File)?;
+            apply(base, &defaults, f, false).map_err(NodeArgsError::File)?
+        }
+    };
+    let matches = cmd
+        .try_get_matches_from(argv)
+        .map_err(NodeArgsError::Clap)?;
+    C::from_arg_matches(&matches).map_err(NodeArgsError::Clap)
+}
+
+/// [`parse_node`] of this process's command line; a bad flag exits as clap does, a bad robot
+/// file with code 2 and its message.
+#[cfg(feature = "clap")]
+pub fn parse_node_args<C: clap::Parser>() -> C {
+    let argv: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    match parse_node::<C>(&argv) {
+        Ok(c) => c,
+        Err(NodeArgsError::Clap(e)) => e.exit(),
+        Err(NodeArgsError::File(e)) => {
+            eprintln!("error: {e}");
+            std::process::exit(2)
+        }
+    }
+}
+
 /// Checks `text` with the value parser of `arg` (a switch takes `true` or `false`); the
 /// parser's message without clap's decoration.
 #[cfg(feature = "clap")]

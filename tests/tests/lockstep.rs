@@ -313,3 +313,67 @@ fn realtime_sampling_on_events_answers_each_transition() {
         eprintln!("an answer came late on this machine: the run is not compared bit for bit");
     }
 }
+
+/// The controller started from a robot file (`--robot-file`, as `tilting live` starts it with
+/// the run's robot.toml) runs the same loop as one given the same settings as flags: a file
+/// written by `tilting config` from the flags (a model, other gains, `--predict`, `--estimator`),
+/// in lockstep over a delayed link, ends in the same state, bit for bit, with the same
+/// predictions.
+#[test]
+fn a_controller_from_a_robot_file_equals_one_from_flags() {
+    let dir = Scratch::new("lockfile");
+    let params = dir.path().join("model.toml");
+    std::fs::write(&params, "m_f = 1.0\n").unwrap();
+    let params = params.to_str().unwrap();
+    let file = dir.path().join("robot.toml");
+    let flags = [
+        "--params",
+        params,
+        "--kd",
+        "14",
+        "--k",
+        "400",
+        "--predict",
+        "0.008",
+        "--estimator",
+        "fd",
+    ];
+    let out = std::process::Command::new(bin("tilting"))
+        .arg("config")
+        .args(flags)
+        .output()
+        .expect("run tilting config");
+    assert!(
+        out.status.success(),
+        "config: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(&file, &out.stdout).unwrap();
+    let plant = [
+        "--clock",
+        "lockstep",
+        "--duration",
+        "2",
+        "--torque-delay",
+        "0.008",
+    ];
+    let run = |name: &str, ctl: &[&str]| {
+        let d = Scratch::new(name);
+        run_loop(d.path(), &robot(name), free_port(), &plant, ctl)
+    };
+    let (from_file, c_file) = run("lockfile-a", &["--robot-file", file.to_str().unwrap()]);
+    let (from_flags, c_flags) = run("lockfile-b", &flags);
+    assert_eq!((from_file.time, from_flags.time), (2.0, 2.0));
+    for (i, (a, b)) in from_file.x.iter().zip(&from_flags.x).enumerate() {
+        assert_eq!(a.to_bits(), b.to_bits(), "component {i}: {a} vs {b}");
+    }
+    let (pa, pb) = (c_file.prediction.unwrap(), c_flags.prediction.unwrap());
+    assert!(pa.predictions > 1000, "{pa:?}");
+    assert_eq!(
+        (pa.predictions, pa.fallbacks),
+        (pb.predictions, pb.fallbacks)
+    );
+    // And a law other than the default's: the file's law moved the run.
+    let (paper, _) = run("lockfile-c", &["--predict", "0.008"]);
+    assert_ne!(paper.x, from_file.x);
+}

@@ -268,13 +268,13 @@ pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
     std::fs::create_dir_all(&job.dir)
         .with_context(|| format!("cannot create the output directory {}", job.dir.display()))
         .map_err(CommandError::Failed)?;
-    if let Some(robot) = crate::robot::merged() {
-        // The run's robot file: the file given (if any) with the flags over it.
-        let path = job.dir.join("robot.toml");
-        std::fs::write(&path, robot.to_toml_string())
-            .with_context(|| format!("cannot write {}", path.display()))
-            .map_err(CommandError::Failed)?;
-    }
+    // The run's robot file: the file given (if any) with the flags over it and the law
+    // resolved (`nodes::run_file`); the controller reads it.
+    let robot = nodes::run_file(&job, crate::robot::merged())
+        .map_err(|e| CommandError::Failed(anyhow!("the run's robot file: {e}")))?;
+    std::fs::write(&robot.path, robot.to_toml_string())
+        .with_context(|| format!("cannot write {}", robot.path.display()))
+        .map_err(CommandError::Failed)?;
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     let signals = Signals::start(&rt);
     let ending = rt

@@ -2,8 +2,10 @@
 //! or the router of `--secure`), the router itself, and the plant and controller children with
 //! their flags.
 //!
-//! A child's flags come from the typed arguments of `live` through the `to_args()` of each
-//! parser (`NetworkArgs`, the law, `--predict`'s value), not from flags spelled out again here.
+//! The controller reads the run's robot file (`--robot-file RUN/robot.toml`, [`run_file`]) and
+//! is given only the run's wiring as flags (session, zenoh ids). The plant's flags still come
+//! from the typed arguments of `live` through the `to_args()` of their parsers (`NetworkArgs`,
+//! `ImperfectArgs`): a `--plant-cmd` (the MuJoCo plant, Python) reads flags, not the file.
 
 use super::summary::Endpoints;
 use super::Job;
@@ -13,6 +15,8 @@ use anyhow::Context as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tilting_net::ZenohArgs;
+use tilting_plant::robot_file::{self, PARAMS_SECTIONS};
+use tilting_sim::robot::{key_of_flag, value_of_text, RobotFile};
 
 /// The router of a `--secure` run.
 pub(super) struct Secure {
@@ -285,18 +289,78 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
     v
 }
 
-/// The controller's flags: session, the law and `--predict`.
+/// The run's robot file (`robot.toml` in the run directory), which the controller reads
+/// (`--robot-file`): `merged` (the file `live` was given with its flags over it; `None`, an
+/// empty one) made to stand alone in the run directory, with what `live` resolved:
+///
+/// - `[robot]`: the controller's model, inline; `[plant]` and `[prior]` inline too (a
+///   `params = "x.toml"` is relative to the file given, not to the run directory);
+/// - path keys (`law.plan`, `deploy.certs`, `deploy.out`) absolute;
+/// - `[law]`: the law `live` resolved, every key given (a `--plan`'s gains and orbit start, a
+///   `--from-orbit`'s E_av, which replaces the `from_orbit` key), so the controller need not
+///   read the plan nor search the orbit, and a run from this file runs the same law.
+pub(super) fn run_file(job: &Job, merged: Option<&RobotFile>) -> Result<RobotFile, String> {
+    let mut f = merged
+        .cloned()
+        .unwrap_or_else(|| RobotFile::empty(&job.dir.join("robot.toml")));
+    for section in PARAMS_SECTIONS {
+        let Some(table) = f.doc.get(section).and_then(|v| v.as_table()) else {
+            continue;
+        };
+        let p = robot_file::params_of_table(table, section, &f.path).map_err(|e| e.to_string())?;
+        f.set_params(section, &p);
+    }
+    f.set_params("robot", &job.params().0);
+    let dir = match f.path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    let dir = std::path::absolute(dir).map_err(|e| e.to_string())?;
+    for (section, key) in robot_file::PATH_KEYS {
+        let Some(text) = f
+            .doc
+            .get(section)
+            .and_then(|t| t.get(key))
+            .and_then(|v| v.as_str())
+        else {
+            continue;
+        };
+        let abs = dir.join(text).display().to_string();
+        f.set(section, key, value_of_text(key, &abs));
+    }
+    if let Some(law) = f.doc.get_mut("law").and_then(|v| v.as_table_mut()) {
+        law.remove("from_orbit");
+    }
+    for flag in job.reference.to_args() {
+        let (long, text) = flag
+            .trim_start_matches("--")
+            .split_once('=')
+            .ok_or_else(|| format!("the law's flag {flag} has no value"))?;
+        let (section, key) =
+            key_of_flag(long).ok_or_else(|| format!("the robot file has no key for --{long}"))?;
+        f.set(section, &key, value_of_text(&key, text));
+    }
+    f.path = run_file_path(job);
+    Ok(f)
+}
+
+/// Where the run's robot file is written (absolute: the children are told it).
+fn run_file_path(job: &Job) -> PathBuf {
+    let p = job.dir.join("robot.toml");
+    std::path::absolute(&p).unwrap_or(p)
+}
+
+/// The controller's flags: the run's robot file (its model, law, `--predict` and
+/// `--estimator`), and what only this run has: its session and the zenoh ids.
 fn controller_args(job: &Job, topo: &Topology) -> Vec<String> {
     let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
     let peers = [topo.plant_port, topo.my_port];
     v.extend(topo.session_flags("controller", topo.ctl_port, &peers));
     v.extend(id_flags(job.ids.controller, "--plant-id", job.ids.plant));
-    v.extend(job.reference.to_args());
-    v.extend(job.args.predict.to_args());
-    v.extend(job.args.estimator.to_args());
-    if let Some(p) = job.args.params_files().1 {
-        v.extend(["--params".into(), p.display().to_string()]);
-    }
+    v.extend([
+        format!("--{}", robot_file::NODE_FILE_FLAG),
+        run_file_path(job).display().to_string(),
+    ]);
     v
 }
 
@@ -373,11 +437,16 @@ mod tests {
     }
 
     /// The children parse the flags `live` hands them into what `live` was given: the link,
-    /// the law, `--predict`, the rate, the duration and the age rule.
+    /// the law, `--predict`, the rate, the duration and the age rule (the controller from the
+    /// run's robot file).
     #[test]
     fn the_children_read_what_live_was_given() {
-        let live = Cli::try_parse_from([
+        let dir = std::env::temp_dir().join(format!("tilting-nodes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let argv = [
             "tilting",
+            "--out",
+            dir.to_str().unwrap(),
             "--delay",
             "0.002",
             "--torque-jitter",
@@ -409,10 +478,16 @@ mod tests {
             "4096",
             "--estimator",
             "fd",
-        ])
-        .unwrap()
-        .live;
+        ];
+        let live = Cli::try_parse_from(argv).unwrap().live;
         let job = crate::live::check(&live).unwrap();
+        // The flags over an empty file, as `robot::parse` merges them.
+        let cmd = <Cli as clap::CommandFactory>::command();
+        let m = cmd.clone().try_get_matches_from(argv).unwrap();
+        let mut merged = RobotFile::empty(&dir.join("given.toml"));
+        merged.override_with(&m, &cmd).unwrap();
+        let file = run_file(&job, Some(&merged)).unwrap();
+        std::fs::write(&file.path, file.to_toml_string()).unwrap();
         let topo = Topology::ports(&job).unwrap();
         let once = |bin: &'static str, v: Vec<String>| std::iter::once(bin.to_owned()).chain(v);
         let plant =
@@ -421,15 +496,17 @@ mod tests {
         assert_eq!(plant.zenoh.robot, live.robot);
         assert_eq!((plant.rate, plant.duration), (500.0, Some(2.5)));
         assert_eq!((plant.max_age, plant.torque_limit), (3, 5.0));
-        let ctl = ControllerArgs::try_parse_from(once(
-            "tilting-controller",
-            controller_args(&job, &topo),
-        ))
-        .unwrap();
+        let argv: Vec<std::ffi::OsString> =
+            once("tilting-controller", controller_args(&job, &topo))
+                .map(Into::into)
+                .collect();
+        let ctl: ControllerArgs = robot_file::parse_node(&argv).unwrap();
         assert_eq!(ctl.predict, live.predict);
         assert_eq!(ctl.estimator, live.estimator);
         assert_eq!(plant.imperfect, live.imperfect);
-        assert_eq!(ctl.control_config().unwrap().law, job.reference);
+        let cfg = ctl.control_config().unwrap();
+        assert_eq!((cfg.law, cfg.params), (job.reference, job.params().0));
+        let _ = std::fs::remove_dir_all(&dir);
         // Each node runs with the id `live` chose and pins the other's (and so does the
         // recorder, with `job.ids`); the two ids differ.
         let (p, c) = (job.ids.plant.unwrap(), job.ids.controller.unwrap());

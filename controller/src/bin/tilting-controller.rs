@@ -1,11 +1,12 @@
 //! `tilting-controller`: the computed-torque controller as a zenoh node. See
 //! [`tilting_controller::node`].
 
-use clap::Parser;
 use std::process::ExitCode;
+use tilting_controller::node::ControllerArgs;
 
 fn main() -> ExitCode {
-    let args = tilting_controller::node::ControllerArgs::parse();
+    // With `--robot-file`, its keys are the defaults of the flags.
+    let args: ControllerArgs = tilting_plant::robot_file::parse_node_args();
     tilting_net::init_tracing("warn,tilting_controller=info,tilting_net=info");
     match tilting_controller::node::run(args) {
         Ok(code) => code,

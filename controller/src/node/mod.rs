@@ -71,6 +71,11 @@ pub struct ControllerArgs {
     /// [default: pin the session of the first believed state]
     #[arg(long, value_name = "HEX", value_parser = tilting_net::parse_source_id)]
     pub plant_id: Option<SourceId>,
+    /// A robot file (TOML): its keys are the defaults of the flags of the same names (its
+    /// [robot] the model, [law] the law, [network] predict, [sensors] estimator; a flag given
+    /// as well overrides its key). `tilting live` hands the controller its run's robot.toml
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot_file: Option<std::path::PathBuf>,
 }
 
 impl ControllerArgs {
