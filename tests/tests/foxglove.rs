@@ -33,10 +33,14 @@ fn client_ready(test: &str) -> bool {
     if python_runs(PY_PACKAGES) {
         return true;
     }
-    eprintln!(
-        "SKIP {test}: `{} -c \"{PY_PACKAGES}\"` failed; install them with `python3 -m pip \
-         install websockets jsonschema protobuf`",
-        python()
+    skip(
+        test,
+        Missing::Package,
+        &format!(
+            "`{} -c \"{PY_PACKAGES}\"` failed; install them with `python3 -m pip install \
+             websockets jsonschema protobuf`",
+            python()
+        ),
     );
     false
 }
@@ -537,7 +541,8 @@ fn foxglove_libraries_from_npm_read_the_server_and_the_recording() {
     let dir = match node_ready() {
         Ok(d) => d,
         Err(why) => {
-            eprintln!("SKIP foxglove_libraries_from_npm_read_the_server_and_the_recording: {why}");
+            let test = "foxglove_libraries_from_npm_read_the_server_and_the_recording";
+            skip(test, Missing::Package, &why);
             return;
         }
     };
