@@ -90,6 +90,10 @@ def listen(robot, seconds):
     got["effort_subscribers"] = pub.get_subscription_count()
     got["sent_bad"] = send_bad(node, pub, ex)
     spin_until(ex, lambda: False, max(0.0, first[0] + seconds - time.monotonic()))
+    # Then what is still queued for us: Python behind a 1 kHz writer on a busy machine lags by
+    # tenths of a second (measured 0.43 s), and the window is judged by the states' stamps.
+    stamp0 = min(j[0] for j in got["joint_states"])
+    spin_until(ex, lambda: max(j[0] for j in got["joint_states"]) >= stamp0 + seconds * 1e9, 10.0)
     # A late joiner: robot_description is transient local, so it still gets the URDF.
     desc = []
     node.create_subscription(String, f"/{robot}/robot_description",
