@@ -150,13 +150,14 @@ pub struct ConfigArgs {
     /// `[deploy]`.
     #[command(flatten)]
     pub deploy: tilting_sim::robot::DeploySection,
-    /// Write the merged file here instead of printing it
+    /// Write the merged file here instead of printing it (not `--out`: that is `[deploy]
+    /// out`, the run directory, a key of the file)
     #[arg(long, value_name = "FILE.toml")]
-    pub out: Option<PathBuf>,
+    pub write: Option<PathBuf>,
 }
 
 /// `tilting config`: the robot file with the flags given over it, checked, as TOML (on stdout,
-/// or into `--out`).
+/// or into `--write`).
 pub fn config(args: &ConfigArgs) -> Result<(), CommandError> {
     let merged = merged().cloned().ok_or_else(|| {
         CommandError::Failed(anyhow::anyhow!("config: not parsed by robot::parse"))
@@ -165,7 +166,7 @@ pub fn config(args: &ConfigArgs) -> Result<(), CommandError> {
         .check()
         .map_err(|e| CommandError::Usage(anyhow::anyhow!(e)))?;
     let text = merged.to_toml_string();
-    match &args.out {
+    match &args.write {
         Some(out) => std::fs::write(out, &text).map_err(|e| {
             CommandError::Failed(anyhow::anyhow!("cannot write {}: {e}", out.display()))
         }),

@@ -93,6 +93,29 @@ fn config_round_trips_and_flags_override_keys() {
     assert_eq!(doc["deploy"]["name"].as_str(), Some("r2"), "{text}");
     assert_eq!(doc["network"]["max_age"].as_integer(), Some(20), "{text}");
     assert_eq!(doc["network"]["delay"].as_float(), Some(0.002), "{text}");
+    // `--write` writes the file (nothing on stdout); `--out` stays the run directory's key.
+    let written = s.path().join("written.toml");
+    let w = written.display().to_string();
+    let o = tilting(&[
+        "config",
+        &f,
+        "--kd",
+        "12.25",
+        "--robot",
+        "r2",
+        "--max-age",
+        "20",
+        "--write",
+        &w,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+    assert_eq!(std::fs::read_to_string(&written).unwrap(), text);
+    let o = tilting(&["config", &f, "--out", "runs/r"]);
+    let printed = s.file("with-out.toml", &stdout(&o));
+    let doc = read_doc(Path::new(&printed)).unwrap();
+    let out_key = doc["deploy"]["out"].as_str().unwrap_or_default();
+    assert!(out_key.ends_with("runs/r"), "{}", stdout(&o));
 }
 
 #[test]
