@@ -29,11 +29,12 @@ fn have_python(test: &str, code: &str) -> bool {
     if python_runs(code) {
         return true;
     }
-    eprintln!(
-        "SKIP {test}: `{} -c \"{code}\"` failed; install with `python3 -m pip install rosbags \
+    let why = format!(
+        "`{} -c \"{code}\"` failed; install with `python3 -m pip install rosbags \
          'eclipse-zenoh==1.10.2' xxhash`",
         python()
     );
+    skip(test, Missing::Package, &why);
     false
 }
 
