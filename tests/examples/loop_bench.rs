@@ -26,7 +26,10 @@
 //!    printed too).
 //!    With `--ros2 1` each round also runs the real-time loop with the plant's `--ros2` mirror
 //!    on and a subscriber on `/<robot>/joint_states` (a raw zenoh subscriber in this process,
-//!    on the exact rmw_zenoh key), and prints its p99 and misses beside the plain run's.
+//!    on the exact rmw_zenoh key), and prints its p99 and misses beside the plain run's; with
+//!    `--ros2 2` the mirror is the DDS route (`--ros2 dds`) and the subscriber a real rclpy
+//!    node (`tests/python/rclpy_peer.py count` in the ROS 2 venv, `TILTING_ROS_VENV`, default
+//!    `/tmp/rosvenv`), discovery on loopback (`ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`).
 //! 3. **Memory**: the plant's resident set (VmRSS) sampled every 5 s of a long real-time run
 //!    (`--long-s`).
 //!
@@ -320,8 +323,9 @@ fn vm_rss_kb(pid: i32) -> Option<u64> {
 }
 
 /// Runs plant + controller; `lockstep_s` = Some(wall seconds) for a lockstep run, otherwise a
-/// real-time run of `duration` s sampling the plant's RSS every `rss_every` s. `ros2`: the
-/// plant's `--ros2` mirror on, with a subscriber on its `joint_states` in this process.
+/// real-time run of `duration` s sampling the plant's RSS every `rss_every` s. `ros2`: 1, the
+/// plant's `--ros2` mirror on, with a subscriber on its `joint_states` in this process; 2, its
+/// DDS route, with an rclpy subscriber ([`rclpy_counter`]).
 fn real_loop(
     bins: &(PathBuf, PathBuf),
     dir: &Path,
@@ -329,7 +333,7 @@ fn real_loop(
     duration: f64,
     lockstep_s: Option<f64>,
     rss_every: f64,
-    ros2: bool,
+    ros2: u8,
 ) -> anyhow::Result<LoopRun> {
     let rt = tilting_net::runtime()?;
     let port = free_port();
@@ -339,8 +343,10 @@ fn real_loop(
     if lockstep_s.is_some() {
         extra.extend(["--clock", "lockstep"]);
     }
-    if ros2 {
-        extra.push("--ros2");
+    match ros2 {
+        1 => extra.push("--ros2"),
+        2 => extra.extend(["--ros2", "dds"]),
+        _ => {}
     }
     let mut plant = Proc::spawn(
         &format!("{tag}-plant"),
@@ -353,7 +359,7 @@ fn real_loop(
         let client = Client::open(&robot, None, Some(port)).await;
         let status = StatusWatch::new(&client).await;
         let mut sub = None;
-        if ros2 {
+        if ros2 == 1 {
             let key = tilting_ros2::names::topic_key(
                 0,
                 &format!("/{robot}/joint_states"),
@@ -371,6 +377,9 @@ fn real_loop(
         }
         (client, status, sub)
     });
+    let counter = (ros2 == 2)
+        .then(|| rclpy_counter(&robot, duration))
+        .transpose()?;
     let mut ctl = Proc::spawn(
         &format!("{tag}-controller"),
         &bins.1,
@@ -416,8 +425,11 @@ fn real_loop(
     rt.block_on(async {
         let _ = client.session.close().await;
     });
-    let received = received.load(std::sync::atomic::Ordering::Relaxed);
-    if ros2 {
+    let mut received = received.load(std::sync::atomic::Ordering::Relaxed);
+    if let Some(c) = counter {
+        received = counted(c)?;
+    }
+    if ros2 > 0 {
         eprintln!("{tag}: the subscriber received {received} joint_states");
     }
     Ok(LoopRun {
@@ -426,6 +438,29 @@ fn real_loop(
         rss,
         received,
     })
+}
+
+/// A real rclpy node counting `/<robot>/joint_states` for `seconds` after the first, over DDS.
+fn rclpy_counter(robot: &str, seconds: f64) -> anyhow::Result<std::process::Child> {
+    let venv = std::env::var_os("TILTING_ROS_VENV")
+        .map_or_else(|| PathBuf::from("/tmp/rosvenv"), PathBuf::from);
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("python/rclpy_peer.py");
+    std::process::Command::new(venv.join("bin/python"))
+        .arg(script)
+        .args(["count", robot, &(seconds - 1.0).max(1.0).to_string()])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .map_err(|e| anyhow::anyhow!("the rclpy subscriber ({}): {e}", venv.display()))
+}
+
+/// The count an [`rclpy_counter`] printed.
+fn counted(c: std::process::Child) -> anyhow::Result<u64> {
+    let out = c.wait_with_output()?;
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .map_err(|e| anyhow::anyhow!("the rclpy subscriber printed no JSON ({e})"))?;
+    v["joint_states"]
+        .as_u64()
+        .ok_or_else(|| anyhow::anyhow!("the rclpy subscriber: {v}"))
 }
 
 fn lat(s: &PlantSummary) -> Pct {
@@ -448,7 +483,7 @@ struct Opts {
     rounds: usize,
     lockstep_s: f64,
     long_s: f64,
-    ros2: bool,
+    ros2: u8,
 }
 
 fn parse_opts() -> anyhow::Result<Opts> {
@@ -459,7 +494,7 @@ fn parse_opts() -> anyhow::Result<Opts> {
         rounds: 3,
         lockstep_s: 5.0,
         long_s: 30.0,
-        ros2: false,
+        ros2: 0,
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
@@ -475,10 +510,10 @@ fn parse_opts() -> anyhow::Result<Opts> {
             "--rounds" => o.rounds = (v as usize).max(1),
             "--lockstep-s" => o.lockstep_s = v,
             "--long-s" => o.long_s = v,
-            "--ros2" => o.ros2 = v != 0.0,
+            "--ros2" if [0.0, 1.0, 2.0].contains(&v) => o.ros2 = v as u8,
             _ => anyhow::bail!(
                 "unknown flag {flag}; flags (seconds unless said): --b2b-s --paced-s --realtime-s \
-                 --rounds N --lockstep-s --long-s (0 skips the memory run) --ros2 0|1"
+                 --rounds N --lockstep-s --long-s (0 skips the memory run) --ros2 0|1|2 (2: DDS)"
             ),
         }
     }
@@ -498,7 +533,7 @@ struct Round {
     late: u64,
     rt: LoopRun,
     ls: LoopRun,
-    /// `--ros2 1`: the real-time loop with the mirror and a subscriber.
+    /// `--ros2 1|2`: the real-time loop with the mirror and a subscriber.
     ros: Option<LoopRun>,
 }
 
@@ -528,6 +563,10 @@ fn main() -> anyhow::Result<()> {
         return pong(&argv[2], argv[3].parse()?, argv[4].parse()?);
     }
     let o = parse_opts()?;
+    if o.ros2 == 2 {
+        // DDS discovery on loopback only, for the plant and the rclpy subscriber alike.
+        std::env::set_var("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST");
+    }
     let bins = node_binaries()?;
     let exe = std::env::current_exe()?;
     let dir = std::env::temp_dir().join(format!("loop-bench-{}", std::process::id()));
@@ -560,26 +599,18 @@ fn main() -> anyhow::Result<()> {
         );
         let (b2b, b2b_rate) = pp.back_to_back(o.b2b_s)?;
         let (paced, late) = pp.paced(o.paced_s);
-        let rt = real_loop(
-            &bins,
-            &dir,
-            &format!("rt{r}"),
-            o.realtime_s,
-            None,
-            1e9,
-            false,
-        )?;
+        let rt = real_loop(&bins, &dir, &format!("rt{r}"), o.realtime_s, None, 1e9, 0)?;
         let ros = match o.ros2 {
-            true => Some(real_loop(
+            0 => None,
+            m => Some(real_loop(
                 &bins,
                 &dir,
                 &format!("ros{r}"),
                 o.realtime_s,
                 None,
                 1e9,
-                true,
+                m,
             )?),
-            false => None,
         };
         let ls = real_loop(
             &bins,
@@ -588,7 +619,7 @@ fn main() -> anyhow::Result<()> {
             1e6,
             Some(o.lockstep_s),
             1e9,
-            false,
+            0,
         )?;
         rounds.push(Round {
             b2b,
@@ -603,7 +634,7 @@ fn main() -> anyhow::Result<()> {
     pp.stop();
     let long = if o.long_s > 0.0 {
         eprintln!("plant + controller in real time, {} s (memory)", o.long_s);
-        Some(real_loop(&bins, &dir, "long", o.long_s, None, 5.0, false)?)
+        Some(real_loop(&bins, &dir, "long", o.long_s, None, 5.0, 0)?)
     } else {
         None
     };
@@ -663,7 +694,10 @@ fn main() -> anyhow::Result<()> {
             let x = q.p99 / q0.p99;
             ros_ratios.push(x);
             row(
-                &format!("{i}: same, --ros2 mirror + joint_states subscriber"),
+                &format!(
+                    "{i}: same, --ros2 {} mirror + joint_states subscriber",
+                    if o.ros2 == 2 { "dds" } else { "zenoh" }
+                ),
                 &q,
                 "1000",
                 &format!(

@@ -1,9 +1,12 @@
 """A real ROS 2 (Jazzy's rclpy over rmw_fastrtps_cpp, from PyPI wheels) against a plant run with
-`--ros2 dds` (tests/tests/ros2_dds.rs, docs/ros2.md). Nothing here imports our crates.
+`--ros2 dds` (tests/tests/ros2_clients.rs, tests/examples/loop_bench.rs, docs/ros2.md). Nothing
+here imports our crates.
 
     rclpy_peer.py listen ROBOT SECONDS   joint_states, contact_mode, /rosout for SECONDS after the
                                          first joint_states, bad commands on effort_command, then
                                          robot_description as a late joiner; one JSON line
+    rclpy_peer.py count ROBOT SECONDS    joint_states received in SECONDS after the first; one
+                                         JSON line (loop_bench --ros2 2's subscriber)
     rclpy_peer.py controller ROBOT       the law of examples/python/controller.py through
                                          effort_command, one answer per joint_states stamp, until
                                          SIGINT; gains as JSON on stdin; one JSON line of counts
@@ -166,12 +169,39 @@ def controller(robot):
     return 0
 
 
+def count(robot, seconds):
+    """joint_states received in SECONDS after the first (a subscriber for loop_bench)."""
+    rclpy.init()
+    node = rclpy.create_node("rclpy_counter")
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    got = [0]
+    first = [None]
+
+    def on_js(_m):
+        if first[0] is None:
+            first[0] = time.monotonic()
+        got[0] += 1
+
+    node.create_subscription(JointState, f"/{robot}/joint_states", on_js, DEEP)
+    if not spin_until(ex, lambda: first[0] is not None, 60.0):
+        print(json.dumps({"error": "no joint_states within 60 s"}), flush=True)
+        return 1
+    spin_until(ex, lambda: False, max(0.0, first[0] + seconds - time.monotonic()))
+    print(json.dumps({"joint_states": got[0]}), flush=True)
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
 def main(argv):
     if argv[1] == "listen":
         return listen(argv[2], float(argv[3]))
+    if argv[1] == "count":
+        return count(argv[2], float(argv[3]))
     if argv[1] == "controller":
         return controller(argv[2])
-    print(f"unknown mode {argv[1]!r}: allowed listen, controller", file=sys.stderr)
+    print(f"unknown mode {argv[1]!r}: allowed listen, count, controller", file=sys.stderr)
     return 2
 
 
