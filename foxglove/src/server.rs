@@ -600,6 +600,16 @@ mod tests {
                     && p.iter().any(|v| v.ends_with("energy.energy"))),
             "{plots:?}"
         );
+        // The tilt and the arm angle apart too: alpha's 0.04 rad was a flat line on the axis
+        // of beta's 1.57 (seen in Foxglove Studio 1.48).
+        assert_eq!((with("state.alpha"), with("state.beta")), (1, 1), "{plots:?}");
+        assert!(
+            !plots
+                .iter()
+                .any(|p| p.iter().any(|v| v.ends_with("state.alpha"))
+                    && p.iter().any(|v| v.ends_with("state.beta"))),
+            "{plots:?}"
+        );
         // The camera looks at the robot: its target inside the paper's robot's extent (x from
         // the left edge to the right, z from the ground to the arm's length), from -y (theta 0:
         // the model's plane seen face on), a little above, close enough that the 2 m arm fills
