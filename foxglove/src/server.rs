@@ -602,7 +602,11 @@ mod tests {
         );
         // The tilt and the arm angle apart too: alpha's 0.04 rad was a flat line on the axis
         // of beta's 1.57 (seen in Foxglove Studio 1.48).
-        assert_eq!((with("state.alpha"), with("state.beta")), (1, 1), "{plots:?}");
+        assert_eq!(
+            (with("state.alpha"), with("state.beta")),
+            (1, 1),
+            "{plots:?}"
+        );
         assert!(
             !plots
                 .iter()
