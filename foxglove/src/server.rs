@@ -588,32 +588,20 @@ mod tests {
                 .filter(|p| p.iter().any(|v| v.ends_with(s)))
                 .count()
         };
-        assert_eq!(
-            (with("torque.tau"), with("energy.energy")),
-            (1, 1),
-            "{plots:?}"
-        );
-        assert!(
-            !plots
-                .iter()
-                .any(|p| p.iter().any(|v| v.ends_with("torque.tau"))
-                    && p.iter().any(|v| v.ends_with("energy.energy"))),
-            "{plots:?}"
-        );
+        // Each on exactly one plot, and the two never on the same one.
+        let apart = |a: &str, b: &str| {
+            assert_eq!((with(a), with(b)), (1, 1), "{plots:?}");
+            assert!(
+                !plots
+                    .iter()
+                    .any(|p| p.iter().any(|v| v.ends_with(a)) && p.iter().any(|v| v.ends_with(b))),
+                "{plots:?}"
+            );
+        };
+        apart("torque.tau", "energy.energy");
         // The tilt and the arm angle apart too: alpha's 0.04 rad was a flat line on the axis
         // of beta's 1.57 (seen in Foxglove Studio 1.48).
-        assert_eq!(
-            (with("state.alpha"), with("state.beta")),
-            (1, 1),
-            "{plots:?}"
-        );
-        assert!(
-            !plots
-                .iter()
-                .any(|p| p.iter().any(|v| v.ends_with("state.alpha"))
-                    && p.iter().any(|v| v.ends_with("state.beta"))),
-            "{plots:?}"
-        );
+        apart("state.alpha", "state.beta");
         // The camera looks at the robot: its target inside the paper's robot's extent (x from
         // the left edge to the right, z from the ground to the arm's length), from -y (theta 0:
         // the model's plane seen face on), a little above, close enough that the 2 m arm fills
