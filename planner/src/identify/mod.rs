@@ -449,7 +449,11 @@ pub fn identify(
     let torques: Vec<f64> = r.rhs.iter().copied().filter(|t| *t != 0.0).collect();
     let rms_tau = (torques.iter().map(|t| t * t).sum::<f64>() / torques.len().max(1) as f64).sqrt();
     let noise = fit.residual_rms.max(FRICTION_FLOOR * rms_tau);
-    let friction = check_friction(&value, &se, noise, &mut warnings)?;
+    // b_v's regressor is the joint's rate (rad/s): its RMS over the rows that carry it turns
+    // b_v into the torque it makes in this recording.
+    let rates: Vec<f64> = r.y.iter().map(|y| y[5]).filter(|v| *v != 0.0).collect();
+    let rms_rate = (rates.iter().map(|v| v * v).sum::<f64>() / rates.len().max(1) as f64).sqrt();
+    let friction = check_friction(&value, &se, noise, rms_rate, &mut warnings)?;
     let (mut params, not_identifiable) =
         derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
     let landing = landing::fit(trace, tau, &params);
@@ -702,24 +706,31 @@ pub const FRICTION_FLOOR: f64 = 1e-4;
 /// The friction estimates `(b_v, tau_c)`, clamped to 0 when negative within their noise;
 /// refused when clearly negative, naming the field and the value.
 ///
-/// The noise is the larger of [`FRICTION_ZERO_IN_SE`] standard errors and `resid` (N m, the
-/// torque of 1 rad/s for `b_v`: the equations' residual RMS or [`FRICTION_FLOOR`] of the RMS
-/// torque): the standard errors hold for white noise, and an integrator's error is not white
-/// (MuJoCo's flat excitation, with no friction, gave tau_c = -8.8e-5 N m at many standard
-/// errors, a torque far below what one equation resolves).
+/// The noise is the larger of [`FRICTION_ZERO_IN_SE`] standard errors and `resid` (N m: the
+/// equations' residual RMS or [`FRICTION_FLOOR`] of the RMS torque), against which a
+/// friction is judged by the torque it makes in the recording: `tau_c` itself, `b_v` times
+/// `rms_rate` (rad/s, the RMS of the joint's rate over the rows). The standard errors hold
+/// for white noise, and an integrator's error is not white (MuJoCo's flat excitation, with no
+/// friction, gave tau_c = -8.8e-5 N m at many standard errors, a torque far below what one
+/// equation resolves; a MuJoCo robot's flat excitation and tilts, b_v = -4.4e-3 N m s at 86
+/// standard errors: below the residual of 2.8e-3 N m at the arm's rates, refused when judged
+/// at 1 rad/s).
 fn check_friction(
     value: &[Option<f64>; N_BASE],
     se: &[Option<f64>; N_BASE],
     resid: f64,
+    rms_rate: f64,
     warnings: &mut Vec<String>,
 ) -> Result<(f64, f64), IdentifyError> {
     let mut out = [0.0; 2];
-    for (k, (i, field)) in [(5, "b_v"), (6, "tau_c")].into_iter().enumerate() {
+    for (k, (i, field, scale)) in [(5, "b_v", rms_rate), (6, "tau_c", 1.0)]
+        .into_iter()
+        .enumerate()
+    {
         let (Some(v), s) = (value[i], se[i].unwrap_or(0.0)) else {
             continue;
         };
-        // b_v's scale: the torque of 1 rad/s.
-        if v < 0.0 && -v > FRICTION_ZERO_IN_SE * s && -v > resid {
+        if v < 0.0 && -v > FRICTION_ZERO_IN_SE * s && -v * scale > resid {
             return Err(IdentifyError::NegativeFriction {
                 field,
                 value: v,
@@ -851,17 +862,30 @@ mod tests {
         let noise = FRICTION_FLOOR * 5.0;
         let mut w = Vec::new();
         assert_eq!(
-            check_friction(&value, &se, noise, &mut w).unwrap(),
+            check_friction(&value, &se, noise, 1.0, &mut w).unwrap(),
             (0.0, 0.0)
         );
         assert!(w[0].contains("tau_c") && w[0].contains("set to 0"), "{w:?}");
         // Within 2 standard errors, whatever the floor.
         value[6] = Some(-0.019);
         se[6] = Some(0.01);
-        assert!(check_friction(&value, &se, 0.0, &mut w).is_ok());
+        assert!(check_friction(&value, &se, 0.0, 1.0, &mut w).is_ok());
+        // b_v is judged by its torque at the recording's rates: -4.4e-3 N m s at 86 standard
+        // errors is 8.8e-4 N m at 0.2 rad/s, under a residual of 2.8e-3 N m, and 8.8e-3 N m,
+        // over it, at 2 rad/s.
+        let mut bv = [None; N_BASE];
+        let mut bv_se = [None; N_BASE];
+        bv[5] = Some(-4.4e-3);
+        bv_se[5] = Some(5.1e-5);
+        assert_eq!(
+            check_friction(&bv, &bv_se, 2.8e-3, 0.2, &mut w).unwrap(),
+            (0.0, 0.0)
+        );
+        let e = check_friction(&bv, &bv_se, 2.8e-3, 2.0, &mut w).unwrap_err();
+        assert!(e.to_string().contains("b_v = -4.4000e-3"), "{e}");
         // Clearly negative: 5 standard errors and 100 times the floor.
         value[6] = Some(-0.05);
-        let e = check_friction(&value, &se, noise, &mut w).unwrap_err();
+        let e = check_friction(&value, &se, noise, 1.0, &mut w).unwrap_err();
         let m = e.to_string();
         assert!(
             m.contains("tau_c = -5.0000e-2") && m.contains(">= 0"),
