@@ -151,26 +151,46 @@ fn refuses_a_short_recording_and_negative_friction() {
 /// A flat recording of the arm alone, its torque from the flat equation (a closed form) for
 /// the motion `beta = pi/2 + 0.6 sin(w t) + 0.3 t`-like, sampled at 1 kHz.
 fn flat_trace(beta: impl Fn(f64) -> [f64; 3], p: &Params, secs: f64) -> (Trace, Vec<Option<f64>>) {
-    let pi = base_of(p);
+    rocking_trace(beta, |_| [0.0; 3], p, secs)
+}
+
+/// A recording in the flat mode whose plate rocks about its centre (the joint) by `alpha(t)`
+/// (`[alpha, alpha_dot, alpha_ddot]`), as on a compliant contact; the torque from the arm's
+/// equation about a joint that turns with the plate, derived here (a pendulum on a turning
+/// base): the arm turns by `alpha + beta`, the rotor by `alpha + n_g beta` (reflected through
+/// the gear, `n_g j_m (alpha_ddot + n_g beta_ddot)` at the joint), so `tau = (m_l l_c^2 + i_l)
+/// (alpha_ddot + beta_ddot) + n_g j_m (alpha_ddot + n_g beta_ddot) + m_l l_c g cos(alpha +
+/// beta) + b_v beta_dot + tau_c sign(beta_dot)`, with each interval's mean accelerations and
+/// the other terms at its midpoint.
+fn rocking_trace(
+    beta: impl Fn(f64) -> [f64; 3],
+    alpha: impl Fn(f64) -> [f64; 3],
+    p: &Params,
+    secs: f64,
+) -> (Trace, Vec<Option<f64>>) {
     let n = (secs * 1e3) as usize;
+    let (lc, h) = (p.lc(), 1e-3);
+    let arm = p.m_l * lc * lc + p.i_l;
     let mut samples = Vec::new();
     let mut tau = Vec::new();
     for k in 0..=n {
-        let t = k as f64 * 1e-3;
-        let [b, bd, _] = beta(t);
+        let t = k as f64 * h;
+        let ([b, bd, _], [a, ad, _]) = (beta(t), alpha(t));
         samples.push(Sample {
             t,
             mode: Mode::Flat,
-            x: [0.0, b, 0.0, bd],
+            x: [a, b, ad, bd],
         });
-        // The torque that holds the interval's mean acceleration: the flat equation at its
-        // midpoint.
-        let tm = t + 0.5e-3;
-        let [bm, bdm, _] = beta(tm);
-        let [_, bd1, _] = beta(t + 1e-3);
-        let acc = (bd1 - bd) / 1e-3;
+        let tm = t + 0.5 * h;
+        let ([bm, bdm, _], [am, _, _]) = (beta(tm), alpha(tm));
+        let bdd = (beta(t + h)[1] - bd) / h;
+        let add = (alpha(t + h)[1] - ad) / h;
         tau.push(Some(
-            (pi[2] + pi[4]) * acc + p.g * (bm).cos() * pi[1] + pi[5] * bdm + pi[6] * bdm.signum(),
+            arm * (add + bdd)
+                + p.n_g * p.j_m * (add + p.n_g * bdd)
+                + p.m_l * lc * p.g * (am + bm).cos()
+                + p.b_v * bdm
+                + p.tau_c * bdm.signum(),
         ));
     }
     let end = samples.last().unwrap().t;
@@ -183,6 +203,92 @@ fn flat_trace(beta: impl Fn(f64) -> [f64; 3], p: &Params, secs: f64) -> (Trace, 
         },
         tau,
     )
+}
+
+/// A plate rocking while flat (a compliant contact: the plate turns about its centre under the
+/// arm's reaction, `alpha = -c beta_ddot`, up to 4e-3 rad) is in the flat equations through the
+/// recorded `alpha`: the arm's inertia about the joint, `m_l l_c` and the friction come out
+/// within 0.1 % by both paths (recorded velocities, and the angles' weak form); the same
+/// recording with `alpha` read as 0 (a plate at rest, the flat equation before) shows the
+/// rocking as a spurious inertia (+1.5 %) and an `m_l l_c` 2 % low.
+#[test]
+fn a_plate_rocking_while_flat_is_in_the_flat_equations() {
+    let p = robot();
+    let (w, c) = (3.0, 2.5e-4);
+    let beta = |t: f64| {
+        let (s1, c1, s2, c2) = (
+            (w * t).sin(),
+            (w * t).cos(),
+            (2.3 * w * t).sin(),
+            (2.3 * w * t).cos(),
+        );
+        let w2 = 2.3 * w;
+        [
+            1.5 + 0.8 * s1 + 0.2 * s2,
+            0.8 * w * c1 + 0.2 * w2 * c2,
+            -0.8 * w * w * s1 - 0.2 * w2 * w2 * s2,
+        ]
+    };
+    // alpha = -c beta_ddot and its derivatives, in closed form.
+    let alpha = |t: f64| {
+        let w2 = 2.3 * w;
+        let (a1, a2) = (c * 0.8 * w.powi(2), c * 0.2 * w2.powi(2));
+        [
+            a1 * (w * t).sin() + a2 * (w2 * t).sin(),
+            a1 * w * (w * t).cos() + a2 * w2 * (w2 * t).cos(),
+            -a1 * w * w * (w * t).sin() - a2 * w2 * w2 * (w2 * t).sin(),
+        ]
+    };
+    let (trace, tau) = rocking_trace(beta, alpha, &p, 20.0);
+    let peak = trace
+        .samples
+        .iter()
+        .map(|s| s.x[0].abs())
+        .fold(0.0, f64::max);
+    assert!(peak > 1e-3 && peak < 5e-3, "rocking {peak} rad");
+    let pi = base_of(&p);
+    let want = [pi[2] + pi[4], pi[1], pi[5], pi[6]];
+    let angles = Options {
+        velocities: Velocities::Angles,
+        refine: None,
+        ..prior()
+    };
+    let got = |trace: &Trace, opts: &Options| -> [f64; 4] {
+        let id = identify(trace, &tau, opts).unwrap();
+        let sum = id.base.iter().find(|e| e.name == "pi3+pi5").unwrap();
+        [
+            sum.value.unwrap(),
+            id.base[1].value.unwrap(),
+            id.base[5].value.unwrap(),
+            id.base[6].value.unwrap(),
+        ]
+    };
+    for opts in [prior(), angles] {
+        let g = got(&trace, &opts);
+        for i in 0..4 {
+            let err = (g[i] - want[i]) / want[i];
+            eprintln!(
+                "{:?} {i}: {} vs {} ({err:+.2e})",
+                opts.velocities, g[i], want[i]
+            );
+            assert!(
+                err.abs() < 1e-3,
+                "{:?} {i}: {} vs {}",
+                opts.velocities,
+                g[i],
+                want[i]
+            );
+        }
+    }
+    let mut at_rest = trace.clone();
+    for s in &mut at_rest.samples {
+        s.x[0] = 0.0;
+        s.x[2] = 0.0;
+    }
+    let g = got(&at_rest, &prior());
+    eprintln!("alpha read as 0: {g:?} vs {want:?}");
+    assert!(((g[0] - want[0]) / want[0]).abs() > 1e-2, "{g:?}");
+    assert!(((g[1] - want[1]) / want[1]).abs() > 1e-2, "{g:?}");
 }
 
 #[test]
@@ -272,10 +378,24 @@ fn excitation_and_orbit(
     reference: tilting_controller::trajectory::Trajectory,
     seed: u64,
 ) -> tilting_planner::identify::Recorded {
+    let (excitation, orbit) = excitation_and_orbit_scenarios(truth, reference, 300.0, 30.0);
+    let mut rec = record_noisy(excitation, seed);
+    rec.append(record_noisy(orbit, seed + 1));
+    rec
+}
+
+/// The scenarios of [`excitation_and_orbit`]: `excitation` s of the excitation `reference`
+/// (flat), `orbit` s of the robust orbit, the plant `truth`.
+fn excitation_and_orbit_scenarios(
+    truth: Params,
+    reference: tilting_controller::trajectory::Trajectory,
+    excitation: f64,
+    orbit: f64,
+) -> (Scenario, Scenario) {
     let excitation = Scenario {
         plant_params: Some(truth),
         control_period: 1e-3,
-        duration: 300.0,
+        duration: excitation,
         ..Scenario::resolve(&[&ScenarioFile {
             law: LawArgs {
                 reference: Some(reference),
@@ -288,16 +408,14 @@ fn excitation_and_orbit(
     let orbit = Scenario {
         plant_params: Some(truth),
         control_period: 1e-3,
-        duration: 30.0,
+        duration: orbit,
         law: LawSpec {
             orbit_peak: Some(0.04),
             ..LawSpec::default()
         },
         ..Scenario::default()
     };
-    let mut rec = record_noisy(excitation, seed);
-    rec.append(record_noisy(orbit, seed + 1));
-    rec
+    (excitation, orbit)
 }
 
 /// The noisy tests' options: the weighed `m_l` as the prior, 2 s windows, velocities over
@@ -572,5 +690,105 @@ fn identifies_the_plates_inertia_from_the_tilts() {
     for i in [0, 1, 5, 6] {
         let got = id.base[i].value.unwrap();
         assert!(((got - want[i]) / want[i]).abs() < 0.01, "{i}: {got}");
+    }
+}
+
+/// A compliant contact's settling after each lift-off, imposed on our rigid plant's exact
+/// recording (60 s of the excitation, 20 s of the orbit, a plate of i_f = 0.083): the plate's
+/// angle rings by `2e-3 e^(-t / 10 ms) sin(2 pi 30 Hz t)` after each mode change into a tilt,
+/// as MuJoCo's softer contacts do (about 3e-3 rad), which no mode's equations describe. The
+/// rigid recording is measured to settle at once (0 left out: its estimates as before, i_f and
+/// m_f within 1 %); the ringing one to settle in 30 to 150 ms (the ringing is under 2 % of its
+/// size after 40 ms, the weak form's windows are 100 ms), said in a warning, and with those
+/// left out i_f and m_f come out nearer the truth than with none left out (`settle: 0`).
+#[test]
+fn the_contacts_settling_at_lift_offs_is_measured_and_left_out() {
+    let truth = Params {
+        i_f: 0.083,
+        j_m: 0.0,
+        n_g: 1.0,
+        ..robot()
+    };
+    let (excitation, orbit) = excitation_and_orbit_scenarios(truth, EXCITATION_DEFAULT, 60.0, 20.0);
+    let exact = |sc: Scenario| {
+        let (report, logged) = simulate_logged(&sc, SimOptions::default(), &mut |_| {}).unwrap();
+        assert!(report.fault.is_none(), "{:?}", report.fault);
+        tilting_planner::identify::Recorded {
+            trace: logged.trace,
+            tau: logged.tau.into_iter().map(Some).collect(),
+            robot: None,
+            source: Default::default(),
+        }
+    };
+    let mut rigid = exact(excitation);
+    rigid.append(exact(orbit));
+    let mut ringing = rigid.clone();
+    let mut since = None;
+    for k in 1..ringing.trace.samples.len() {
+        let (prev, s) = (
+            ringing.trace.samples[k - 1].mode,
+            &mut ringing.trace.samples[k],
+        );
+        if s.mode != prev && s.mode != Mode::Flat {
+            since = Some(s.t);
+        }
+        if let (Some(t0), true) = (since, s.mode != Mode::Flat) {
+            let u = s.t - t0;
+            let w = 2.0 * std::f64::consts::PI * 30.0;
+            s.x[0] += 2e-3 * (-u / 0.01).exp() * (w * u).sin();
+        }
+    }
+    let opts = Options {
+        base: Params {
+            m_l: truth.m_l,
+            ..Params::default()
+        },
+        refine: None,
+        ..Options::default()
+    };
+    // The plate's inertia as the fit saw it: pi8, or, when the rotor's columns carried it
+    // (exact data: pi4 = pi5 = -i_f to 1e-6, told apart by their tiny standard errors), -pi4.
+    let err = |id: &tilting_planner::identify::Identification| {
+        let i_f = id.base[7].value.or(id.base[3].value.map(|v| -v)).unwrap();
+        [
+            (i_f - truth.i_f) / truth.i_f,
+            (id.params.m_f - truth.m_f) / truth.m_f,
+        ]
+    };
+    let left_out = |id: &tilting_planner::identify::Identification| {
+        id.warnings
+            .iter()
+            .find(|w| w.contains("left out after each landing"))
+            .cloned()
+    };
+    let id = identify(&rigid.trace, &rigid.tau, &opts).unwrap();
+    eprintln!("rigid: {:?} {:?}", err(&id), left_out(&id));
+    assert!(left_out(&id).is_none(), "{:?}", id.warnings);
+    assert!(err(&id).iter().all(|e| e.abs() < 0.01), "{:?}", err(&id));
+    let measured = identify(&ringing.trace, &ringing.tau, &opts).unwrap();
+    let none = identify(
+        &ringing.trace,
+        &ringing.tau,
+        &Options {
+            settle: Some(0.0),
+            ..opts
+        },
+    )
+    .unwrap();
+    let note = left_out(&measured).expect("the settling measured");
+    let ms: f64 = note.split(' ').next().unwrap().parse().unwrap();
+    eprintln!(
+        "ringing: measured {ms} ms {:?}, none left out {:?}",
+        err(&measured),
+        err(&none)
+    );
+    assert!((30.0..=150.0).contains(&ms), "{note}");
+    for i in 0..2 {
+        assert!(
+            err(&measured)[i].abs() < err(&none)[i].abs(),
+            "{:?} vs {:?}",
+            err(&measured),
+            err(&none)
+        );
     }
 }

@@ -38,6 +38,21 @@ pub struct Rows {
     pub sliding_fwd: usize,
     /// Torque rows with `beta_dot < 0`.
     pub sliding_bwd: usize,
+    /// Each row's distance (samples) from the nearest mode change bordering its segment: from
+    /// the change to the window's near end ([`build_from_angles`]); `usize::MAX` when its
+    /// segment borders none, or for [`build`]'s rows.
+    pub edge: Vec<usize>,
+    /// Each row is the plate's equation of a tilted mode (right-hand side 0).
+    pub plate: Vec<bool>,
+}
+
+impl Rows {
+    fn push(&mut self, y: [f64; N_BASE], rhs: f64, edge: usize, plate: bool) {
+        self.y.push(y);
+        self.rhs.push(rhs);
+        self.edge.push(edge);
+        self.plate.push(plate);
+    }
 }
 
 /// Builds the rows of `trace` with `tau[k]` the torque (N m) held over `[t_k, t_{k+1}]`
@@ -72,19 +87,16 @@ pub fn build(trace: &Trace, tau: &[Option<f64>], f: f64, g: f64) -> Rows {
         match a.mode {
             Mode::Flat => {
                 if sliding {
-                    r.y.push(flat_row(&x, acc[1], g, sign));
-                    r.rhs.push(torque);
+                    r.push(flat_row(&x, acc, g, sign), torque, usize::MAX, false);
                     r.flat += 1;
                 }
             }
             m => {
                 let fs = if m == Mode::Left { f } else { -f };
                 let (row1, row2) = tilted_rows(&x, acc, fs, g, sign);
-                r.y.push(row1);
-                r.rhs.push(0.0);
+                r.push(row1, 0.0, usize::MAX, true);
                 if sliding {
-                    r.y.push(row2);
-                    r.rhs.push(torque);
+                    r.push(row2, torque, usize::MAX, false);
                 }
                 r.tilted += 1;
             }
@@ -101,11 +113,14 @@ pub fn build(trace: &Trace, tau: &[Option<f64>], f: f64, g: f64) -> Rows {
 /// dt`, where `P = d/dt F(q) + P1`. No acceleration is needed, the angles enter mostly
 /// through `F` (no derivative at all), and the equation holds exactly for any window: the
 /// window's length smooths the noise without a bias. The velocities in `P1` and `S` come
-/// from the differentiator `sg` ([`super::smooth`]). `window`: samples per window (a
+/// from the differentiator `sg` ([`super::smooth`]). `w.len` (`window` below): samples per window (a
 /// segment shorter than half of it is skipped, one between half and whole is one window);
 /// windows overlap by three quarters. A torque row needs `|beta_dot| >= v_min` (rad/s), one
-/// sign, over the whole window. Each row is divided by `integral phi dt`: its right-hand
-/// side is a weighted mean torque (N m).
+/// sign, over the whole window (`w.v_min`). Each row is divided by `integral phi dt`: its right-hand
+/// side is a weighted mean torque (N m). `w.settle`: samples left out at each end of a segment
+/// that borders a mode change (a landing or a lift-off: on a compliant contact the plate
+/// sinks, rocks and bounces there for a few of the contact's time constants, which neither
+/// mode's equations describe); 0 for a rigid contact.
 ///
 /// Returns the rows and the smoothed state of each sample (`None` outside the segments).
 pub fn build_from_angles(
@@ -114,13 +129,30 @@ pub fn build_from_angles(
     f: f64,
     g: f64,
     sg: &Savgol,
-    window: usize,
-    v_min: f64,
+    w: Windows,
 ) -> (Rows, Vec<Option<[f64; 4]>>) {
+    let Windows {
+        len: window,
+        v_min,
+        settle,
+    } = w;
     let mut r = Rows::default();
     let s = &trace.samples;
     let mut states = vec![None; s.len()];
-    for (a, b) in segments(trace, tau) {
+    for (a0, b0) in segments(trace, tau) {
+        // The segment's ends at a mode change are cut by `settle` samples.
+        let starts_at_change = a0 > 0 && s[a0 - 1].mode != s[a0].mode;
+        let ends_at_change = b0 < s.len() && s[b0].mode != s[b0 - 1].mode;
+        let cut = |on: bool| if on { settle } else { 0 };
+        let (a, b) = (
+            a0 + cut(starts_at_change),
+            b0.saturating_sub(cut(ends_at_change)),
+        );
+        if b <= a + 1 {
+            r.skipped += b0 - a0;
+            continue;
+        }
+        r.skipped += (b0 - a0) - (b - a);
         let n = b - a;
         if n < sg.len().max(MIN_WINDOW) {
             r.skipped += n;
@@ -134,10 +166,7 @@ pub fn build_from_angles(
                 let (lo, p) = sg.window(i, n);
                 let w = lo..lo + sg.len();
                 let (ea, eb) = (sg.at(&al[w.clone()], p, h), sg.at(&be[w], p, h));
-                match s[a].mode {
-                    Mode::Flat => [0.0, eb.q, 0.0, eb.dq],
-                    _ => [ea.q, eb.q, ea.dq, eb.dq],
-                }
+                [ea.q, eb.q, ea.dq, eb.dq]
             })
             .collect();
         let len = window.min(n);
@@ -163,6 +192,12 @@ pub fn build_from_angles(
                 .map(|t| t.unwrap_or(0.0))
                 .collect();
             let mode = s[a].mode;
+            let edge = match (starts_at_change, ends_at_change) {
+                (false, false) => usize::MAX,
+                (true, false) => lo + settle,
+                (false, true) => n - lo - len + settle,
+                (true, true) => (lo + settle).min(n - lo - len + settle),
+            };
             let mut rows = weak_rows(&x[win.clone()], &tq, h, mode, f, g);
             // A row's noise grows as its window shrinks (the phi'' F(q) term: about
             // (W / len)^2.5 for white angle noise): a window cut short by its segment counts
@@ -177,15 +212,12 @@ pub fn build_from_angles(
                     if !sliding {
                         continue;
                     }
-                    r.y.push(arm);
-                    r.rhs.push(rhs);
+                    r.push(arm, rhs, edge, false);
                 }
                 (_, [(plate, zero), (arm, rhs)]) => {
-                    r.y.push(plate);
-                    r.rhs.push(zero);
+                    r.push(plate, zero, edge, true);
                     if sliding {
-                        r.y.push(arm);
-                        r.rhs.push(rhs);
+                        r.push(arm, rhs, edge, false);
                     }
                 }
             }
@@ -210,6 +242,17 @@ pub fn build_from_angles(
         }
     }
     (r, states)
+}
+
+/// How [`build_from_angles`] places its windows.
+#[derive(Debug, Clone, Copy)]
+pub struct Windows {
+    /// Samples per window.
+    pub len: usize,
+    /// Slowest joint speed (rad/s) of a torque row.
+    pub v_min: f64,
+    /// Samples left out at each end of a segment that borders a mode change.
+    pub settle: usize,
 }
 
 /// Shortest window (samples) of a segment: a segment shorter than this gives no row.
@@ -262,8 +305,12 @@ fn weak_rows(
         let (sb, cb) = be.sin_cos();
         let gab = g * (al + be).cos();
         if mode == Mode::Flat {
-            arm[1] += w0 * g * be.cos();
-            arm[2] += w2 * be;
+            // The plate rocking about the joint (a compliant contact under the arm's reaction;
+            // the recorded alpha, 0 on a rigid one): the arm's tilted equation with the pivot
+            // at the joint (f = 0).
+            arm[1] += w0 * gab;
+            arm[2] += w2 * (al + be);
+            arm[3] += w2 * al;
             arm[4] += w2 * be;
             arm[5] += w1 * be;
             arm[6] += w0 * bd.signum();
@@ -333,9 +380,14 @@ pub(super) fn segments(trace: &Trace, tau: &[Option<f64>]) -> Vec<(usize, usize)
     out
 }
 
-/// Flat: `(pi3 + pi5) beta_ddot + g cos(beta) pi2 + beta_dot pi6 + sign pi7 = tau`.
-fn flat_row(x: &[f64; 4], bdd: f64, g: f64, sign: f64) -> [f64; N_BASE] {
-    [0.0, g * x[1].cos(), bdd, 0.0, bdd, x[3], sign, 0.0]
+/// Flat: `(pi3 + pi5) beta_ddot + g cos(beta) pi2 + beta_dot pi6 + sign pi7 = tau` on a
+/// plate at rest. A compliant contact lets the plate rock about its centre (the joint) under
+/// the arm's reaction, by the recorded `alpha` (1e-4 to 3e-3 rad on MuJoCo's softer contacts):
+/// then the arm's tilted equation with the pivot at the joint (`f = 0`), `pi3 (alpha_ddot +
+/// beta_ddot) + pi4 alpha_ddot + pi5 beta_ddot + g cos(alpha + beta) pi2 + ...`, which is the
+/// former when `alpha` is 0.
+fn flat_row(x: &[f64; 4], acc: [f64; 2], g: f64, sign: f64) -> [f64; N_BASE] {
+    tilted_rows(x, acc, 0.0, g, sign).1
 }
 
 /// Tilted (`fs` = `f` left, `-f` right): the plate's row (= 0) and the torque row (= tau).
@@ -386,7 +438,7 @@ mod tests {
     #[test]
     fn flat_rows_carry_pi3_and_pi5_in_one_column() {
         let x = [0.0, 1.3, 0.0, 0.4];
-        let r = flat_row(&x, 0.7, 9.81, 1.0);
+        let r = flat_row(&x, [0.0, 0.7], 9.81, 1.0);
         assert_eq!(r[2], r[4]);
         assert_eq!((r[0], r[3]), (0.0, 0.0));
         let xs: Vec<[f64; 4]> = (0..101)
