@@ -1,6 +1,7 @@
 //! The error of a `tilting` command and its exit code: the front door's mapping of what the
 //! libraries report (their own typed errors) to the process's exit status.
 
+use tilting_launch::LaunchError;
 use tilting_planner::node::NodeError;
 
 /// The error of a command, sorted by exit code.
@@ -53,6 +54,17 @@ impl From<NodeError> for CommandError {
         match e {
             NodeError::Invalid(_) => CommandError::Usage(e.into()),
             NodeError::NoOrbit { .. } | NodeError::Run(_) => CommandError::Failed(e.into()),
+        }
+    }
+}
+
+impl From<LaunchError> for CommandError {
+    /// A bad flag or configuration file is a usage error; the rest is a failure. The message is
+    /// the library's, unchanged.
+    fn from(e: LaunchError) -> Self {
+        match e {
+            LaunchError::Invalid(e) => CommandError::Usage(e),
+            LaunchError::Failed(e) => CommandError::Failed(e),
         }
     }
 }

@@ -9,10 +9,10 @@
 //! - [`robot`]: the robot file at the front door (its keys as the flags' defaults) and
 //!   `tilting config`;
 //! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);
-//! - [`security`]: `certs` (a development CA and per-node certificates, the zenoh TLS and
-//!   access-control configurations) and the `tilting-router` binary;
-//! - [`supervise`]: child processes (node binaries, free ports, orderly stops), shared with the
-//!   process-level tests.
+//!
+//! Child processes and the secure deployment's certificates, zenoh configurations and router
+//! are `tilting_launch`'s; `security` and `supervise` here are that crate under the names
+//! `live` and older callers use.
 //!
 //! The three node binaries of the design stay separate: `tilting-plant`, `tilting-controller`
 //! and `tilting-planner` (the planner node that publishes references). `tilting live` starts the
@@ -26,7 +26,10 @@ pub mod foxglove;
 pub mod live;
 pub mod record;
 pub mod robot;
-pub mod security;
-pub mod supervise;
 
 pub use error::CommandError;
+
+/// `tilting_launch` (certificates, zenoh configurations, the router), by its former path.
+pub use tilting_launch as security;
+/// `tilting_launch` (child processes, ports), by its former path.
+pub use tilting_launch as supervise;

@@ -4,8 +4,8 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use tilting::commands::{
-    animate, continuation, figures, identify, margins, plan, recording, ros2, shard, simulate,
-    topics,
+    animate, certs, continuation, figures, identify, margins, plan, recording, ros2, shard,
+    simulate, topics,
 };
 use tilting::live;
 
@@ -107,7 +107,7 @@ enum Command {
     Identify(identify::IdentifyArgs),
     /// A development certificate authority, one certificate per node (plant, controller,
     /// planner, logger, router) and the zenoh configurations with TLS and access control
-    Certs(tilting::security::CertsArgs),
+    Certs(tilting_launch::CertsArgs),
     /// ROS 2 in rmw_zenoh's conventions: mirror a robot on the network as a ROS 2 node, and
     /// the robot's URDF (docs/ros2.md)
     #[command(subcommand)]
@@ -166,7 +166,7 @@ fn main() -> ExitCode {
         Command::Info(args) => recording::info(args),
         Command::View(args) => tilting::foxglove::view(args),
         Command::Identify(args) => identify::run(args),
-        Command::Certs(args) => tilting::security::certs(args),
+        Command::Certs(args) => certs::run(args),
         Command::Ros2(ros2::Ros2Command::Bridge(args)) => ros2::bridge(args),
         Command::Ros2(ros2::Ros2Command::Urdf(args)) => ros2::urdf(args),
     };

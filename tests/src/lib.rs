@@ -7,7 +7,7 @@
 //!   so they are never stale (set `TILTING_TESTS_NO_BUILD=1` to skip that and use what is
 //!   there).
 //! - [`Proc`]: a child process started by the product's own supervisor
-//!   ([`tilting::supervise::Child`]: stdout and stderr in files, own process group, killed on
+//!   ([`tilting_launch::Child`]: stdout and stderr in files, own process group, killed on
 //!   drop), with the waits and panics a test wants.
 //! - [`free_port`]: a free loopback TCP port; each test uses its own ports and its own robot
 //!   name, with multicast scouting off, so tests never see each other's traffic.
@@ -25,8 +25,8 @@ mod scratch;
 
 pub use scratch::Scratch;
 
-pub use tilting::supervise::endpoint;
 pub use tilting_controller::node::ControllerSummary;
+pub use tilting_launch::endpoint;
 pub use tilting_net;
 pub use tilting_plant::node::{PlantSummary, RunResult};
 pub use tilting_proto;
@@ -43,7 +43,7 @@ pub fn workspace_root() -> PathBuf {
 
 /// The directory of the binaries: the cargo profile directory of the running test or example.
 pub fn bin_dir() -> PathBuf {
-    tilting::supervise::profile_dir().expect("profile dir")
+    tilting_launch::profile_dir().expect("profile dir")
 }
 
 static BUILD: Once = Once::new();
@@ -107,7 +107,7 @@ pub use tilting_plant::imperfect::MEASURED_AS_HARDWARE;
 
 /// A free TCP port on 127.0.0.1 (the OS picks it; it is released before use).
 pub fn free_port() -> u16 {
-    tilting::supervise::free_port().expect("a free port")
+    tilting_launch::free_port().expect("a free port")
 }
 
 /// A unique robot name for one test (`{tag}_{pid}`).
@@ -179,15 +179,12 @@ pub fn child_named(pid: u32, name: &str) -> Option<i32> {
 }
 
 /// A child process of a test, started by the product's supervisor; killed when dropped.
-pub struct Proc(tilting::supervise::Child);
+pub struct Proc(tilting_launch::Child);
 
 impl Proc {
     /// Starts `bin args...` with stdout and stderr in `{dir}/{name}.json` and `{dir}/{name}.log`.
     pub fn spawn(name: &str, bin: &Path, args: &[String], dir: &Path) -> Self {
-        Self(
-            tilting::supervise::Child::spawn(name, bin, args, dir)
-                .unwrap_or_else(|e| panic!("{e:#}")),
-        )
+        Self(tilting_launch::Child::spawn(name, bin, args, dir).unwrap_or_else(|e| panic!("{e:#}")))
     }
 
     /// The process id.

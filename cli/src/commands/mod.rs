@@ -4,6 +4,7 @@
 //! or one JSON object with `--json`); the computations live in the library crates.
 
 pub mod animate;
+pub mod certs;
 pub mod continuation;
 pub mod figures;
 pub mod identify;
