@@ -197,6 +197,7 @@ fn refuses_what_cannot_be_recorded_or_identified() {
         ("--window", "0"),
         ("--half-window", "9"),
         ("--min-speed", "-1"),
+        ("--settle", "2"),
     ] {
         let e = tilting(&["identify", m, flag, v]);
         assert_eq!(e.status.code(), Some(2));

@@ -52,6 +52,12 @@ pub struct IdentifyArgs {
     /// recorded angles after the least squares; angles path only): the least squares alone
     #[arg(long)]
     pub no_refine: bool,
+    /// Time left out after each landing and before each lift-off (s), in [0, 1]: a compliant
+    /// contact settles there (the plate sinks, rocks and bounces), which neither mode's
+    /// equations describe; default measured from the recording (the plate's equations'
+    /// residual against the distance from the mode change; 0 for a rigid contact)
+    #[arg(long, value_name = "SECONDS")]
+    pub settle: Option<f64>,
     /// Draw the fit check into this PNG: the recorded angles beside their re-simulation with
     /// the identified parameters under the recorded torques (restarted from the recorded state
     /// every --fit-window s); its RMS error is reported either way
@@ -93,6 +99,13 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
             "invalid `--min-speed` = {}: allowed a speed in rad/s in [0, 10]",
             args.min_speed
         )));
+    }
+    if let Some(s) = args.settle {
+        if !(s.is_finite() && (0.0..=1.0).contains(&s)) {
+            return Err(usage(format!(
+                "invalid `--settle` = {s}: allowed a time in s in [0, 1]"
+            )));
+        }
     }
     // The prior: --params, else the [prior] table of the robot file --out writes into.
     let prior = args
@@ -144,6 +157,7 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
             } else {
                 Options::default().refine
             },
+            settle: args.settle,
             ..Options::default()
         },
     )

@@ -732,12 +732,19 @@ const SETTLE_BIN: usize = 5;
 /// from the mode changes is still settling ([`measure_settle`]).
 pub const SETTLE_RATIO: f64 = 2.0;
 
+/// A rise of the plate's equations' residual near the mode changes counts only above this share
+/// of the equations' size ([`measure_settle`]): the rigid plant's exact recording has its
+/// one-sided differentiator's error there, 1e-7 of it, at up to 3 times the far level; MuJoCo's
+/// `mid` contact 2e-3 of it.
+pub const SETTLE_FLOOR: f64 = 1e-4;
+
 /// The contact's settling (samples) at the mode changes, measured from the plate's equations
 /// (`r`'s rows built without cutting): a first least squares (`m_f + m_l`, `m_l l_c`, the arm's
 /// inertia, friction and `i_f`; the rotor's share left out), the RMS of the plate's rows'
 /// residuals in bins of [`SETTLE_BIN`] samples of distance from the nearest mode change, and
 /// the settling the distance beyond which every bin holding a row is within [`SETTLE_RATIO`]
-/// of the level of the farthest quarter of the rows. 0 when the plate's rows are too few
+/// of the level of the farthest quarter of the rows (or under [`SETTLE_FLOOR`] of the
+/// equations' size). 0 when the plate's rows are too few
 /// (under 8 bins' worth) or the fit fails. A rigid contact (our plant) shows no such rise,
 /// within the bins' noise; a compliant one (MuJoCo's `mid` contact) a residual 500 times the
 /// far level in the first 20 ms.
@@ -768,6 +775,14 @@ fn measure_settle(r: &rows::Rows, i_f: f64) -> usize {
     let rms =
         |x: &[(usize, f64)]| (x.iter().map(|v| v.1 * v.1).sum::<f64>() / x.len() as f64).sqrt();
     let level = rms(far);
+    // The plate's equations' own size: the RMS of their m_f + m_l term (gravity's moment
+    // about the pivot, about m g f).
+    let scale = (0..r.y.len())
+        .filter(|&i| r.plate[i] && r.edge[i] != usize::MAX)
+        .map(|i| (r.y[i][0] * pi[0]).powi(2))
+        .sum::<f64>()
+        / e.len() as f64;
+    let floor = SETTLE_FLOOR * scale.sqrt();
     let top = far[0].0;
     let mut settle = 0;
     let mut lo = 0;
@@ -777,7 +792,7 @@ fn measure_settle(r: &rows::Rows, i_f: f64) -> usize {
             .copied()
             .filter(|x| x.0 >= lo && x.0 < lo + SETTLE_BIN)
             .collect();
-        if !bin.is_empty() && rms(&bin) > SETTLE_RATIO * level {
+        if !bin.is_empty() && rms(&bin) > (SETTLE_RATIO * level).max(floor) {
             settle = lo + SETTLE_BIN;
         }
         lo += SETTLE_BIN;
