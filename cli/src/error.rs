@@ -2,7 +2,9 @@
 //! libraries report (their own typed errors) to the process's exit status.
 
 use tilting_launch::LaunchError;
+use tilting_planner::jobs::JobError;
 use tilting_planner::node::NodeError;
+use tilting_planner::shard::ShardError;
 
 /// The error of a command, sorted by exit code.
 #[derive(Debug)]
@@ -58,6 +60,23 @@ impl From<NodeError> for CommandError {
     }
 }
 
+impl From<JobError> for CommandError {
+    /// An input out of range is a usage error; a failed computation or a missing orbit is not.
+    fn from(e: JobError) -> Self {
+        match e {
+            JobError::Invalid(_) => CommandError::Usage(e.into()),
+            JobError::Failed(_) | JobError::NoOrbit { .. } => CommandError::Failed(e.into()),
+        }
+    }
+}
+
+impl From<ShardError> for CommandError {
+    /// A shard that cannot be, or shard files that do not make one sweep: a usage error.
+    fn from(e: ShardError) -> Self {
+        CommandError::Usage(e.into())
+    }
+}
+
 impl From<LaunchError> for CommandError {
     /// A bad flag or configuration file is a usage error; the rest is a failure. The message is
     /// the library's, unchanged.
@@ -88,5 +107,29 @@ mod tests {
         assert!(orbit.to_string().contains("K_P = 1, K_D = 2"), "{orbit}");
         let run = CommandError::from(NodeError::Run(anyhow::anyhow!("no session")));
         assert_eq!(run.exit_code(), 1);
+        // The jobs', the shards' and the launcher's the same way.
+        let job = CommandError::from(JobError::Invalid("invalid `--peak` = 2".into()));
+        assert_eq!(
+            (job.exit_code(), job.to_string().as_str()),
+            (2, "invalid `--peak` = 2")
+        );
+        assert_eq!(
+            CommandError::from(JobError::Failed("x".into())).exit_code(),
+            1
+        );
+        assert_eq!(
+            CommandError::from(JobError::NoOrbit { kp: 1.0, kd: 2.0 }).exit_code(),
+            1
+        );
+        let shard = CommandError::from(ShardError::Syntax("1".into()));
+        assert_eq!(shard.exit_code(), 2);
+        assert!(shard.to_string().contains("`--shard` = \"1\""), "{shard}");
+        let bad = CommandError::from(LaunchError::Invalid(anyhow::anyhow!("--robot: x")));
+        assert_eq!(
+            (bad.exit_code(), bad.to_string().as_str()),
+            (2, "--robot: x")
+        );
+        let failed = CommandError::from(LaunchError::Failed(anyhow::anyhow!("disk")));
+        assert_eq!(failed.exit_code(), 1);
     }
 }

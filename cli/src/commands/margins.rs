@@ -420,7 +420,7 @@ pub fn merge(shards: Shards) -> Result<(), CommandError> {
         )));
     }
     let parts = parts.into_iter().map(|(_, p)| p).collect();
-    let report = survey.merge(parts).map_err(shard::merge_error)?;
+    let report = survey.merge(parts)?;
     emit(true, &report, String::new)
 }
 

@@ -9,7 +9,7 @@ use clap::Args;
 
 use tilting_controller::{LawArgs, LawSpec, Trajectory};
 use tilting_planner::jobs::{
-    self, BifurcationJob, BifurcationRange, BifurcationShard, GainsJob, GainsShard, JobError,
+    self, BifurcationJob, BifurcationRange, BifurcationShard, GainsJob, GainsShard,
 };
 pub use tilting_planner::jobs::{BifurcationReport, GainsReport, OrbitReport};
 use tilting_planner::shard::Shard;
@@ -81,8 +81,7 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
             r
         }
         None => jobs::orbits(params, params.impact, law.kp, law.kd, law.k, energy_avg),
-    }
-    .map_err(job_error)?;
+    }?;
     let law = LawSpec { k: report.k, ..law };
     emit(args.model.json, &report, || {
         let mut s = format!(
@@ -202,8 +201,7 @@ pub fn reach(args: &ReachArgs) -> Result<(), CommandError> {
         [args.k_from, args.k_to, args.k_step],
         args.peak,
         &|| b.inc(1),
-    )
-    .map_err(job_error)?;
+    )?;
     b.finish_and_clear();
     if let Some(path) = &args.plot {
         tilting_viz::reach::draw_reach(path, &cells, args.peak, params.impact.as_str()).map_err(
@@ -277,7 +275,7 @@ pub struct SinusoidArgs {
 pub fn sinusoid(args: &SinusoidArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
     let (a, s) = (args.amplitude, args.landing_offset);
-    let sol = jobs::sinusoid(&params, a, s, args.omega_min, args.omega_max).map_err(job_error)?;
+    let sol = jobs::sinusoid(&params, a, s, args.omega_min, args.omega_max)?;
     emit(args.model.json, &sol, || {
         format!(
             "A = {} rad, t_l = T/2 + ({}) t_t: w = {:.9} rad/s (T = {:.6} s), tilt {} at t_t = {:.6} s, \
@@ -358,18 +356,10 @@ fn bifurcation_job(args: &BifurcationArgs) -> Result<BifurcationJob, CommandErro
         period_tol: args.period_tol,
     };
     let params = args.model.params()?;
-    let job = BifurcationJob::new(params, params.impact, &range).map_err(job_error)?;
+    let job = BifurcationJob::new(params, params.impact, &range)?;
     match args.peak {
-        Some(p) => job.with_peak(p).map_err(job_error),
+        Some(p) => Ok(job.with_peak(p)?),
         None => Ok(job),
-    }
-}
-
-/// A job's error: a usage error for an invalid input, a failure otherwise.
-pub fn job_error(e: JobError) -> CommandError {
-    match e {
-        JobError::Invalid(_) => CommandError::Usage(e.into()),
-        JobError::Failed(_) | JobError::NoOrbit { .. } => CommandError::Failed(e.into()),
     }
 }
 
@@ -377,13 +367,13 @@ pub fn job_error(e: JobError) -> CommandError {
 pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
     let job = bifurcation_job(args)?;
     if let Some(s) = args.sharding.shard {
-        let part = job.run_shard(s).map_err(job_error)?;
+        let part = job.run_shard(s)?;
         return ShardFile::new(BIFURCATION, s, &job, &part)?.emit();
     }
     let b = bar(job.ks.len() as u64, "bifurcation", args.model.json);
     let report = job.run(&|| b.inc(1));
     b.finish_and_clear();
-    let report = report.map_err(job_error)?;
+    let report = report?;
     emit(args.model.json, &report, || bifurcation_text(&report))
 }
 
@@ -393,7 +383,7 @@ pub fn merge_bifurcation(shards: Shards) -> Result<(), CommandError> {
     let job: BifurcationJob = serde_json::from_value(shards.grid)
         .map_err(|e| usage(format!("the shards' grid is not a bifurcation sweep: {e}")))?;
     let parts = own_parts::<BifurcationShard>(shards.parts, |p| p.shard)?;
-    let report = job.merge(parts).map_err(shard::merge_error)?;
+    let report = job.merge(parts)?;
     emit(true, &report, String::new)
 }
 
@@ -492,7 +482,7 @@ pub fn merge_gains(shards: Shards) -> Result<(), CommandError> {
     let job: GainsJob = serde_json::from_value(shards.grid)
         .map_err(|e| usage(format!("the shards' grid is not a gains grid: {e}")))?;
     let parts = own_parts::<GainsShard>(shards.parts, |p| p.shard)?;
-    let report = job.merge(parts).map_err(shard::merge_error)?;
+    let report = job.merge(parts)?;
     emit(true, &report, String::new)
 }
 
@@ -505,7 +495,7 @@ pub fn gains_job(args: &GainsArgs) -> Result<GainsJob, CommandError> {
         [args.kp_from, args.kp_to, args.kp_step],
         [args.kd_from, args.kd_to, args.kd_step],
     )
-    .map_err(job_error)
+    .map_err(CommandError::from)
 }
 
 /// Runs `gains`.

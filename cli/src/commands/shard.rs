@@ -6,7 +6,6 @@
 
 use super::{emit, usage};
 use crate::CommandError;
-use anyhow::anyhow;
 use clap::Args;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -160,11 +159,6 @@ fn lookup(v: &Value, path: &str) -> String {
         }
     }
     cur.map_or("absent".into(), Value::to_string)
-}
-
-/// A shard error of the merge: a usage error (the files given do not make one whole sweep).
-pub fn merge_error(e: ShardError) -> CommandError {
-    CommandError::Usage(anyhow!(e))
 }
 
 /// Parses the parts as `T` (each a command's own form).
