@@ -8,7 +8,16 @@
 //!   are the values of `k`;
 //! - [`orbits`] and [`sinusoid`]: the two approaches of Sec. III for one set of inputs;
 //! - [`GainsJob`]: the orbits over a `(K_P, K_D)` grid (Fig. 6); its units are the rows of
-//!   constant `K_P` (each row is a continuation in `K_D`).
+//!   constant `K_P` (each row is a continuation in `K_D`);
+//! - [`ContinuationJob`] and [`StabilityJob`]: the orbit continued in one parameter (flips,
+//!   cascade, Lyapunov exponents) and its stability region in two, with [`Progress`].
+
+mod continuation;
+
+pub use continuation::{
+    ContinuationJob, ContinuationReport, ContinuationTiming, Continued, Progress, StabilityJob,
+    StabilityReport,
+};
 
 use crate::bifurcation::{self, Row, Sweep};
 use crate::gains::{self, Cell};

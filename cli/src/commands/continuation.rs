@@ -1,19 +1,18 @@
 //! `tilting plan continuation`: the orbits continued in a parameter, their flips, the
-//! period-doubling cascade and the largest Lyapunov exponent (issue 19). The computations live
-//! in `tilting_planner::continuation` and `tilting_planner::lyapunov`.
+//! period-doubling cascade and the largest Lyapunov exponent, and the stability region. The
+//! jobs are `tilting_planner::jobs::{ContinuationJob, StabilityJob}`; this parses, draws and
+//! prints.
 
-use super::{bar, check, emit, usage, ModelArgs};
+use super::{bar, emit, usage, Bars, ModelArgs};
 use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
-use serde::Serialize;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Instant;
-use tilting_planner::continuation::twopar::{self, Region};
-use tilting_planner::continuation::{self, Diagram, EventKind, Param, Settings};
-use tilting_planner::lyapunov::sampled::{self, SampledExponent};
-use tilting_planner::lyapunov::{self, Exponent};
-use tilting_planner::orbit::OrbitProblem;
+use tilting_planner::bifurcation::Sweep;
+use tilting_planner::continuation::{Diagram, EventKind, Param, FEIGENBAUM_DELTA};
+use tilting_planner::jobs::{ContinuationJob, StabilityJob};
+pub use tilting_planner::jobs::{ContinuationReport, StabilityReport};
+use tilting_planner::lyapunov::sampled::SampledExponent;
+use tilting_planner::lyapunov::Exponent;
 use tilting_plant::paper::{ORBIT_K, ORBIT_KD, ORBIT_KP};
 use tilting_viz::continuation::CascadeSweep;
 
@@ -80,178 +79,42 @@ fn parse_param(s: &str) -> Result<Param, String> {
     s.parse()
 }
 
-/// The JSON of `continuation`.
-#[derive(Debug, Serialize)]
-pub struct ContinuationReport {
-    /// E_av of the k = 0 orbit (J), the adaptation's target.
-    pub energy_avg: f64,
-    /// Where the continuation started.
-    pub p_start: f64,
-    /// The branches, flips, ratios and accumulation point.
-    pub diagram: Diagram,
-    /// The largest Lyapunov exponent against the parameter.
-    pub lyapunov: Vec<Exponent>,
-    /// With `--control-period`: the sampled loop's two largest exponents on the same values.
-    pub lyapunov_sampled: Vec<SampledExponent>,
-    /// Continuation steps over all branches.
-    pub steps: usize,
-    /// Wall times (s).
-    pub timing: ContinuationTiming,
-}
-
-/// Wall times of one `continuation` command (s).
-#[derive(Debug, Serialize)]
-pub struct ContinuationTiming {
-    /// The base orbit and the attracting start (s).
-    pub setup_s: f64,
-    /// All branches with their events and switches (s).
-    pub continuation_s: f64,
-    /// The Lyapunov curve on all cores (s).
-    pub lyapunov_s: f64,
-    /// The sampled loop's curve on all cores (s), 0 without `--control-period`.
-    pub lyapunov_sampled_s: f64,
-    /// `continuation_s` per step (ms).
-    pub per_step_ms: f64,
+impl ContinuationArgs {
+    /// The job of these flags.
+    pub fn job(&self) -> ContinuationJob {
+        ContinuationJob {
+            param: self.param,
+            to: self.to,
+            k: self.k,
+            kp: self.kp,
+            kd: self.kd,
+            step: self.step,
+            max_step: self.max_step,
+            max_period: self.max_period,
+            lyapunov_step: self.lyapunov_step,
+            transient: self.transient,
+            tilts: self.tilts,
+            control_period: self.control_period,
+            peak: self.peak,
+        }
+    }
 }
 
 /// Runs `continuation`.
 pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
-    check("kp", args.kp, args.kp > 0.0, "finite and > 0")?;
-    check("kd", args.kd, args.kd > 0.0, "finite and > 0")?;
-    check("k", args.k, args.k >= 0.0, "finite and >= 0")?;
-    if !(1..=64).contains(&args.max_period) || !args.max_period.is_power_of_two() {
-        return Err(usage(format!(
-            "invalid `--max-period` = {}: must be a power of two in 1..=64",
-            args.max_period
-        )));
-    }
-    if args.tilts == 0 || args.tilts > 100_000 || args.transient > 100_000 {
-        return Err(usage(format!(
-            "invalid `--tilts` = {} / `--transient` = {}: allowed 1..=100000 and 0..=100000",
-            args.tilts, args.transient
-        )));
-    }
     if args.plot.is_some() && args.param != Param::K {
         return Err(usage(
             "`--plot` draws Fig. 8b over k: it needs `--param k`".into(),
         ));
     }
-    if let Some(h) = args.control_period {
-        check("control-period", h, h > 0.0 && h <= 0.05, "in (0, 0.05] s")?;
-    }
-    let pb = OrbitProblem::new(params, params.impact, args.kp, args.kd);
-    // The parameter's start value (the adaptation's E_av does not enter any parameter).
-    let p0 = args.param.get(&pb.with_adaptation(args.k, 0.0));
-    let to = match (args.to, args.param) {
-        (Some(v), _) => v,
-        (None, Param::K) => 2400.0,
-        (None, p) => {
-            return Err(usage(format!(
-                "`--param {p}` needs `--to` (where to continue to)"
-            )))
-        }
-    };
-    let (ok, range) = args.param.allows(to);
-    check(
-        "to",
-        to,
-        ok && to != p0,
-        &format!("{range} and not the start {p0}"),
-    )?;
-    let span = (to - p0).abs();
-    let ds = check(
-        "step",
-        args.step.unwrap_or(span / 200.0),
-        args.step.is_none_or(|s| s > 0.0),
-        "finite and > 0",
-    )?;
-    let ds_max = args.max_step.unwrap_or(span / 50.0).max(ds);
-    let lstep = args.lyapunov_step.unwrap_or(span / 200.0);
-    check("lyapunov-step", lstep, lstep >= 0.0, "finite and >= 0")?;
-    let start = Instant::now();
-    let st = match args.peak {
-        Some(p) => continuation::start_at_peak(&pb, args.k, p),
-        None => continuation::start(&pb, args.k),
-    }
-    .map_err(|e| CommandError::Failed(anyhow!(e)))?;
-    let (o, sw, base, guess) = (&st.orbit, &st.sweep, st.base, st.guess);
-    let setup_s = start.elapsed().as_secs_f64();
-    let set = Settings {
-        ds,
-        ds_min: ds * 1e-4,
-        ds_max,
-        ..Settings::over(p0, to, args.max_period)
-    };
-    let b = bar(1000, "continuation", args.model.json);
-    let at = AtomicU64::new(0);
-    let start = Instant::now();
-    let diagram = continuation::diagram(&base, args.param, p0, guess, &set, &|tilts, p| {
-        // Position: the branch's share of the range, in blocks per period.
-        let block =
-            (tilts.trailing_zeros() as u64) * 1000 / (args.max_period.trailing_zeros() as u64 + 1);
-        let frac = ((p - p0) / (to - p0)).clamp(0.0, 1.0);
-        let pos = block + (frac * 1000.0 / (args.max_period.trailing_zeros() as f64 + 1.0)) as u64;
-        at.fetch_max(pos, Ordering::Relaxed);
-        b.set_position(at.load(Ordering::Relaxed));
-    })
-    .map_err(|e| CommandError::Failed(anyhow!("continuation failed: {e}")))?;
-    let continuation_s = start.elapsed().as_secs_f64();
-    b.finish_and_clear();
-    let ps = continuation::grid(p0, to, lstep);
-    let b = bar(ps.len() as u64, "lyapunov", args.model.json);
-    let start = Instant::now();
-    let param = args.param;
-    let lyap = lyapunov::curve(
-        &ps,
-        &|p| param.set(&base, p),
-        [o.beta0, o.beta_dot0],
-        args.transient,
-        args.tilts,
-        &|| b.inc(1),
-    );
-    let lyapunov_s = start.elapsed().as_secs_f64();
-    b.finish_and_clear();
-    let start = Instant::now();
-    let lyap_sampled = match args.control_period {
-        Some(h) => {
-            let b = bar(ps.len() as u64, "sampled", args.model.json);
-            let c = sampled::curve(
-                &ps,
-                &|p| param.set(&base, p),
-                h,
-                [o.beta0, o.beta_dot0],
-                args.transient,
-                args.tilts,
-                &|| b.inc(1),
-            );
-            b.finish_and_clear();
-            c
-        }
-        None => Vec::new(),
-    };
-    let lyapunov_sampled_s = start.elapsed().as_secs_f64();
+    let run = args.job().run(&params, &Bars::new(args.model.json))?;
     if let Some(path) = &args.plot {
-        let range = (ps.first().copied().unwrap_or(p0), to);
-        plot(args, path, sw, range, &diagram, (&lyap, &lyap_sampled))?;
+        let r = &run.report;
+        let curves = (&r.lyapunov[..], &r.lyapunov_sampled[..]);
+        plot(args, path, &run.sweep, run.range, &r.diagram, curves)?;
     }
-    let steps = diagram.steps();
-    let report = ContinuationReport {
-        energy_avg: st.energy_avg,
-        p_start: p0,
-        steps,
-        timing: ContinuationTiming {
-            setup_s,
-            continuation_s,
-            lyapunov_s,
-            lyapunov_sampled_s,
-            per_step_ms: 1e3 * continuation_s / steps.max(1) as f64,
-        },
-        diagram,
-        lyapunov: lyap,
-        lyapunov_sampled: lyap_sampled,
-    };
-    emit(args.model.json, &report, || human(&report))
+    emit(args.model.json, &run.report, || human(&run.report))
 }
 
 /// Draws Fig. 8b of `continuation --plot` into `path`: the sweep of `sw` over `range` of `k`
@@ -259,7 +122,7 @@ pub fn continuation(args: &ContinuationArgs) -> Result<(), CommandError> {
 fn plot(
     args: &ContinuationArgs,
     path: &std::path::Path,
-    sw: &tilting_planner::bifurcation::Sweep,
+    sw: &Sweep,
     range: (f64, f64),
     diagram: &Diagram,
     (lyap, lyap_sampled): (&[Exponent], &[SampledExponent]),
@@ -348,7 +211,7 @@ fn human(r: &ContinuationReport) -> String {
                 i - 1,
                 i + 1,
                 i,
-                continuation::FEIGENBAUM_DELTA
+                FEIGENBAUM_DELTA
             ))
         );
     }
@@ -440,68 +303,30 @@ pub struct StabilityArgs {
     pub model: ModelArgs,
 }
 
-/// The JSON of `stability`.
-#[derive(Debug, Serialize)]
-pub struct StabilityReport {
-    /// The region: the flip and fold curves.
-    pub region: Region,
-    /// Wall time (s).
-    pub seconds: f64,
+impl StabilityArgs {
+    /// The job of these flags.
+    pub fn job(&self) -> StabilityJob {
+        StabilityJob {
+            param2: self.param2,
+            from2: self.from2,
+            to2: self.to2,
+            k_max: self.k_max,
+            kp: self.kp,
+            kd: self.kd,
+            peak: self.peak,
+        }
+    }
 }
 
 /// Runs `stability`.
 pub fn stability(args: &StabilityArgs) -> Result<(), CommandError> {
     let params = args.model.params()?;
-    check("kp", args.kp, args.kp > 0.0, "finite and > 0")?;
-    check("kd", args.kd, args.kd > 0.0, "finite and > 0")?;
-    check(
-        "k-max",
-        args.k_max,
-        args.k_max > ORBIT_K,
-        &format!("finite and > {ORBIT_K}"),
-    )?;
+    let report = args.job().run(&params, &Bars::new(args.model.json))?;
     let p2 = args.param2;
-    if p2 == Param::K {
-        return Err(usage("invalid `--param2` = k: the first parameter is k; choose kd, kp, m_l, m_l_plant or m_f".into()));
-    }
-    let (lo, hi) = match (args.from2, args.to2, p2) {
-        (Some(a), Some(b), _) => (a, b),
-        (a, b, Param::Kd) => (a.unwrap_or(8.0), b.unwrap_or(18.0)),
-        (a, b, Param::MlPlant) => (a.unwrap_or(0.7), b.unwrap_or(1.4)),
-        _ => {
-            return Err(usage(format!(
-                "`--param2 {p2}` needs `--from2` and `--to2`"
-            )))
-        }
-    };
-    let (ok, range) = p2.allows(lo);
-    check("from2", lo, ok, range)?;
-    check("to2", hi, hi > lo, "finite and > --from2")?;
-    let pb = OrbitProblem::new(params, params.impact, args.kp, args.kd);
-    let base_p2 = p2.get(&pb);
-    if !(lo..=hi).contains(&base_p2) {
-        return Err(usage(format!(
-            "invalid range [--from2 {lo}, --to2 {hi}]: it must contain the base value {p2} = {base_p2}"
-        )));
-    }
-    let start = Instant::now();
-    let b = bar(400, "stability", args.model.json);
-    let region = match args.peak {
-        Some(p) => continuation::start_at_peak(&pb, ORBIT_K, p).and_then(|st| {
-            twopar::region_from(&st, ORBIT_K, args.k_max, (p2, (lo, hi)), &|| b.inc(1))
-        }),
-        None => twopar::region(&pb, ORBIT_K, args.k_max, (p2, (lo, hi)), &|| b.inc(1)),
-    }
-    .map_err(|e| CommandError::Failed(anyhow!(e)))?;
-    b.finish_and_clear();
     if let Some(path) = &args.plot {
-        tilting_viz::continuation::draw_stability(path, &region)
+        tilting_viz::continuation::draw_stability(path, &report.region)
             .map_err(|e| CommandError::Failed(anyhow!("cannot draw {}: {e:#}", path.display())))?;
     }
-    let report = StabilityReport {
-        region,
-        seconds: start.elapsed().as_secs_f64(),
-    };
     emit(args.model.json, &report, || {
         let r = &report.region;
         let mut s = format!(

@@ -108,6 +108,42 @@ pub fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
     b
 }
 
+/// The progress of a planner job ([`tilting_planner::jobs::Progress`]) as one progress bar a
+/// stage on stderr ([`bar`]: hidden with `--json` or when stderr is not a terminal).
+pub struct Bars {
+    json: bool,
+    bar: std::sync::Mutex<indicatif::ProgressBar>,
+}
+
+impl Bars {
+    /// Bars for a command with (`json`) or without `--json`.
+    pub fn new(json: bool) -> Self {
+        Self {
+            json,
+            bar: std::sync::Mutex::new(indicatif::ProgressBar::hidden()),
+        }
+    }
+
+    fn current(&self) -> indicatif::ProgressBar {
+        self.bar.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+}
+
+impl tilting_planner::jobs::Progress for Bars {
+    fn begin(&self, name: &str, len: u64) {
+        *self.bar.lock().unwrap_or_else(|e| e.into_inner()) = bar(len, name, self.json);
+    }
+    fn at(&self, pos: u64) {
+        self.current().set_position(pos);
+    }
+    fn step(&self) {
+        self.current().inc(1);
+    }
+    fn end(&self) {
+        self.current().finish_and_clear();
+    }
+}
+
 /// Runs `tilting_sim::simulate` with a progress bar on stderr over the scenario's simulated
 /// time (hidden with `--json` or when stderr is not a terminal), cleared at the end.
 pub fn simulate_with_bar(
