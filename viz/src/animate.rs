@@ -75,6 +75,50 @@ impl Default for Options {
     }
 }
 
+impl Options {
+    /// Checks every option, the error naming it by its `tilting animate` flag and its range:
+    /// `fps` in `(0, MAX_FPS]`, `speed` > 0, `start` and `end` finite with `end` after `start`,
+    /// `size` from 160 x 120 to 4096 x 4096 px, `tilt_exaggeration` in `[1, 100]`.
+    pub fn validate(&self) -> Result<()> {
+        let finite = |name: &str, v: f64, ok: bool, allowed: &str| {
+            if v.is_finite() && ok {
+                Ok(())
+            } else {
+                Err(anyhow!("invalid `--{name}` = {v}: must be {allowed}"))
+            }
+        };
+        let fps = self.fps;
+        finite(
+            "fps",
+            fps,
+            fps > 0.0 && fps <= MAX_FPS,
+            &format!("in (0, {MAX_FPS}]"),
+        )?;
+        finite("speed", self.speed, self.speed > 0.0, "a positive number")?;
+        for (name, v) in [("start", self.start), ("end", self.end)] {
+            if let Some(v) = v {
+                finite(name, v, true, "a number of seconds")?;
+            }
+        }
+        let (w, h) = self.size;
+        if !((160..=4096).contains(&w) && (120..=4096).contains(&h)) {
+            bail!("invalid `--size` = {w}x{h}: must be from 160x120 to 4096x4096 px");
+        }
+        if let (Some(a), Some(b)) = (self.start, self.end) {
+            if b <= a {
+                bail!("invalid `--end` = {b}: must be after `--start` = {a}");
+            }
+        }
+        let k = self.tilt_exaggeration;
+        finite(
+            "tilt-exaggeration",
+            k,
+            (1.0..=100.0).contains(&k),
+            "from 1 (to scale) to 100",
+        )
+    }
+}
+
 /// The frame times of an animation: frame `i` shows plant time `t0 + i dt`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Timeline {
@@ -106,23 +150,7 @@ impl Timeline {
 /// end (default: [`Trace::end`]), both included when they fall on a frame. Errors name the
 /// option that is out of range, or say that the trace has no samples in the window.
 pub fn timeline(trace: &Trace, opts: &Options) -> Result<Timeline> {
-    if !(opts.fps.is_finite() && opts.fps > 0.0 && opts.fps <= MAX_FPS) {
-        bail!("invalid fps = {}: must be in (0, {MAX_FPS}]", opts.fps);
-    }
-    let k = opts.tilt_exaggeration;
-    if !(k.is_finite() && (1.0..=100.0).contains(&k)) {
-        bail!("invalid tilt exaggeration = {k}: must be from 1 (to scale) to 100");
-    }
-    if !(opts.speed.is_finite() && opts.speed > 0.0) {
-        bail!("invalid speed = {}: must be a positive number", opts.speed);
-    }
-    if opts.size.0 < 160 || opts.size.1 < 120 || opts.size.0 > 4096 || opts.size.1 > 4096 {
-        bail!(
-            "invalid size = {}x{}: must be from 160x120 to 4096x4096 px",
-            opts.size.0,
-            opts.size.1
-        );
-    }
+    opts.validate()?;
     let (Some(first), Some(last)) = (trace.samples.first(), trace.samples.last()) else {
         bail!("the trace has no samples: nothing to animate");
     };
@@ -623,6 +651,84 @@ mod tests {
     use super::*;
     use std::f64::consts::{FRAC_PI_2, PI};
     use tilting_sim::closed_loop::EventRecord;
+
+    /// Each option out of range is refused naming its flag; the edges of the ranges pass.
+    #[test]
+    fn options_out_of_range_name_their_flag() {
+        let ok = Options::default();
+        ok.validate().unwrap();
+        let edges = Options {
+            fps: MAX_FPS,
+            size: (160, 120),
+            tilt_exaggeration: 100.0,
+            start: Some(1.0),
+            end: Some(1.5),
+            ..ok.clone()
+        };
+        edges.validate().unwrap();
+        for (bad, flag) in [
+            (
+                Options {
+                    fps: 0.0,
+                    ..ok.clone()
+                },
+                "`--fps` = 0",
+            ),
+            (
+                Options {
+                    fps: MAX_FPS + 1.0,
+                    ..ok.clone()
+                },
+                "`--fps` = 51",
+            ),
+            (
+                Options {
+                    speed: f64::NAN,
+                    ..ok.clone()
+                },
+                "`--speed` = NaN",
+            ),
+            (
+                Options {
+                    start: Some(f64::INFINITY),
+                    ..ok.clone()
+                },
+                "`--start` = inf",
+            ),
+            (
+                Options {
+                    size: (159, 480),
+                    ..ok.clone()
+                },
+                "`--size` = 159x480",
+            ),
+            (
+                Options {
+                    size: (640, 4097),
+                    ..ok.clone()
+                },
+                "`--size` = 640x4097",
+            ),
+            (
+                Options {
+                    start: Some(2.0),
+                    end: Some(2.0),
+                    ..ok.clone()
+                },
+                "`--end` = 2",
+            ),
+            (
+                Options {
+                    tilt_exaggeration: 0.5,
+                    ..ok.clone()
+                },
+                "`--tilt-exaggeration` = 0.5",
+            ),
+        ] {
+            let e = bad.validate().expect_err(flag).to_string();
+            assert!(e.contains(flag), "{flag}: {e}");
+        }
+    }
 
     fn close(a: [f64; 2], b: [f64; 2]) -> bool {
         (a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12

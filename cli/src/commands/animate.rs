@@ -4,7 +4,7 @@
 //! `events.csv`). The drawing is [`tilting_viz::animate`], the reading [`tilting_record::load`];
 //! this module checks the flags.
 
-use super::{bar, check, emit, usage};
+use super::{bar, emit, usage};
 use crate::CommandError;
 use anyhow::{Context as _, Result};
 use serde::{Deserialize, Serialize};
@@ -13,7 +13,7 @@ use std::time::Instant;
 use tilting_plant::Params;
 use tilting_record::{Trace, Window};
 use tilting_sim::{ScenarioArgs, SimOptions};
-use tilting_viz::animate::{animate, Options, Output, Rendered, MAX_FPS};
+use tilting_viz::animate::{animate, Options, Output, Rendered};
 
 /// Flags of `tilting animate`.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -109,32 +109,6 @@ pub enum AnimationFormat {
 
 /// `tilting animate`.
 pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
-    check(
-        "fps",
-        args.fps,
-        args.fps > 0.0 && args.fps <= MAX_FPS,
-        "in (0, 50]",
-    )?;
-    check("speed", args.speed, args.speed > 0.0, "a positive number")?;
-    for (name, v) in [("start", args.start), ("end", args.end)] {
-        if let Some(v) = v {
-            check(name, v, true, "a number of seconds")?;
-        }
-    }
-    let (w, h) = args.size;
-    if !((160..=4096).contains(&w) && (120..=4096).contains(&h)) {
-        return Err(usage(format!(
-            "invalid `--size` = {w}x{h}: must be from 160x120 to 4096x4096 px"
-        )));
-    }
-    if let (Some(a), Some(b)) = (args.start, args.end) {
-        if b <= a {
-            return Err(usage(format!(
-                "invalid `--end` = {b}: must be after `--start` = {a}"
-            )));
-        }
-    }
-    let (out, gif) = output(args)?;
     let opts = Options {
         fps: args.fps,
         speed: args.speed,
@@ -143,6 +117,8 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
         end: args.end,
         tilt_exaggeration: args.tilt_exaggeration,
     };
+    opts.validate().map_err(CommandError::Usage)?;
+    let (out, gif) = output(args)?;
     let sc = args
         .scenario
         .load()
