@@ -55,7 +55,8 @@ pub struct IdentifyArgs {
     /// Time left out after each landing and before each lift-off (s), in [0, 1]: a compliant
     /// contact settles there (the plate sinks, rocks and bounces), which neither mode's
     /// equations describe; default measured from the recording (the plate's equations'
-    /// residual against the distance from the mode change; 0 for a rigid contact)
+    /// residual against the distance from the mode change; 0 for a rigid contact); angles
+    /// path only
     #[arg(long, value_name = "SECONDS")]
     pub settle: Option<f64>,
     /// Draw the fit check into this PNG: the recorded angles beside their re-simulation with
