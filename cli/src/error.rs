@@ -3,6 +3,7 @@
 
 use tilting_launch::LaunchError;
 use tilting_planner::jobs::JobError;
+use tilting_planner::margins::{InvalidSurvey, SurveyError};
 use tilting_planner::node::NodeError;
 use tilting_planner::shard::ShardError;
 
@@ -70,6 +71,20 @@ impl From<JobError> for CommandError {
     }
 }
 
+impl From<InvalidSurvey> for CommandError {
+    /// A margins survey's flag out of range: a usage error.
+    fn from(e: InvalidSurvey) -> Self {
+        CommandError::Usage(e.into())
+    }
+}
+
+impl From<SurveyError> for CommandError {
+    /// A survey that could not run (no nominal orbit): a failure.
+    fn from(e: SurveyError) -> Self {
+        CommandError::Failed(e.into())
+    }
+}
+
 impl From<ShardError> for CommandError {
     /// A shard that cannot be, or shard files that do not make one sweep: a usage error.
     fn from(e: ShardError) -> Self {
@@ -119,6 +134,15 @@ mod tests {
         );
         assert_eq!(
             CommandError::from(JobError::NoOrbit { kp: 1.0, kd: 2.0 }).exit_code(),
+            1
+        );
+        let survey = CommandError::from(InvalidSurvey("invalid `--rate`".into()));
+        assert_eq!(
+            (survey.exit_code(), survey.to_string().as_str()),
+            (2, "invalid `--rate`")
+        );
+        assert_eq!(
+            CommandError::from(SurveyError::NoNominalOrbit(3)).exit_code(),
             1
         );
         let shard = CommandError::from(ShardError::Syntax("1".into()));

@@ -13,7 +13,6 @@ use std::path::PathBuf;
 use tilting_planner::margins::{
     Bands, Base, Criteria, Edge, Knob, MarginsReport, RobotMargins, Survey, SurveyShard,
 };
-use tilting_sim::robustness::Parameter;
 
 /// Flags of `tilting plan margins`.
 #[derive(Debug, Clone, Args)]
@@ -149,44 +148,13 @@ pub struct RobotMapArgs {
 
 /// The robot rows the flags describe, or the flag that is wrong.
 fn bands(r: &RobotMapArgs) -> Result<Bands, String> {
-    let mut parameters = Vec::new();
-    for k in &r.param_bands {
-        if k == "none" && r.param_bands.len() == 1 {
-            break;
-        }
-        match Parameter::ALL.iter().find(|p| p.key() == k.trim()) {
-            Some(&p) if !parameters.contains(&p) => parameters.push(p),
-            Some(_) => return Err(format!("invalid `--param-bands`: {k} is given twice")),
-            None => {
-                return Err(format!(
-                    "invalid `--param-bands` value {k:?}: allowed m_f, m_l, l, f, g, l_c, or \
-                     none"
-                ))
-            }
-        }
-    }
-    let encoder_bits = if r.encoder_bits == "none" {
-        None
-    } else {
-        let bad = || {
-            format!(
-                "invalid `--encoder-bits` = {:?}: expected FINE,COARSE (two bit counts in \
-                 [1, 32]) or none",
-                r.encoder_bits
-            )
-        };
-        let (a, b) = r.encoder_bits.split_once(',').ok_or_else(bad)?;
-        let a: u32 = a.trim().parse().map_err(|_| bad())?;
-        let b: u32 = b.trim().parse().map_err(|_| bad())?;
-        Some((a, b))
-    };
     Ok(Bands {
-        parameters,
+        parameters: Bands::parameters_from_keys(&r.param_bands)?,
         param_span: r.param_span,
         viscous_span: r.viscous_span,
         coulomb_span: r.coulomb_span,
         noise_span: r.noise_span,
-        encoder_bits,
+        encoder_bits: Bands::encoder_bits_from(&r.encoder_bits)?,
         bisections: r.bisections,
     })
 }
@@ -325,7 +293,7 @@ pub fn robot_plot_path(plot: &std::path::Path) -> PathBuf {
 /// Checks the flags: every grid value in range, not too many points
 /// ([`Survey::check`]), a PNG for `--plot`.
 fn check_args(args: &MarginsArgs) -> Result<(), CommandError> {
-    survey(args)?.check().map_err(|e| usage(e.to_string()))?;
+    survey(args)?.check()?;
     if let Some(p) = &args.plot {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(usage(format!(
@@ -394,14 +362,13 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
             ));
         }
         let b = bar(s.len(survey.points()) as u64, "margins", true);
-        let part = survey.run_shard(s, &|| b.inc(1));
-        let part = part.map_err(|e| CommandError::Failed(e.into()))?;
+        let part = survey.run_shard(s, &|| b.inc(1))?;
         return ShardFile::new(COMMAND, s, &survey, &part)?.emit();
     }
     let b = bar(survey.units(), "margins", args.json);
     let report = survey.run(&|| b.inc(1));
     b.finish_and_clear();
-    let report = report.map_err(|e| CommandError::Failed(e.into()))?;
+    let report = report?;
     if let Some(p) = &args.plot {
         plot(p, &report)?;
     }

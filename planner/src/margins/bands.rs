@@ -368,6 +368,46 @@ impl Bands {
         v
     }
 
+    /// The parameters named by `keys` (`--param-bands`: m_f, m_l, l, f, g, l_c, each once; a
+    /// lone `none`: none); otherwise the message names the flag and what it allows.
+    pub fn parameters_from_keys(keys: &[String]) -> Result<Vec<Parameter>, String> {
+        let mut parameters = Vec::new();
+        for k in keys {
+            if k == "none" && keys.len() == 1 {
+                break;
+            }
+            match Parameter::ALL.iter().find(|p| p.key() == k.trim()) {
+                Some(&p) if !parameters.contains(&p) => parameters.push(p),
+                Some(_) => return Err(format!("invalid `--param-bands`: {k} is given twice")),
+                None => {
+                    return Err(format!(
+                        "invalid `--param-bands` value {k:?}: allowed m_f, m_l, l, f, g, l_c, or \
+                         none"
+                    ))
+                }
+            }
+        }
+        Ok(parameters)
+    }
+
+    /// The encoder resolutions of `--encoder-bits` (`FINE,COARSE`, two bit counts, or `none`);
+    /// their range, [1, 32], is [`Bands::check`]'s.
+    pub fn encoder_bits_from(s: &str) -> Result<Option<(u32, u32)>, String> {
+        if s == "none" {
+            return Ok(None);
+        }
+        let bad = || {
+            format!(
+                "invalid `--encoder-bits` = {s:?}: expected FINE,COARSE (two bit counts in \
+                 [1, 32]) or none"
+            )
+        };
+        let (a, b) = s.split_once(',').ok_or_else(bad)?;
+        let a: u32 = a.trim().parse().map_err(|_| bad())?;
+        let b: u32 = b.trim().parse().map_err(|_| bad())?;
+        Ok(Some((a, b)))
+    }
+
     /// Checks the ranges; the message names the flag of `plan margins`.
     pub fn check(&self) -> Result<(), String> {
         let span_ok = self.param_span.is_finite() && (0.0..=0.9).contains(&self.param_span);
@@ -432,6 +472,37 @@ pub fn edges(
 mod tests {
     use super::*;
     use crate::margins::nominal_peak;
+
+    /// `--param-bands` and `--encoder-bits` as the flags give them: every key of
+    /// [`Parameter::ALL`] by its name, `none` alone for none; a repeat, an unknown key or a
+    /// malformed pair is refused naming the flag.
+    #[test]
+    fn band_flags_parse_and_refuse() {
+        let keys = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let all: Vec<String> = Parameter::ALL.iter().map(|p| p.key().to_string()).collect();
+        assert_eq!(
+            Bands::parameters_from_keys(&all).unwrap(),
+            Parameter::ALL.to_vec()
+        );
+        assert_eq!(
+            Bands::parameters_from_keys(&keys(&["none"])).unwrap(),
+            vec![]
+        );
+        for (bad, says) in [
+            (keys(&["m_l", "m_l"]), "m_l is given twice"),
+            (keys(&["mass"]), "value \"mass\""),
+            (keys(&["m_l", "none"]), "value \"none\""),
+        ] {
+            let e = Bands::parameters_from_keys(&bad).unwrap_err();
+            assert!(e.contains("`--param-bands`") && e.contains(says), "{e}");
+        }
+        assert_eq!(Bands::encoder_bits_from("16, 6"), Ok(Some((16, 6))));
+        assert_eq!(Bands::encoder_bits_from("none"), Ok(None));
+        for bad in ["16", "16,x", "-1,6", ""] {
+            let e = Bands::encoder_bits_from(bad).unwrap_err();
+            assert!(e.contains(&format!("`--encoder-bits` = {bad:?}")), "{e}");
+        }
+    }
     use tilting_sim::closed_loop::{simulate, SimOptions};
     use tilting_sim::robustness::Goal;
 
