@@ -6,6 +6,7 @@ use tilting_planner::jobs::JobError;
 use tilting_planner::margins::{InvalidSurvey, SurveyError};
 use tilting_planner::node::NodeError;
 use tilting_planner::shard::ShardError;
+use tilting_record::ReadError;
 
 /// The error of a command, sorted by exit code.
 #[derive(Debug)]
@@ -81,6 +82,13 @@ impl From<InvalidSurvey> for CommandError {
 impl From<SurveyError> for CommandError {
     /// A survey that could not run (no nominal orbit): a failure.
     fn from(e: SurveyError) -> Self {
+        CommandError::Failed(e.into())
+    }
+}
+
+impl From<ReadError> for CommandError {
+    /// A recording that cannot be read: a failure.
+    fn from(e: ReadError) -> Self {
         CommandError::Failed(e.into())
     }
 }

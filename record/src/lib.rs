@@ -53,7 +53,7 @@ pub mod trace;
 pub mod writer;
 
 pub use guard::{Rules, Sources};
-pub use reader::{read, Entry, ReadError, Recording};
+pub use reader::{read, Entry, Info, ReadError, Recording};
 pub use recorder::{Record, RecordError, RecordSender, RecordView, Recorder};
 pub use tilting_proto::Topic;
 pub use trace::{load, EventRecord, LoadError, Loaded, Sample, Trace, Window};

@@ -348,6 +348,54 @@ impl Recording {
     pub fn faults(&self) -> &[String] {
         &self.faults
     }
+
+    /// What the recording holds, in one value (`tilting info`).
+    pub fn info(&self) -> Info {
+        let span = self.span();
+        Info {
+            file: self.path.clone(),
+            bytes: self.size(),
+            robot: self.robot().map(str::to_owned),
+            complete: self.complete(),
+            truncation: self.truncation().map(str::to_owned),
+            start: span.map(|s| s.0),
+            end: span.map(|s| s.1),
+            counts: Topic::ALL
+                .iter()
+                .map(|&t| (t.name().to_owned(), self.count(t)))
+                .collect(),
+            tilts: self.tilts(),
+            faults: self.faults().to_vec(),
+            invalid: self.invalid().0,
+        }
+    }
+}
+
+/// What a recording holds ([`Recording::info`]; the JSON of `tilting info --json`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Info {
+    /// The file, as given to [`read`].
+    pub file: PathBuf,
+    /// Its size, bytes.
+    pub bytes: u64,
+    /// The robot of the channels.
+    pub robot: Option<String>,
+    /// Closed normally (summary section present).
+    pub complete: bool,
+    /// Why reading stopped early, for a file that is not complete.
+    pub truncation: Option<String>,
+    /// Plant time of the first and the last message, s.
+    pub start: Option<f64>,
+    /// See `start`.
+    pub end: Option<f64>,
+    /// Messages per topic, by topic name (every topic, 0 included).
+    pub counts: std::collections::BTreeMap<String, u64>,
+    /// Tilts (flat to left or right).
+    pub tilts: u64,
+    /// Distinct faults reported by the plant's status.
+    pub faults: Vec<String>,
+    /// Messages that did not decode or validate (skipped).
+    pub invalid: u64,
 }
 
 #[cfg(test)]
@@ -419,6 +467,27 @@ mod tests {
             k += 1;
         }
         assert_eq!(k, 500);
+        // The summary of `tilting info`: what was written, every topic counted.
+        let info = run.info();
+        assert_eq!(
+            (info.file, info.bytes),
+            (path.clone(), std::fs::metadata(&path).unwrap().len())
+        );
+        assert_eq!(
+            (info.robot.as_deref(), info.complete, info.truncation),
+            (Some("bot"), true, None)
+        );
+        assert_eq!((info.start, info.end), (Some(0.0), Some(0.499)));
+        let counts: Vec<(&str, u64)> = info.counts.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        let mut want: Vec<(&str, u64)> = Topic::ALL.iter().map(|t| (t.name(), 0)).collect();
+        want.sort();
+        for w in &mut want {
+            if w.0 == Topic::State.name() || w.0 == Topic::Torque.name() {
+                w.1 = 500;
+            }
+        }
+        assert_eq!(counts, want);
+        assert_eq!((info.tilts, info.faults.len(), info.invalid), (0, 0, 0));
     }
 
     /// A writer killed after a flush and in the middle of the next chunk: everything up to the

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tilting_net::{Qos, RawPublisher, Role, ZenohArgs};
 use tilting_proto::{Keys, Topic};
-use tilting_record::{recorder, Record, Recorder, Recording};
+use tilting_record::{recorder, Info, Record, Recorder, Recording};
 
 /// Flags of `tilting record`.
 #[derive(Debug, Clone, Args)]
@@ -238,7 +238,7 @@ pub fn replay(args: &ReplayArgs) -> Result<(), CommandError> {
     }
     check_seconds("--wait", Some(args.wait))?;
     let keys = session_args(&args.zenoh)?;
-    let run = tilting_record::read(&args.file).map_err(|e| CommandError::Failed(e.into()))?;
+    let run = tilting_record::read(&args.file)?;
     let topics: Vec<Topic> = if args.topics.is_empty() {
         Topic::ALL
             .into_iter()
@@ -417,53 +417,10 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
-/// What `tilting info` reports.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct Info {
-    /// The file.
-    pub file: PathBuf,
-    /// Its size, bytes.
-    pub bytes: u64,
-    /// The robot of the channels.
-    pub robot: Option<String>,
-    /// Closed normally (summary section present).
-    pub complete: bool,
-    /// Why reading stopped early, for a file that is not complete.
-    pub truncation: Option<String>,
-    /// Plant time of the first and the last message, s.
-    pub start: Option<f64>,
-    /// See `start`.
-    pub end: Option<f64>,
-    /// Messages per topic.
-    pub counts: std::collections::BTreeMap<String, u64>,
-    /// Tilts (flat to left or right).
-    pub tilts: u64,
-    /// Distinct faults reported by the plant's status.
-    pub faults: Vec<String>,
-    /// Messages that did not decode or validate (skipped).
-    pub invalid: u64,
-}
-
 /// `tilting info`.
 pub fn info(args: &InfoArgs) -> Result<(), CommandError> {
-    let run = tilting_record::read(&args.file).map_err(|e| CommandError::Failed(e.into()))?;
-    let span = run.span();
-    let info = Info {
-        file: args.file.clone(),
-        bytes: run.size(),
-        robot: run.robot().map(str::to_owned),
-        complete: run.complete(),
-        truncation: run.truncation().map(str::to_owned),
-        start: span.map(|s| s.0),
-        end: span.map(|s| s.1),
-        counts: Topic::ALL
-            .iter()
-            .map(|&t| (t.name().to_owned(), run.count(t)))
-            .collect(),
-        tilts: run.tilts(),
-        faults: run.faults().to_vec(),
-        invalid: run.invalid().0,
-    };
+    let run = tilting_record::read(&args.file)?;
+    let info = run.info();
     let text = if args.json {
         serde_json::to_string_pretty(&info).map_err(|e| CommandError::Failed(e.into()))? + "\n"
     } else {
