@@ -1,15 +1,15 @@
 //! `tilting figures`: the paper's Figs. 4 to 8 and issue 19's Figs. 8b and 8c as PNG files,
 //! drawn by `tilting_viz::figures`, with a progress bar and a summary of what each shows.
 
-use super::ModelArgs;
+use super::{emit, ModelArgs};
 use crate::CommandError;
 use anyhow::anyhow;
 use clap::Args;
-use serde::{Deserialize, Serialize};
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_viz::figures::{figure_id, Figures, Settings, Summary, ALL};
+use tilting_viz::figures::{figure_id, Figures, FiguresProgress, Settings, ALL};
+pub use tilting_viz::figures::{FigureReport, FiguresReport};
 
 /// Flags of `tilting figures`.
 #[derive(Debug, Clone, Args)]
@@ -30,36 +30,6 @@ pub struct FiguresArgs {
 
 fn parse_figure(s: &str) -> Result<&'static str, String> {
     figure_id(s)
-}
-
-/// What `tilting figures --json` prints (fields in the order of the JSON).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct FiguresReport {
-    /// The figures that failed: `figN: why`.
-    pub failed: Vec<String>,
-    /// The figures drawn, in the order of `tilting_viz::figures::ALL`.
-    pub figures: Vec<FigureReport>,
-    /// The landing impact law.
-    pub impact: String,
-    /// The output directory.
-    pub out: PathBuf,
-    /// `--quick`: coarse grids and short runs.
-    pub quick: bool,
-    /// Wall-clock time of the whole command (s).
-    pub seconds: f64,
-}
-
-/// One figure drawn.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct FigureReport {
-    /// Its id: "4" to "8", "8b", "8c".
-    pub figure: String,
-    /// The PNG file.
-    pub path: PathBuf,
-    /// Wall-clock time of its computation and drawing (s).
-    pub seconds: f64,
-    /// What it shows.
-    pub summary: Summary,
 }
 
 /// `tilting figures`: the PNGs of the paper's Figs. 4 to 8 and of Figs. 8b and 8c.
@@ -85,50 +55,11 @@ pub fn figures(args: &FiguresArgs) -> Result<(), CommandError> {
     };
     let units: u64 = which.iter().map(|n| ctx.units(n)).sum();
     let bar = progress(units, args.model.json);
-    let mut done = Vec::new();
-    let mut failed = Vec::new();
-    let mut reached = 0;
-    for &n in &which {
-        bar.set_message(format!("fig{n}"));
-        let t0 = Instant::now();
-        let r = ctx.draw(n, &|| bar.inc(1));
-        // 8b and 8c give an upper bound of their ticks: each figure ends at its share.
-        reached += ctx.units(n);
-        bar.set_position(reached);
-        match r {
-            Ok(summary) => done.push(FigureReport {
-                figure: n.to_owned(),
-                path: ctx.path(n),
-                seconds: t0.elapsed().as_secs_f64(),
-                summary,
-            }),
-            Err(e) => failed.push(format!("fig{n}: {e:#}")),
-        }
-    }
+    let mut report = ctx.draw_all(&which, args.quick, &Bar(bar.clone()));
     bar.finish_and_clear();
-    let seconds = start.elapsed().as_secs_f64();
-    let report = FiguresReport {
-        out: ctx.out.clone(),
-        quick: args.quick,
-        impact: ctx.impact.as_str().to_owned(),
-        seconds,
-        figures: done,
-        failed,
-    };
-    let text = if args.model.json {
-        format!(
-            "{}\n",
-            serde_json::to_string(&report).map_err(|e| CommandError::Failed(e.into()))?
-        )
-    } else {
-        human(&report)
-    };
-    let mut stdout = std::io::stdout().lock();
-    if let Err(e) = stdout.write_all(text.as_bytes()) {
-        if e.kind() != std::io::ErrorKind::BrokenPipe {
-            return Err(CommandError::Failed(anyhow!("cannot write to stdout: {e}")));
-        }
-    }
+    // The whole command's wall time, as before the drawing moved into the library.
+    report.seconds = start.elapsed().as_secs_f64();
+    emit(args.model.json, &report, || human(&report))?;
     if report.failed.is_empty() {
         Ok(())
     } else {
@@ -156,6 +87,21 @@ fn prepare_out(out: &Path) -> Result<PathBuf, CommandError> {
         ))
     })?;
     Ok(out.to_path_buf())
+}
+
+/// The figures' progress as one bar with the figure's id for its message.
+struct Bar(indicatif::ProgressBar);
+
+impl FiguresProgress for Bar {
+    fn figure(&self, id: &str) {
+        self.0.set_message(format!("fig{id}"));
+    }
+    fn tick(&self) {
+        self.0.inc(1);
+    }
+    fn reached(&self, units: u64) {
+        self.0.set_position(units);
+    }
 }
 
 fn progress(len: u64, json: bool) -> indicatif::ProgressBar {

@@ -24,6 +24,7 @@ mod fig6;
 mod fig7;
 mod fig8;
 mod fig8bc;
+mod report;
 mod style;
 
 pub use fig4::{Fig4Curve, Fig4Summary};
@@ -32,6 +33,7 @@ pub use fig6::Fig6Summary;
 pub use fig7::{Fig7Run, Fig7Summary};
 pub use fig8::Fig8Summary;
 pub use fig8bc::{Fig8bSummary, Fig8cSummary};
+pub use report::{FigureReport, FiguresProgress, FiguresReport};
 
 use crate::plot::register_fonts;
 use anyhow::{anyhow, Context, Result};
