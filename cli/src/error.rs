@@ -6,7 +6,9 @@ use tilting_planner::jobs::JobError;
 use tilting_planner::margins::{InvalidSurvey, SurveyError};
 use tilting_planner::node::NodeError;
 use tilting_planner::shard::ShardError;
+use tilting_plant::ConfigError;
 use tilting_record::ReadError;
+use tilting_sim::ScenarioError;
 
 /// The error of a command, sorted by exit code.
 #[derive(Debug)]
@@ -83,6 +85,20 @@ impl From<SurveyError> for CommandError {
     /// A survey that could not run (no nominal orbit): a failure.
     fn from(e: SurveyError) -> Self {
         CommandError::Failed(e.into())
+    }
+}
+
+impl From<ConfigError> for CommandError {
+    /// A parameter file that cannot be read or is out of range: a usage error.
+    fn from(e: ConfigError) -> Self {
+        CommandError::Usage(e.into())
+    }
+}
+
+impl From<ScenarioError> for CommandError {
+    /// An invalid scenario (its file, a flag or a parameter out of range): a usage error.
+    fn from(e: ScenarioError) -> Self {
+        CommandError::Usage(e.into())
     }
 }
 

@@ -119,10 +119,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
     };
     opts.validate().map_err(CommandError::Usage)?;
     let (out, gif) = output(args)?;
-    let sc = args
-        .scenario
-        .load()
-        .map_err(|e| CommandError::Usage(e.into()))?;
+    let sc = args.scenario.load()?;
     // The trajectory: a live run's files, or a simulation.
     let trace = match &args.from {
         Some(from) => {
@@ -144,8 +141,7 @@ pub fn run(args: &AnimateArgs) -> Result<(), CommandError> {
                     log_measurements: false,
                 },
                 args.json,
-            )
-            .map_err(|e| CommandError::Usage(e.into()))?;
+            )?;
             if let Some(f) = &r.fault {
                 eprintln!("warning: the simulation stopped early: {f}");
             }

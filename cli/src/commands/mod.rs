@@ -46,10 +46,7 @@ impl ModelArgs {
     /// The parameters of `--params`, or the paper's, with the landing law of `--impact` when
     /// given (it overrides the file's `impact`).
     pub fn params(&self) -> Result<Params, CommandError> {
-        let p = self
-            .params
-            .params()
-            .map_err(|e| CommandError::Usage(e.into()))?;
+        let p = self.params.params()?;
         Ok(p.with_impact(p.impact_or(self.impact)))
     }
 }

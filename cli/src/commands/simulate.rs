@@ -59,14 +59,12 @@ pub fn run(args: &SimulateArgs) -> Result<(), CommandError> {
         .prepare(args.plot.is_some())
         .map_err(|e| CommandError::Usage(anyhow::anyhow!(e)))?;
     let report = match &args.record {
-        None => super::simulate_with_bar(&sc, opts, args.json)
-            .map_err(|e| CommandError::Usage(e.into()))?,
+        None => super::simulate_with_bar(&sc, opts, args.json)?,
         Some(path) => {
             tilting_proto::Keys::new(&args.robot).map_err(|e| {
                 CommandError::Usage(anyhow::anyhow!("invalid `--robot` = {:?}: {e}", args.robot))
             })?;
-            let (report, logged) = tilting_sim::recording::simulate_logged(&sc, opts, &mut |_| {})
-                .map_err(|e| CommandError::Usage(e.into()))?;
+            let (report, logged) = tilting_sim::recording::simulate_logged(&sc, opts, &mut |_| {})?;
             tilting_sim::recording::write_mcap(path, &args.robot, &logged).map_err(|e| {
                 CommandError::Failed(anyhow::anyhow!("cannot write {}: {e}", path.display()))
             })?;
