@@ -337,24 +337,17 @@ fn write_landing(params: &mut Params, l: &landing::LandingFit, warnings: &mut Ve
     }
 }
 
-/// Identifies the robot of `trace`, with `tau[k]` the torque (N m) held over sample `k`'s
-/// interval (`None` where unknown).
-pub fn identify(
+/// The equations of `trace` ([`build_rows`]), with the contact's settling at landings and
+/// lift-offs left out: `opts.settle`, or measured from the plate's equations (their residual
+/// against the distance from the mode change); and the warning that says what was left out.
+fn rows_settled(
     trace: &Trace,
     tau: &[Option<f64>],
     opts: &Options,
-) -> Result<Identification, IdentifyError> {
+) -> (rows::Rows, Vec<Option<[f64; 4]>>, f64, Option<String>) {
     let p = &opts.base;
-    if tau.len() != trace.samples.len() {
-        return Err(IdentifyError::Mismatch {
-            samples: trace.samples.len(),
-            torques: tau.len(),
-        });
-    }
     let h = sample_spacing(trace);
     let (mut r, mut states, corr) = build_rows(trace, tau, opts, 0);
-    // The contact's settling at landings and lift-offs: given, or measured from the plate's
-    // equations (their residual against the distance from the mode change).
     let settle = match opts.settle {
         Some(s) => (s / h).round() as usize,
         None => measure_settle(&r, p.i_f),
@@ -382,6 +375,11 @@ pub fn identify(
             before.0
         ));
     }
+    (r, states, corr, settle_note)
+}
+
+/// Refuses equations too few or too short for the fit, or without a torque in any of them.
+fn check_rows(trace: &Trace, r: &rows::Rows, opts: &Options) -> Result<(), IdentifyError> {
     let used = r.flat + r.tilted;
     let intervals = used + r.skipped;
     let span =
@@ -403,8 +401,23 @@ pub fn identify(
             equations: r.y.len(),
         });
     }
-    let merge35 = r.tilted == 0;
-    let mut out = unseen_in(&r, merge35);
+    Ok(())
+}
+
+/// [`fit_columns`]' answer: the fit, its columns, why each base parameter is left out, and
+/// whether column 2 is a lumped `pi3 + pi5`.
+type Fitted = (Fit, Vec<usize>, Vec<Option<String>>, bool);
+
+/// The least squares over the columns the recording shows: `out[i]` says why base parameter
+/// `i` is left out (`None`: estimated). Returns the fit, its columns, `out`, and whether
+/// column 2 is a lumped `pi3 + pi5` (flat motion only, or the rotor's share lumped).
+fn fit_columns(
+    r: &rows::Rows,
+    merge35: bool,
+    corr: f64,
+    i_f_prior: f64,
+) -> Result<Fitted, IdentifyError> {
+    let mut out = unseen_in(r, merge35);
     // Active columns: a merged pi3 + pi5 is column 2 (the flat rows have equal columns).
     let active = |out: &[Option<String>]| -> (Vec<usize>, Vec<String>) {
         let cols: Vec<usize> = (0..N_BASE)
@@ -424,7 +437,6 @@ pub fn identify(
     // parameters (the direction pi3 + 1, pi4 - 1, pi5 - 1, pi8 - 1 moves no row). So the
     // first fit holds i_f at the prior's (its term moved to the right-hand side) and i_f gets
     // its column only where the rotor's share is lumped ([`plate_inertia_column`]).
-    let i_f_prior = p.i_f;
     if out[7].is_none() {
         out[7] = Some(format!(
             "with the rotor's share (pi4, pi5) seen, i_f is not separable from it: the \
@@ -433,7 +445,7 @@ pub fn identify(
         ));
     }
     let (mut cols, names) = active(&out);
-    let mut fit = solve(&r, &cols, &names, i_f_prior)?;
+    let mut fit = solve(r, &cols, &names, i_f_prior)?;
     // The rotor's share (pi4, pi5) is a fraction of a percent of the arm's inertia: under
     // sensor noise it may not be told from zero. Then it is left out (lumped into pi3, as for
     // a direct drive) rather than let its noise spill into pi1 and pi3; what column 2 then
@@ -449,20 +461,41 @@ pub fn identify(
     if lumped {
         out[7] = None;
         let (c, n) = active(&out);
-        fit = solve(&r, &c, &n, i_f_prior)?;
+        fit = solve(r, &c, &n, i_f_prior)?;
         cols = c;
     }
     // The plate's inertia: left out (the prior's kept) when the tilts do not show it.
     if let Some(why) = plate_inertia_unseen(&fit, &cols, corr) {
         out[7] = Some(why);
         let (c, n) = active(&out);
-        fit = solve(&r, &c, &n, i_f_prior)?;
+        fit = solve(r, &c, &n, i_f_prior)?;
         cols = c;
     }
     let lump = merge35 || lumped;
     if lumped {
         out[2] = Some(ROTOR_LUMPED.into());
     }
+    Ok((fit, cols, out, lump))
+}
+
+/// Identifies the robot of `trace`, with `tau[k]` the torque (N m) held over sample `k`'s
+/// interval (`None` where unknown).
+pub fn identify(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    opts: &Options,
+) -> Result<Identification, IdentifyError> {
+    let p = &opts.base;
+    if tau.len() != trace.samples.len() {
+        return Err(IdentifyError::Mismatch {
+            samples: trace.samples.len(),
+            torques: tau.len(),
+        });
+    }
+    let (r, states, corr, settle_note) = rows_settled(trace, tau, opts);
+    check_rows(trace, &r, opts)?;
+    let merge35 = r.tilted == 0;
+    let (fit, cols, out, lump) = fit_columns(&r, merge35, corr, p.i_f)?;
     let mut value = [None; N_BASE];
     let mut se = [None; N_BASE];
     for (j, &c) in cols.iter().enumerate() {
@@ -480,15 +513,7 @@ pub fn identify(
     let mut warnings = Vec::new();
     warnings.extend(settle_note);
     warnings.extend(refinement.as_ref().and_then(not_converged));
-    // The torque rows' RMS (N m): a friction below FRICTION_FLOOR of it is zero to any torque
-    // sensor.
-    let torques: Vec<f64> = r.rhs.iter().copied().filter(|t| *t != 0.0).collect();
-    let rms_tau = (torques.iter().map(|t| t * t).sum::<f64>() / torques.len().max(1) as f64).sqrt();
-    let noise = fit.residual_rms.max(FRICTION_FLOOR * rms_tau);
-    // b_v's regressor is the joint's rate (rad/s): its RMS over the rows that carry it turns
-    // b_v into the torque it makes in this recording.
-    let rates: Vec<f64> = r.y.iter().map(|y| y[5]).filter(|v| *v != 0.0).collect();
-    let rms_rate = (rates.iter().map(|v| v * v).sum::<f64>() / rates.len().max(1) as f64).sqrt();
+    let (noise, rms_rate) = friction_scales(&r, fit.residual_rms);
     let friction = check_friction(&value, &se, noise, rms_rate, &mut warnings)?;
     let (mut params, not_identifiable) =
         derive::params(p, &value, sum35.map(|s| s.0), friction, &mut warnings);
@@ -825,6 +850,17 @@ pub const FRICTION_ZERO_IN_SE: f64 = 2.0;
 /// excitation without friction gave tau_c = -8.8e-5 N m, our plant's orbit -4.5e-7 N m at 4.5
 /// standard errors).
 pub const FRICTION_FLOOR: f64 = 1e-4;
+
+/// The scales [`check_friction`] judges a friction by: the noise (N m, the residual RMS or
+/// [`FRICTION_FLOOR`] of the torque rows' RMS: a friction below it is zero to any torque
+/// sensor) and the RMS of the joint's rate over the rows (rad/s: b_v's regressor, which turns
+/// b_v into the torque it makes in this recording).
+fn friction_scales(r: &rows::Rows, residual_rms: f64) -> (f64, f64) {
+    let rms = |v: Vec<f64>| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    let rms_tau = rms(r.rhs.iter().copied().filter(|t| *t != 0.0).collect());
+    let rms_rate = rms(r.y.iter().map(|y| y[5]).filter(|v| *v != 0.0).collect());
+    (residual_rms.max(FRICTION_FLOOR * rms_tau), rms_rate)
+}
 
 /// The friction estimates `(b_v, tau_c)`, clamped to 0 when negative within their noise;
 /// refused when clearly negative, naming the field and the value.
