@@ -471,6 +471,13 @@ pub struct OrbitReport {
     pub energy_avg_adaptation: Option<f64>,
     /// The orbits found, by increasing maximal tilt.
     pub solutions: Vec<OrbitSolution>,
+    /// With `--peak`: how steep the orbit's peak is in the robot's arm mass,
+    /// `d ln(peak) / d ln(m_l)` with the controller's model kept
+    /// ([`crate::peak::arm_mass_sensitivity`]); `None` (left out of the JSON) otherwise, or
+    /// where a neighbouring orbit was not found. -28 means a 1 % heavier arm than the model
+    /// lowers the peak by about 28 %.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak_per_arm_mass: Option<f64>,
 }
 
 /// The periodic orbits of the loop with gains `kp` (1/s^2), `kd` (1/s) and adaptation gain `k`
@@ -523,6 +530,7 @@ pub fn orbits(
         k,
         energy_avg_adaptation: e_av,
         solutions,
+        peak_per_arm_mass: None,
     })
 }
 
@@ -558,6 +566,10 @@ pub fn orbit_for_peak(
         kd,
         k,
         energy_avg_adaptation: Some(found.energy_avg_adaptation),
+        peak_per_arm_mass: crate::peak::arm_mass_sensitivity(
+            &pb.with_adaptation(k, found.energy_avg_adaptation),
+            &found.orbit,
+        ),
         solutions: vec![found.orbit],
     })
 }
