@@ -515,10 +515,18 @@ fn pyzeros_sees_and_commands_the_plant_over_rmw_zenoh() {
     let robot = robot("pyzeros");
     let port = free_port();
     let (seconds, commands) = (8.0, 40u64);
+    // The plant stands flat with the arm upright at rest, where pyzeros's 0 N m commands are
+    // harmless: started on the paper's orbit (the default), the safe mode was still landing
+    // the plate when the first command came (0.69 s after the start on a loaded machine), and
+    // 0 N m on a tilted plate lost the contact (a fault that ended the run).
     let flags = plant_args(
         &robot,
         port,
         &[
+            "--mode",
+            "flat",
+            "--x0",
+            "0,1.5707963267948966,0,0",
             "--no-wait",
             "--duration",
             "12",
