@@ -348,12 +348,14 @@ fn rows_settled(
     let p = &opts.base;
     let h = sample_spacing(trace);
     let (mut r, mut states, corr) = build_rows(trace, tau, opts, 0);
-    let settle = match opts.settle {
-        Some(s) => (s / h).round() as usize,
-        None => measure_settle(&r, p.i_f),
+    // Only the angles' rows are cut (the recorded velocities' are not): measure only there.
+    let settle = match (opts.velocities, opts.settle) {
+        (Velocities::Recorded, _) => 0,
+        (Velocities::Angles, Some(s)) => (s / h).round() as usize,
+        (Velocities::Angles, None) => measure_settle(&r, p.i_f),
     };
     let mut settle_note = None;
-    if settle > 0 && opts.velocities == Velocities::Angles {
+    if settle > 0 {
         let before = (r.plate.iter().filter(|p| **p).count(), r.y.len());
         (r, states, _) = build_rows(trace, tau, opts, settle);
         let after = r.plate.iter().filter(|p| **p).count();
