@@ -373,13 +373,10 @@ fn adapted_peaks_on(
     peaks.0
 }
 
-#[test]
-fn the_peaks_steepness_in_the_arm_mass_is_what_the_simulator_gives() {
-    use tilting_planner::peak::{arm_mass_sensitivity, energy_for_peak, PeakSearch, ARM_MASS_STEP};
-    // The physical law's 0.018 rad orbit of the paper's gains: the shooting's
-    // d ln(peak) / d ln(m_l) against the same central difference of the settled peaks of the
-    // hybrid simulator (time integration with event location, not the shooting), the robot's
-    // arm ARM_MASS_STEP heavier and lighter than the law's model.
+/// The paper's robot with the physical law, its loop with the paper's gains (`k` = 500, `E_av`
+/// 0 until found), and the adapted loop's orbit with peak 0.018 rad.
+fn physical_0018() -> (Params, OrbitProblem, tilting_planner::peak::PeakOrbit) {
+    use tilting_planner::peak::{energy_for_peak, PeakSearch};
     let params = Params {
         impact: ImpactLaw::Physical,
         ..Params::default()
@@ -387,6 +384,17 @@ fn the_peaks_steepness_in_the_arm_mass_is_what_the_simulator_gives() {
     let pb =
         OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
     let found = energy_for_peak(&pb, &PeakSearch::new(0.018), &|_| {}).unwrap();
+    (params, pb, found)
+}
+
+#[test]
+fn the_peaks_steepness_in_the_arm_mass_is_what_the_simulator_gives() {
+    use tilting_planner::peak::{arm_mass_sensitivity, ARM_MASS_STEP};
+    // The physical law's 0.018 rad orbit of the paper's gains: the shooting's
+    // d ln(peak) / d ln(m_l) against the same central difference of the settled peaks of the
+    // hybrid simulator (time integration with event location, not the shooting), the robot's
+    // arm ARM_MASS_STEP heavier and lighter than the law's model.
+    let (params, pb, found) = physical_0018();
     let e_av = found.energy_avg_adaptation;
     let s = arm_mass_sensitivity(&pb.with_adaptation(500.0, e_av), &found.orbit).unwrap();
     let settled = |scale: f64| {
@@ -415,12 +423,7 @@ fn the_energy_for_a_peak_gives_that_peak_in_a_closed_loop_simulation() {
     // The physical law (the plate lands plastically, p_beta kept): the paper's k = 0 orbit
     // does not exist, the family of the adapted loop is found from a scan of E_av. The
     // simulated loop, started from the paper's orbit (not this one), settles on the peak.
-    let params = Params {
-        impact: ImpactLaw::Physical,
-        ..Params::default()
-    };
-    let pb =
-        OrbitProblem::new(params, ImpactLaw::Physical, 100.0, 14.14).with_adaptation(500.0, 0.0);
+    let (params, _, found) = physical_0018();
     assert!(orbit::find_all(&OrbitProblem::new(
         params,
         ImpactLaw::Physical,
@@ -428,7 +431,6 @@ fn the_energy_for_a_peak_gives_that_peak_in_a_closed_loop_simulation() {
         14.14
     ))
     .is_empty());
-    let found = energy_for_peak(&pb, &PeakSearch::new(0.018), &|_| {}).unwrap();
     assert!(
         (found.orbit.max_tilt - 0.018).abs() < 1e-9,
         "{:?}",
