@@ -403,8 +403,8 @@ fn secant(
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "reach", rename_all = "snake_case")]
 pub enum Reach {
-    /// An orbit with the peak: its `E_av` (J), whether it is stable and its largest Floquet
-    /// multiplier's modulus.
+    /// An orbit with the peak: its `E_av` (J), whether it is stable, its largest Floquet
+    /// multiplier's modulus and how steep its peak is in the arm's mass.
     Reached {
         /// `E_av` (J).
         energy_avg: f64,
@@ -412,6 +412,11 @@ pub enum Reach {
         stable: bool,
         /// The largest multiplier's modulus.
         rho: f64,
+        /// `d ln(peak) / d ln(m_l)` ([`arm_mass_sensitivity`]): how far a model error of the
+        /// arm's mass moves the peak; rank stable cells by it (smaller magnitude holds a band
+        /// better). `None` when a neighbouring orbit is not found (the cell is at a fold).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        peak_per_arm_mass: Option<f64>,
     },
     /// The family turns back below the peak: the largest peak it reaches (rad).
     Below {
@@ -462,6 +467,10 @@ pub fn reach_map(
             p.control.law.kd = kd;
             let reach = match energy_for_peak(&p, &PeakSearch::new(peak), &|_| {}) {
                 Ok(f) => Reach::Reached {
+                    peak_per_arm_mass: arm_mass_sensitivity(
+                        &p.with_adaptation(k, f.energy_avg_adaptation),
+                        &f.orbit,
+                    ),
                     energy_avg: f.energy_avg_adaptation,
                     stable: f.orbit.stable,
                     rho: f

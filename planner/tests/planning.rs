@@ -513,12 +513,17 @@ fn the_reach_maps_stable_and_unstable_cells_are_what_the_simulated_loop_does() {
             energy_avg,
             stable,
             rho,
+            peak_per_arm_mass,
         } = c.reach
         else {
             panic!("{c:?}");
         };
         assert_eq!(stable, want_stable, "{c:?}");
         assert_eq!(rho < 1.0, stable);
+        // Away from a fold both neighbouring orbits exist, and a heavier arm under the same
+        // law tilts less (the simulator checks the figure itself in the test above).
+        let s = peak_per_arm_mass.expect("both neighbours of the cell's orbit");
+        assert!(s < 0.0 && s.is_finite(), "{c:?}");
         let o = orbit::find_all(&pb.with_adaptation(c.k, energy_avg))
             .into_iter()
             .find(|o| (o.max_tilt - 0.04).abs() < 1e-8)

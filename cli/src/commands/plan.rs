@@ -233,9 +233,12 @@ pub fn reach(args: &ReachArgs) -> Result<(), CommandError> {
                     energy_avg,
                     stable,
                     rho,
+                    peak_per_arm_mass,
                 } => format!(
-                    "reached at E_av = {energy_avg:.9} J, {} (largest |multiplier| {rho:.3})",
-                    if stable { "stable" } else { "unstable" }
+                    "reached at E_av = {energy_avg:.9} J, {} (largest |multiplier| {rho:.3}; \
+                     peak per arm mass {})",
+                    if stable { "stable" } else { "unstable" },
+                    peak_per_arm_mass.map_or("at a fold".into(), |s| format!("{s:.1}"))
                 ),
                 Reach::Below { largest } => format!("not reached: at most {largest:.5} rad"),
                 Reach::Above { smallest } => format!("not reached: at least {smallest:.5} rad"),
