@@ -478,6 +478,13 @@ pub struct OrbitReport {
     /// lowers the peak by about 28 %.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_per_arm_mass: Option<f64>,
+    /// With `--peak` and a control period (`--control-period`) or a robot whose landings are
+    /// not plastic (`restitution != 0`): the loop as the hybrid simulator runs it, sampled and
+    /// with those landings, and the `E_av` at which its mean peak is the wanted one (that `E_av`
+    /// is then `energy_avg_adaptation`; the orbit in `solutions` stays the shooting's, of the
+    /// continuous loop with plastic landings). `None` (left out of the JSON) otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub settled: Option<crate::peak::SettledPeak>,
 }
 
 /// The periodic orbits of the loop with gains `kp` (1/s^2), `kd` (1/s) and adaptation gain `k`
@@ -531,6 +538,7 @@ pub fn orbits(
         energy_avg_adaptation: e_av,
         solutions,
         peak_per_arm_mass: None,
+        settled: None,
     })
 }
 
@@ -538,11 +546,17 @@ pub fn orbits(
 /// [`crate::peak::energy_for_peak`] for the gains `kp` (1/s^2), `kd` (1/s) and `k > 0`
 /// (1/(J s^2)). Reported as [`orbits`] reports, with the one orbit and its `E_av`; a peak the
 /// family does not reach is refused naming the largest (or smallest) one it does.
+///
+/// The shooting plans the continuous loop with plastic landings. With `control_period` (s, 0
+/// for continuous; the robot's sampling) or a robot whose `restitution` is not 0, `E_av` is
+/// then refined by simulating the loop as the robot runs it
+/// ([`crate::peak::settle_energy_for_peak`], in [`OrbitReport::settled`]).
 pub fn orbit_for_peak(
     params: Params,
     impact: ImpactLaw,
     [kp, kd, k]: [f64; 3],
     peak: f64,
+    control_period: Option<f64>,
     tick: &dyn Fn(&str),
 ) -> Result<OrbitReport, JobError> {
     check("kp", kp, kp > 0.0, "finite and > 0")?;
@@ -554,23 +568,57 @@ pub fn orbit_for_peak(
         "finite and > 0 (the peak is set through E_av)",
     )?;
     check_peak(peak)?;
-    check_plastic(&params)?;
-    let pb = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
+    if let Some(dt) = control_period {
+        check(
+            "control-period",
+            dt,
+            (0.0..=0.1).contains(&dt),
+            "finite, >= 0 and <= 0.1 (s; 0 for a continuous law)",
+        )?;
+    }
+    let plastic = Params {
+        restitution: 0.0,
+        ..params
+    };
+    let pb = OrbitProblem::new(plastic, impact, kp, kd).with_adaptation(k, 0.0);
     let found = crate::peak::energy_for_peak(&pb, &crate::peak::PeakSearch::new(peak), tick)
         .map_err(|e| match e {
             crate::peak::PeakError::NoOrbit { .. } => JobError::Failed(e.to_string()),
             _ => JobError::Invalid(e.to_string()),
         })?;
+    let settled = if control_period.is_some() || params.restitution != 0.0 {
+        let robot = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
+        let x0 = OrbitProblem::start(found.orbit.beta0, found.orbit.beta_dot0);
+        Some(
+            crate::peak::settle_energy_for_peak(
+                &robot,
+                &x0,
+                found.energy_avg_adaptation,
+                peak,
+                control_period.unwrap_or(0.0),
+                found.orbit.period,
+                tick,
+            )
+            .map_err(JobError::Failed)?,
+        )
+    } else {
+        None
+    };
     Ok(OrbitReport {
         kp,
         kd,
         k,
-        energy_avg_adaptation: Some(found.energy_avg_adaptation),
+        energy_avg_adaptation: Some(
+            settled
+                .as_ref()
+                .map_or(found.energy_avg_adaptation, |s| s.energy_avg),
+        ),
         peak_per_arm_mass: crate::peak::arm_mass_sensitivity(
             &pb.with_adaptation(k, found.energy_avg_adaptation),
             &found.orbit,
         ),
         solutions: vec![found.orbit],
+        settled,
     })
 }
 

@@ -489,3 +489,157 @@ pub fn reach_map(
         })
         .collect()
 }
+
+/// What the hybrid simulator's adapted loop settles at, with the robot's own landing law and
+/// control period ([`settle_energy_for_peak`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SettledPeak {
+    /// The control period simulated (s): the torque held between samples (zero-order hold);
+    /// 0: the law evaluated continuously.
+    pub control_period: f64,
+    /// The landings' restitution simulated (1): `> 0` rebounds, `< 0` pass-throughs.
+    pub restitution: f64,
+    /// `E_av` (J) at which the settled peaks' mean is the wanted peak.
+    pub energy_avg: f64,
+    /// Mean |peak| of the settled tilts (rad).
+    pub peak_mean: f64,
+    /// Smallest |peak| of the settled tilts (rad).
+    pub peak_min: f64,
+    /// Largest |peak| of the settled tilts (rad).
+    pub peak_max: f64,
+    /// Mean time from a tilt to the next of the same side (s).
+    pub period: f64,
+    /// Tilts averaged, after [`SETTLE_TILTS`] left out.
+    pub tilts: usize,
+    /// Simulations run by the secant.
+    pub runs: usize,
+}
+
+/// Tilts a simulated run leaves out before averaging its peaks (the start's transient: the
+/// largest multiplier of a stable orbit of the maps here is below 0.9, 0.9^30 = 0.04).
+pub const SETTLE_TILTS: usize = 30;
+/// Tilts a simulated run averages.
+pub const AVERAGE_TILTS: usize = 20;
+/// The secant stops when the mean settled peak is this close to the wanted one (relative).
+pub const SETTLE_TOL: f64 = 1e-3;
+/// The most simulations of the secant.
+const MAX_RUNS: usize = 12;
+
+/// Records the tilts' peaks `(t, alpha)`.
+#[derive(Default)]
+struct TiltPeaks(Vec<(f64, f64)>);
+impl tilting_plant::Observer for TiltPeaks {
+    fn tilt_peak(&mut self, p: &tilting_plant::TiltPeak) {
+        self.0.push((p.t, p.alpha));
+    }
+}
+
+/// The loop `pb` (its gains and `k`; `E_av = energy_avg`, J) run by the hybrid simulator from
+/// the left-tilt start `x0` for `t_run` s, its torque sampled every `dt` s
+/// ([`tilting_sim::closed_loop::run_sampled`], the loop a lockstep plant node runs) or, with
+/// `dt = 0`, evaluated continuously: `(mean, min, max |peak| (rad), period (s))` of the
+/// [`AVERAGE_TILTS`] tilts after the first [`SETTLE_TILTS`].
+fn settled(
+    pb: &OrbitProblem,
+    x0: &tilting_plant::State,
+    energy_avg: f64,
+    dt: f64,
+    t_run: f64,
+) -> Result<(f64, f64, f64, f64), String> {
+    use tilting_plant::{Mode, Plant, SimConfig};
+    let law = pb.with_adaptation(pb.control.law.k, energy_avg).law();
+    let cfg = SimConfig {
+        params: pb.params,
+        impact: pb.impact,
+        ..SimConfig::default()
+    };
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, *x0).map_err(|e| e.to_string())?;
+    let mut obs = TiltPeaks::default();
+    if dt > 0.0 {
+        tilting_sim::closed_loop::run_sampled(&mut plant, &law, dt, t_run, &mut obs, &mut |_| {}).0
+    } else {
+        plant.advance_continuous(&law, t_run, &mut obs)
+    }
+    .map_err(|e| format!("{e} (E_av = {energy_avg} J)"))?;
+    let want = SETTLE_TILTS + AVERAGE_TILTS;
+    if obs.0.len() < want {
+        return Err(format!(
+            "the loop tilted {} times in {t_run:.1} s, not {want}: it does not keep the orbit \
+             (E_av = {energy_avg} J)",
+            obs.0.len()
+        ));
+    }
+    let last = &obs.0[SETTLE_TILTS..want];
+    let peaks: Vec<f64> = last.iter().map(|p| p.1.abs()).collect();
+    let mean = peaks.iter().sum::<f64>() / peaks.len() as f64;
+    let (lo, hi) = peaks.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &p| {
+        (lo.min(p), hi.max(p))
+    });
+    let period = (last[last.len() - 1].0 - last[0].0) / (last.len() - 1) as f64 * 2.0;
+    Ok((mean, lo, hi, period))
+}
+
+/// Refines the `E_av` (J) of a planned orbit so that the loop the robot runs, simulated by the
+/// hybrid simulator with the robot's own landings (`pb.params.restitution`, which the shooting
+/// does not plan: it plans plastic landings) and its control period `dt` (s, 0: continuous),
+/// settles with a mean peak of `peak` (rad): the secant method on `E_av` from `energy_avg`
+/// (the plan's), each step one run from the orbit's start `x0` ([`SETTLE_TILTS`] tilts left
+/// out, [`AVERAGE_TILTS`] averaged), to [`SETTLE_TOL`]. `tick` after each run. The sampled
+/// loop's peaks scatter about their mean (a quasi-periodic motion of the zero-order hold):
+/// `peak_min` and `peak_max` say how far.
+pub fn settle_energy_for_peak(
+    pb: &OrbitProblem,
+    x0: &tilting_plant::State,
+    energy_avg: f64,
+    peak: f64,
+    dt: f64,
+    orbit_period: f64,
+    tick: &dyn Fn(&str),
+) -> Result<SettledPeak, String> {
+    // Long enough for the tilts wanted, with room for a loop slower than planned.
+    let t_run = 1.5 * orbit_period * (SETTLE_TILTS + AVERAGE_TILTS) as f64 / 2.0 + 2.0;
+    let run = |e: f64, runs: &mut usize| {
+        *runs += 1;
+        tick(&format!(
+            "simulating the loop at E_av = {e:.6} J (run {runs})"
+        ));
+        settled(pb, x0, e, dt, t_run)
+    };
+    let mut runs = 0;
+    let (mut e0, mut r0) = (energy_avg, run(energy_avg, &mut runs)?);
+    // The peak grows with E_av near a stable orbit; a first step of 0.01 J moves it by a few %.
+    let (mut e1, mut r1) = (e0, r0);
+    if (r0.0 - peak).abs() > SETTLE_TOL * peak {
+        e1 = energy_avg + if r0.0 < peak { 0.01 } else { -0.01 };
+        r1 = run(e1, &mut runs)?;
+    }
+    while (r1.0 - peak).abs() > SETTLE_TOL * peak {
+        if runs >= MAX_RUNS {
+            return Err(format!(
+                "the simulated loop's mean peak did not reach {peak} rad within {MAX_RUNS} \
+                 runs (last: {:.6} rad at E_av = {e1:.6} J)",
+                r1.0
+            ));
+        }
+        let slope = (r1.0 - r0.0) / (e1 - e0);
+        let step = if slope.is_finite() && slope > 0.0 {
+            ((peak - r1.0) / slope).clamp(-0.2, 0.2)
+        } else {
+            0.01 * (peak - r1.0).signum()
+        };
+        (e0, r0) = (e1, r1);
+        e1 += step;
+        r1 = run(e1, &mut runs)?;
+    }
+    Ok(SettledPeak {
+        control_period: dt,
+        restitution: pb.params.restitution,
+        energy_avg: e1,
+        peak_mean: r1.0,
+        peak_min: r1.1,
+        peak_max: r1.2,
+        period: r1.3,
+        tilts: AVERAGE_TILTS,
+        runs,
+    })
+}

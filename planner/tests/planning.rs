@@ -546,3 +546,42 @@ fn the_reach_maps_stable_and_unstable_cells_are_what_the_simulated_loop_does() {
         }
     }
 }
+
+#[test]
+fn the_simulated_loop_settles_where_the_shooting_puts_the_orbit_and_moves_with_the_robot() {
+    use tilting_planner::peak::{settle_energy_for_peak, SETTLE_TOL};
+    // The physical law's 0.018 rad orbit of the paper's gains: the hybrid simulator (time
+    // integration with event location), run continuously with plastic landings from the
+    // orbit's start, settles at the shooting's peak with the shooting's E_av: one run, the
+    // peaks and the period the orbit's (it is stable, multipliers below 0.9: 30 tilts
+    // left out leave 1e-3 of any start error, the integration's own error is 1e-9).
+    let (params, pb, found) = physical_0018();
+    let e_av = found.energy_avg_adaptation;
+    let o = &found.orbit;
+    let x0 = OrbitProblem::start(o.beta0, o.beta_dot0);
+    let robot = pb.with_adaptation(500.0, 0.0);
+    let s = settle_energy_for_peak(&robot, &x0, e_av, 0.018, 0.0, o.period, &|_| {}).unwrap();
+    assert_eq!((s.runs, s.energy_avg), (1, e_av), "{s:?}");
+    for p in [s.peak_mean, s.peak_min, s.peak_max] {
+        assert!((p - 0.018).abs() < 1e-6, "{s:?}");
+    }
+    assert!(
+        (s.period - o.period).abs() < 1e-6 * o.period,
+        "{s:?} {}",
+        o.period
+    );
+    // A robot whose landings pass on into the next tilt (restitution -0.3) keeps less of the
+    // tilt at the same E_av, and the refinement finds the E_av at which its mean peak is
+    // 0.018 again, to the secant's tolerance.
+    let passing = OrbitProblem {
+        params: Params {
+            restitution: -0.3,
+            ..params
+        },
+        ..robot
+    };
+    let r = settle_energy_for_peak(&passing, &x0, e_av, 0.018, 0.0, o.period, &|_| {}).unwrap();
+    assert!(r.runs > 1, "{r:?}");
+    assert!((r.peak_mean - 0.018).abs() <= SETTLE_TOL * 0.018, "{r:?}");
+    assert_ne!(r.energy_avg, e_av);
+}

@@ -801,6 +801,13 @@ impl Plant {
                 self.extreme = None;
                 self.record_transition(from, x_after, obs)
             }
+            Landing::PassThrough(x_after) => {
+                // The touch, then the other tilt at the same instant, already turning.
+                let touch = State::new(0.0, x_after[1], 0.0, x_after[3]);
+                self.record_transition(Mode::Flat, touch, obs)?;
+                self.extreme = None;
+                self.record_transition(from.mirrored(), x_after, obs)
+            }
         }
     }
 

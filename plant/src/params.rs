@@ -91,9 +91,11 @@ pub struct Params {
     /// ([`ImpactLaw`]). A `--impact` flag, where a command takes one, overrides it.
     #[serde(skip_serializing_if = "is_paper")]
     pub impact: ImpactLaw,
-    /// The plate's coefficient of restitution `e` (1) at a landing, in `[0, 1)`: the striking
-    /// edge leaves the ground again with `e` times the rate it struck with. Only the
-    /// `physical` law rebounds; 0 (the default) is a plastic landing.
+    /// The plate's signed coefficient of restitution `e` (1) at a landing, in `(-1, 1)`:
+    /// `e > 0`, the striking edge leaves the ground again with `e` times the rate it struck
+    /// with (a rebound over the same edge); `e < 0`, the plate carries `|e|` of its rate on
+    /// over the striking edge into the other tilt (a pass-through, as a compliant contact's
+    /// landings do). Only the `physical` law uses it; 0 (the default) is a plastic landing.
     #[serde(skip_serializing_if = "is_zero")]
     pub restitution: f64,
 }
@@ -165,11 +167,11 @@ impl Params {
             non_negative(field, v)?;
         }
         let e = self.restitution;
-        if !(e.is_finite() && (0.0..1.0).contains(&e)) {
+        if !(e.is_finite() && e > -1.0 && e < 1.0) {
             return Err(ConfigError::OutOfRange {
                 field: "restitution",
                 value: format!("{e}"),
-                allowed: "finite, >= 0 and < 1",
+                allowed: "finite, > -1 and < 1 (> 0 a rebound, < 0 a pass-through)",
             });
         }
         if e != 0.0 && self.impact != ImpactLaw::Physical {

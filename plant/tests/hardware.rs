@@ -886,6 +886,22 @@ fn a_physical_landing_keeps_the_arms_momentum_about_the_joint() {
             );
             // The plate is at rest after a plastic landing.
             assert_eq!((xp[0], xp[2]), (0.0, 0.0));
+            // A pass-through (e < 0): the arm's momentum about the joint is the same in the
+            // other tilt, computed with that tilt's geometry (the joint moves with the plate
+            // about the new pivot).
+            let q = Params {
+                restitution: -0.4,
+                ..p
+            };
+            let tilting_plant::Landing::PassThrough(xq) = ImpactLaw::Physical.land(&q, from, &x)
+            else {
+                panic!("{from} {x:?}: no pass-through");
+            };
+            let h2 = arm_about_joint(from.mirrored(), &xq);
+            assert!(
+                (h2 - h0).abs() < 1e-12 * (1.0 + h0.abs()),
+                "{from}: {h0} -> {h2}"
+            );
         }
     }
 }
@@ -897,7 +913,7 @@ fn a_physical_landing_keeps_p_beta_and_loses_the_closed_form_energy() {
     // (1 - e^2) (M11 - M12^2 / M22) alpha_dot-^2 / 2 >= 0 (the Schur complement: M is
     // positive definite), never a gain.
     let mut rng = Rng(0xe1a5);
-    for e in [0.0, 0.3, 0.8] {
+    for e in [0.0, 0.3, 0.8, -0.3, -0.8] {
         let p = physical(e);
         for from in [Mode::Left, Mode::Right] {
             for _ in 0..100 {
@@ -905,21 +921,30 @@ fn a_physical_landing_keeps_p_beta_and_loses_the_closed_form_energy() {
                 let (to, xp) = match ImpactLaw::Physical.land(&p, from, &x) {
                     tilting_plant::Landing::Plastic(xp) => (Mode::Flat, xp),
                     tilting_plant::Landing::Rebound(xp) => (from, xp),
+                    tilting_plant::Landing::PassThrough(xp) => (from.mirrored(), xp),
                 };
-                // Above the threshold (2 f e |alpha_dot| >= 1 cm/s) every rebound happens.
-                assert_eq!(to == from, e * x[2].abs() >= 0.01, "e {e} {x:?}");
+                // Above the threshold (2 f |e alpha_dot| >= 1 cm/s) every rebound (e > 0) and
+                // every pass-through (e < 0) happens.
+                let leaves = (e * x[2]).abs() >= 0.01;
+                assert_eq!(to == from, e > 0.0 && leaves, "e {e} {x:?}");
+                assert_eq!(to == from.mirrored(), e < 0.0 && leaves, "e {e} {x:?}");
                 if to == from {
                     assert!(
                         (xp[2] + e * x[2]).abs() < 1e-15,
                         "alpha_dot+ = -e alpha_dot-"
                     );
                 }
+                if to == from.mirrored() {
+                    // The plate turns on into the other tilt: its alpha_dot keeps its sign
+                    // (alpha crosses 0 and leaves the ground on the other side).
+                    assert!(xp[2] * x[2] > 0.0, "e {e}: {x:?} -> {xp:?}");
+                }
                 let (b0, b1) = (p_beta(&p, from, &x), p_beta(&p, to, &xp));
                 assert!((b1 - b0).abs() < 1e-11 * (1.0 + b0.abs()), "e {e} {from}");
                 let t0 = kinetic(&p, from, x[0], x[1], x[2], x[3]);
                 let t1 = kinetic(&p, to, xp[0], xp[1], xp[2], xp[3]);
                 let (m11, m12, m22) = mass_matrix(&p, from, x[1]);
-                let e_eff = if to == from { e } else { 0.0 };
+                let e_eff = if to == Mode::Flat { 0.0 } else { e };
                 let lost = 0.5 * (1.0 - e_eff * e_eff) * (m11 - m12 * m12 / m22) * x[2] * x[2];
                 assert!(lost > 0.0);
                 assert!(
@@ -934,7 +959,7 @@ fn a_physical_landing_keeps_p_beta_and_loses_the_closed_form_energy() {
 #[test]
 fn the_physical_landing_is_mirror_symmetric() {
     let mut rng = Rng(0x5a11);
-    for e in [0.0, 0.5] {
+    for e in [0.0, 0.5, -0.5] {
         let p = physical(e);
         for _ in 0..100 {
             let x = striking(&mut rng, Mode::Left);
@@ -942,9 +967,11 @@ fn the_physical_landing_is_mirror_symmetric() {
                 ImpactLaw::Physical.land(&p, Mode::Left, &x),
                 ImpactLaw::Physical.land(&p, Mode::Right, &mirror(&x)),
             );
-            use tilting_plant::Landing::{Plastic, Rebound};
+            use tilting_plant::Landing::{PassThrough, Plastic, Rebound};
             let (xl, xr) = match (l, r) {
-                (Plastic(a), Plastic(b)) | (Rebound(a), Rebound(b)) => (a, b),
+                (Plastic(a), Plastic(b))
+                | (Rebound(a), Rebound(b))
+                | (PassThrough(a), PassThrough(b)) => (a, b),
                 other => panic!("the mirror lands differently: {other:?}"),
             };
             assert!((mirror(&xl) - xr).norm() < 1e-13, "{xl:?} vs {xr:?}");
@@ -1041,11 +1068,58 @@ fn a_rebounding_plate_tilts_again_over_the_same_edge_and_settles() {
 }
 
 #[test]
+fn a_passing_plate_tilts_on_over_the_striking_edge_and_settles() {
+    // The plate let go 0.05 rad tilted over its left edge, the arm held upright, the physical
+    // law with e = -0.5: each landing above the threshold is a touch (tilt -> Flat) and at the
+    // same instant a tilt over the other edge, alpha_dot+ = 0.5 sqrt(S_from / S_to)
+    // alpha_dot- (same sign: the plate turns on), p_beta kept; so the tilts alternate, each
+    // landing's rate half the one before (what the arm's reaction adds aside), until one
+    // lands plastically.
+    let p = physical(-0.5);
+    let cfg = SimConfig {
+        impact: ImpactLaw::Physical,
+        ..tight(p)
+    };
+    let x0 = State::new(0.05, FRAC_PI_2, 0.0, 0.0);
+    let mut plant = Plant::new(cfg, 0.0, Mode::Left, x0).unwrap();
+    let mut obs = Transitions::default();
+    plant
+        .advance_continuous(&Upright(p), 2.0, &mut obs)
+        .unwrap();
+    let ev = &obs.0;
+    let mut passed = Vec::new();
+    for (i, w) in ev.iter().enumerate().filter(|(_, w)| w.to == Mode::Flat) {
+        let before = w.x_before;
+        let next = ev
+            .get(i + 1)
+            .filter(|n| n.t == w.t && n.to == w.from.mirrored());
+        if let Some(n) = next.filter(|n| n.x_after[2] != 0.0) {
+            let after = n.x_after;
+            let (f11, f12, f22) = mass_matrix(&p, w.from, before[1]);
+            let (t11, t12, t22) = mass_matrix(&p, n.to, before[1]);
+            let k = ((f11 - f12 * f12 / f22) / (t11 - t12 * t12 / t22)).sqrt();
+            assert!(
+                (after[2] - 0.5 * k * before[2]).abs() < 1e-12,
+                "{before:?} -> {after:?}"
+            );
+            let (b0, b1) = (p_beta(&p, w.from, &before), p_beta(&p, n.to, &after));
+            assert!((b1 - b0).abs() < 1e-11 * (1.0 + b0.abs()));
+            passed.push(before[2].abs());
+        }
+    }
+    // Alternating edges, the landing rate shrinking: at least 3 pass-throughs, each slower
+    // than the one before.
+    assert!(passed.len() >= 3, "{ev:#?}");
+    assert!(passed.windows(2).all(|w| w[1] < w[0]), "{passed:?}");
+}
+
+#[test]
 fn bad_landing_values_are_refused_with_the_field_and_its_range() {
     for (text, field) in [
         ("i_f = -0.1", "i_f"),
         ("impact = \"physical\"\nrestitution = 1.0", "restitution"),
-        ("impact = \"physical\"\nrestitution = -0.1", "restitution"),
+        ("impact = \"physical\"\nrestitution = -1.0", "restitution"),
+        ("impact = \"physical\"\nrestitution = nan", "restitution"),
         ("restitution = 0.2", "restitution"),
         ("impact = \"bouncy\"", "impact"),
     ] {

@@ -43,6 +43,12 @@ pub struct OrbitArgs {
     /// (rad), for any landing law; k defaults to the paper's 500 [default: off]
     #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     pub peak: Option<f64>,
+    /// With --peak: refine E_av so the loop sampled every S seconds (the robot's control
+    /// period; 0 for a continuous law), simulated with the robot's own landings
+    /// (`restitution`), settles at the peak on average (a robot file with `restitution` other
+    /// than 0 is refined at 0 s when this is not given) [default: off]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub control_period: Option<f64>,
 }
 
 impl OrbitArgs {
@@ -76,7 +82,14 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
             let k = if law.k > 0.0 { law.k } else { ORBIT_K };
             let b = spinner(args.model.json);
             let tick = |what: &str| b.set_message(what.to_owned());
-            let r = jobs::orbit_for_peak(params, params.impact, [law.kp, law.kd, k], peak, &tick);
+            let r = jobs::orbit_for_peak(
+                params,
+                params.impact,
+                [law.kp, law.kd, k],
+                peak,
+                args.control_period,
+                &tick,
+            );
             b.finish_and_clear();
             r
         }
@@ -102,6 +115,21 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
                 "  adaptation E_av = {e:.9} J ({whose}): run it with --k {} \
                  --energy-avg {e:.9}\n",
                 law.k
+            );
+        }
+        if let Some(st) = &report.settled {
+            s += &format!(
+                "  simulated (control period {} s, restitution {}): E_av {:.9} J settles at a \
+                 mean peak of {:.6} rad (tilts {:.6} to {:.6}), period {:.6} s ({} runs); the \
+                 orbit below is the continuous loop's with plastic landings\n",
+                st.control_period,
+                st.restitution,
+                st.energy_avg,
+                st.peak_mean,
+                st.peak_min,
+                st.peak_max,
+                st.period,
+                st.runs
             );
         }
         for o in &report.solutions {
