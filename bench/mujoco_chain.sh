@@ -5,11 +5,12 @@
 #      (`live --reference excitation`, the arm's flat Fourier motion) and a tilting run
 #      (`live --orbit-peak 0.04`: the robust trim, which holds tilting on MuJoCo);
 #   2. identify from both (`identify exc tilt --params prior.toml --out robot.toml`; the prior
-#      is what a ruler and a scale give: l, f, m_l). While `identify` does not estimate the
-#      landing, `impact = "physical"` and the true `i_f` are appended to robot.toml (said in the
-#      table's notes);
-#   3. plan: `plan orbit --params robot.toml --peak 0.018 --json` (the paper's gains) -> E_av and
-#      the orbit's period;
+#      is what a ruler and a scale give: l, f, m_l, and the law a physical robot lands by,
+#      `impact = "physical"`, whose restitution identify estimates from the tilts after the
+#      landings: a pass-through, below 0, on MuJoCo);
+#   3. plan: `plan orbit --params robot.toml --peak 0.018 --control-period 0.001 --json` (the
+#      paper's gains; E_av refined for the loop sampled at 1 kHz with the robot's landings) ->
+#      E_av and the simulated loop's period;
 #   4. run live RUN_S s on MuJoCo over a 50 ms round trip (25 ms each way) with `--predict 0.05
 #      --max-age 100 --params robot.toml --energy-avg E_av`: the plain adapted law, and with
 #      `--orbit-peak 0.018`; for contrast the same two with the paper's law (robot.toml without
@@ -96,6 +97,8 @@ chain() {
     local cf
     cf=$(contact_flags "$contact") || { echo "$tag: FAILED at setup: unknown contact" >&2; return 1; }
     grep -E '^(m_l|l|f) ' "$d/true.toml" >"$d/prior.toml"
+    # The law a physical robot lands by: identify keeps it and estimates its restitution.
+    printf 'impact = "physical"\n' >>"$d/prior.toml"
     local plant="python3 -m tilting_mujoco $cf"
 
     if [ $reuse = 1 ]; then
@@ -159,11 +162,11 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
         grep '^i_f' "$d/true.toml" >>"$d/robot.toml"
         note="${note:+$note; }true i_f appended"
     fi
-    grep -v '^impact' "$d/robot.toml" >"$d/robot-paper.toml"
+    grep -Ev '^(impact|restitution)' "$d/robot.toml" >"$d/robot-paper.toml"
 
     say "3. plan orbit --peak $PEAK (paper's gains)"
     local peak=$PEAK
-    if ! "$T" plan orbit --params "$d/robot.toml" --peak "$peak" $PLAN_FLAGS --json >"$d/plan.json" 2>"$d/plan.err"; then
+    if ! "$T" plan orbit --params "$d/robot.toml" --peak "$peak" --control-period 0.001 $PLAN_FLAGS --json >"$d/plan.json" 2>"$d/plan.err"; then
         # The plate's inertia lowers the largest peak the paper's gains reach (0.0169 rad for
         # the paper's robot with i_f 0.08): then the chain goes on at PEAK_FALLBACK, said in
         # the notes, rather than with other gains.
@@ -173,14 +176,14 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
         say "3. plan refused $peak rad (largest $most rad); planning $PEAK_FALLBACK rad instead"
         note="${note:+$note; }$peak refused (largest $most), planned $PEAK_FALLBACK"
         peak=$PEAK_FALLBACK
-        "$T" plan orbit --params "$d/robot.toml" --peak "$peak" $PLAN_FLAGS --json >"$d/plan.json" 2>"$d/plan.err" ||
+        "$T" plan orbit --params "$d/robot.toml" --peak "$peak" --control-period 0.001 $PLAN_FLAGS --json >"$d/plan.json" 2>"$d/plan.err" ||
             { fail "3 plan orbit --peak $peak" "$d/plan.err"; return 1; }
     fi
     local e_av period
     read -r e_av period < <(python3 -c '
 import json, sys
 p = json.load(open(sys.argv[1]))
-s = p["solutions"][0]
+s = p.get("settled") or p["solutions"][0]
 print(repr(p["energy_avg_adaptation"]), repr(s["period"]), file=open(sys.argv[2], "w"))
 print(repr(p["energy_avg_adaptation"]), repr(s["period"]))' "$d/plan.json" "$d/plan.txt") ||
         { fail "3 plan orbit (reading its JSON)" "$d/plan.json"; return 1; }
@@ -201,7 +204,8 @@ runs_only() {
 import json, sys
 p = json.load(open(sys.argv[1]))
 s = p["solutions"][0]
-print(repr(p["energy_avg_adaptation"]), repr(s["period"]), round(s["max_tilt"], 6))' "$d/plan.json") ||
+period = (p.get("settled") or s)["period"]
+print(repr(p["energy_avg_adaptation"]), repr(period), round(s["max_tilt"], 6))' "$d/plan.json") ||
         { fail "4 (reading plan.json)" "$d/plan.json"; return 1; }
     local link=(--plant-cmd "python3 $HERE/delay_plant.py $plant --watchdog 100"
         --plant-params "$d/true.toml" --duration "$RUN_S" --delay 0.025 --predict 0.05

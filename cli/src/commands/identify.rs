@@ -335,6 +335,21 @@ fn landing_summary(s: &mut String, l: &identify::landing::LandingFit) {
         l.restitution,
         l.restitution_std_error
     );
+    if let Some(t) = &l.by_tilts {
+        let _ = writeln!(
+            s,
+            "  restitution by the tilts after the landings (the model's next peak as recorded): \
+             e = {:.4} +- {:.1e} over {} landings{}",
+            t.e,
+            t.std_error,
+            t.landings,
+            if t.e < 0.0 {
+                " (below 0: the plate passes on into the next tilt)"
+            } else {
+                ""
+            }
+        );
+    }
     for f in &l.laws {
         let _ = writeln!(
             s,

@@ -100,6 +100,11 @@ pub struct LandingFit {
     pub restitution_std_error: f64,
     /// Landings after which the plate tilted again over the same edge (rebounds).
     pub rebounds: usize,
+    /// The restitution that makes the model's next tilt as high as the recorded one
+    /// ([`restitution_by_tilts`]): how a compliant contact's landings act on the orbit, where
+    /// the landing's own instant is a few milliseconds of spring motion that no sample
+    /// resolves. `None` without a landing followed by a recorded tilt.
+    pub by_tilts: Option<TiltRestitution>,
     /// The three laws, paper, striking-edge, physical.
     pub laws: Vec<LawFit>,
     /// The law with the smallest residual.
@@ -120,13 +125,19 @@ impl LandingFit {
             .then_some(self.best)
     }
 
-    /// The restitution to write: the estimate in `[0, MAX_RESTITUTION]`, 0 when no landing
-    /// rebounded.
+    /// The restitution to write: with rebounds, the rows' estimate in `[0,
+    /// MAX_RESTITUTION]`; without, a pass-through the tilts show ([`LandingFit::by_tilts`],
+    /// below 0 by more than twice its standard error and [`MIN_PASS_THROUGH`]) in
+    /// `[-MAX_RESTITUTION, 0]`; otherwise 0.
     pub fn restitution_written(&self) -> f64 {
-        if self.rebounds == 0 || !self.restitution.is_finite() {
-            0.0
-        } else {
-            self.restitution.clamp(0.0, MAX_RESTITUTION)
+        if self.rebounds > 0 && self.restitution.is_finite() {
+            return self.restitution.clamp(0.0, MAX_RESTITUTION);
+        }
+        match &self.by_tilts {
+            Some(t) if t.e < -MIN_PASS_THROUGH && t.e + 2.0 * t.std_error < 0.0 => {
+                t.e.max(-MAX_RESTITUTION)
+            }
+            _ => 0.0,
         }
     }
 }
@@ -144,7 +155,136 @@ pub fn fit(trace: &Trace, tau: &[Option<f64>], p: &Params) -> Option<LandingFit>
             None => skipped += 1,
         }
     }
-    regress(landings, skipped, p)
+    let by_tilts = restitution_by_tilts(trace, tau, p, &landings);
+    let mut fit = regress(landings, skipped, p)?;
+    fit.by_tilts = by_tilts;
+    Some(fit)
+}
+
+/// A restitution estimated from the tilts that follow the landings ([`restitution_by_tilts`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TiltRestitution {
+    /// The mean of the landings' restitutions (1): below 0, the plate passes on into the next
+    /// tilt.
+    pub e: f64,
+    /// Its standard error (the landings' spread over the root of their number).
+    pub std_error: f64,
+    /// Landings whose restitution was found.
+    pub landings: usize,
+}
+
+/// The smallest pass-through [`LandingFit::restitution_written`] writes: below it the
+/// physical law's threshold (a striking edge leaving slower than 1 cm/s is plastic) makes
+/// the orbit's landings plastic anyway.
+pub const MIN_PASS_THROUGH: f64 = 0.02;
+
+/// A landing's next tilt as the model runs it: from the state just before the landing
+/// (`alpha = 0`), the physical law with restitution `e`, the recorded torques held over their
+/// sample intervals up to `t_next` (s). The largest `|alpha|` (rad) of the motion.
+fn next_peak(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    p: &Params,
+    l: &LandingEstimate,
+    t_next: f64,
+    e: f64,
+) -> Option<f64> {
+    use tilting_plant::{Observer, Plant, SimConfig, TiltPeak};
+    struct Peak(f64);
+    impl Observer for Peak {
+        fn tilt_peak(&mut self, p: &TiltPeak) {
+            self.0 = self.0.max(p.alpha.abs());
+        }
+    }
+    let params = Params {
+        impact: ImpactLaw::Physical,
+        restitution: e,
+        ..*p
+    };
+    let cfg = SimConfig {
+        params,
+        impact: ImpactLaw::Physical,
+        ..SimConfig::default()
+    };
+    let x0 = State::new(0.0, l.beta, l.before[0], l.before[1]);
+    let mut plant = Plant::new(cfg, l.t, l.from, x0).ok()?;
+    let s = &trace.samples;
+    let mut k = s.partition_point(|x| x.t <= l.t).checked_sub(1)?;
+    let mut obs = Peak(0.0);
+    while k + 1 < s.len() && s[k].t < t_next {
+        let u = tau.get(k).copied().flatten()?;
+        plant
+            .advance_held(u, s[k + 1].t.min(t_next), &mut obs)
+            .ok()?;
+        k += 1;
+    }
+    let open = plant.peak_in_progress().map_or(0.0, |p| p.alpha.abs());
+    Some(obs.0.max(open))
+}
+
+/// The restitution of the physical law that makes the model's next tilt after each landing as
+/// high as the recorded one: for each landing followed by a recorded tilt before the next
+/// landing, the root in `e` of (model's peak - recorded peak) by the secant method from 0 and
+/// -0.1 ([`next_peak`]: the model started from the state just before the landing, the
+/// recorded torques replayed), to 0.1 % of the peak; the mean over the landings with a root in
+/// `(-0.95, 0.95)`. Where a contact is compliant its landing takes a few milliseconds of spring
+/// motion between two samples, and the state just after it cannot be read off the samples
+/// (its estimate scatters with the landing's phase in the sample period); the next tilt,
+/// which the rigid model follows, can.
+pub fn restitution_by_tilts(
+    trace: &Trace,
+    tau: &[Option<f64>],
+    p: &Params,
+    landings: &[LandingEstimate],
+) -> Option<TiltRestitution> {
+    let s = &trace.samples;
+    let mut es = Vec::new();
+    for (i, l) in landings.iter().enumerate() {
+        if l.before[0].abs() < MIN_SPEED {
+            continue;
+        }
+        let t_next = landings.get(i + 1).map_or(trace.end, |n| n.t);
+        let recorded = s
+            .iter()
+            .filter(|x| x.t > l.t && x.t < t_next && x.mode != Mode::Flat)
+            .map(|x| x.x[0].abs())
+            .fold(0.0, f64::max);
+        if recorded < 10.0 * MIN_SPEED {
+            continue;
+        }
+        let g = |e: f64| next_peak(trace, tau, p, l, t_next, e).map(|m| m - recorded);
+        let (mut e0, mut e1) = (0.0, -0.1);
+        let (Some(mut g0), Some(mut g1)) = (g(e0), g(e1)) else {
+            continue;
+        };
+        let mut found = None;
+        for _ in 0..12 {
+            if g1.abs() <= 1e-3 * recorded {
+                found = Some(e1);
+                break;
+            }
+            if g1 == g0 {
+                break;
+            }
+            let e2 = (e1 - g1 * (e1 - e0) / (g1 - g0)).clamp(-0.95, 0.95);
+            let Some(g2) = g(e2) else { break };
+            (e0, g0, e1, g1) = (e1, g1, e2, g2);
+        }
+        if let Some(e) = found.filter(|e| e.abs() < 0.95) {
+            es.push(e);
+        }
+    }
+    if es.is_empty() {
+        return None;
+    }
+    let n = es.len() as f64;
+    let mean = es.iter().sum::<f64>() / n;
+    let var = es.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    Some(TiltRestitution {
+        e: mean,
+        std_error: (var / n).sqrt(),
+        landings: es.len(),
+    })
 }
 
 /// The landings of `events`: the events at one instant (a landing and a tilt at once) as
@@ -266,10 +406,12 @@ fn one(
         }
     }
     let (ad, bd) = (b.d[0], b.d[1]);
-    // The plate leaves the landing at rest unless it rebounds over the same edge: flat,
-    // or a tilt over the other edge, which starts from alpha_dot = 0 (a polynomial
-    // through a flat spell and a tilt's start would only blur that).
-    let ad1 = if to == from { a.d[0] } else { 0.0 };
+    // The plate leaves the landing at rest unless it rebounds over the same edge, or passes
+    // on over the striking edge into the other tilt at the same instant (the physical law's
+    // pass-through; a plastic land-and-tilt starts that tilt from alpha_dot = 0, which the
+    // side after then shows); a flat spell first: at rest (a polynomial through a flat spell
+    // and a tilt's start would only blur that).
+    let ad1 = if to == Mode::Flat { 0.0 } else { a.d[0] };
     let bd1 = a.d[1];
     let fast = ad.abs() >= MIN_SPEED;
     Some(LandingEstimate {
@@ -371,6 +513,7 @@ fn regress(landings: Vec<LandingEstimate>, skipped: usize, p: &Params) -> Option
         restitution: e,
         restitution_std_error,
         rebounds,
+        by_tilts: None,
         laws,
         best,
     })

@@ -327,13 +327,19 @@ fn write_landing(params: &mut Params, l: &landing::LandingFit, warnings: &mut Ve
                 _ => 0.0,
             };
         }
-        None => warnings.push(format!(
-            "the landings do not tell the laws apart (residuals within a factor {} of \
-             each other: the rates around a landing are too noisy): the prior's law, {}, \
-             is kept",
-            1.0 / landing::DECISIVE,
-            params.impact.as_str()
-        )),
+        None => {
+            warnings.push(format!(
+                "the landings do not tell the laws apart (residuals within a factor {} of \
+                 each other: the rates around a landing are too noisy): the prior's law, {}, \
+                 is kept",
+                1.0 / landing::DECISIVE,
+                params.impact.as_str()
+            ));
+            // The prior's physical law: its restitution is still the landings' to tell.
+            if params.impact == tilting_plant::ImpactLaw::Physical {
+                params.restitution = l.restitution_written();
+            }
+        }
     }
 }
 
