@@ -511,7 +511,7 @@ pub struct SettledPeak {
     pub period: f64,
     /// Tilts averaged, after [`SETTLE_TILTS`] left out.
     pub tilts: usize,
-    /// Simulations run by the secant.
+    /// Simulations run by the search.
     pub runs: usize,
 }
 
@@ -519,11 +519,14 @@ pub struct SettledPeak {
 /// largest multiplier of a stable orbit of the maps here is below 0.9, 0.9^30 = 0.04).
 pub const SETTLE_TILTS: usize = 30;
 /// Tilts a simulated run averages.
-pub const AVERAGE_TILTS: usize = 20;
-/// The secant stops when the mean settled peak is this close to the wanted one (relative).
-pub const SETTLE_TOL: f64 = 1e-3;
-/// The most simulations of the secant.
-const MAX_RUNS: usize = 12;
+pub const AVERAGE_TILTS: usize = 40;
+/// The search stops when the mean settled peak is this close to the wanted one (relative): the
+/// sampled loop's peaks scatter by a few % about their mean (a quasi-periodic motion), and
+/// the mean of [`AVERAGE_TILTS`] of them moves by about 0.1-0.3 % from one `E_av` to the next
+/// for that reason alone.
+pub const SETTLE_TOL: f64 = 5e-3;
+/// The most simulations of the search.
+const MAX_RUNS: usize = 20;
 
 /// Records the tilts' peaks `(t, alpha)`.
 #[derive(Default)]
@@ -582,7 +585,7 @@ fn settled(
 /// Refines the `E_av` (J) of a planned orbit so that the loop the robot runs, simulated by the
 /// hybrid simulator with the robot's own landings (`pb.params.restitution`, which the shooting
 /// does not plan: it plans plastic landings) and its control period `dt` (s, 0: continuous),
-/// settles with a mean peak of `peak` (rad): the secant method on `E_av` from `energy_avg`
+/// settles with a mean peak of `peak` (rad): the secant method on `E_av` from `energy_avg`, regula falsi once bracketed
 /// (the plan's), each step one run from the orbit's start `x0` ([`SETTLE_TILTS`] tilts left
 /// out, [`AVERAGE_TILTS`] averaged), to [`SETTLE_TOL`]. `tick` after each run. The sampled
 /// loop's peaks scatter about their mean (a quasi-periodic motion of the zero-order hold):
@@ -606,14 +609,24 @@ pub fn settle_energy_for_peak(
         settled(pb, x0, e, dt, t_run)
     };
     let mut runs = 0;
-    let (mut e0, mut r0) = (energy_avg, run(energy_avg, &mut runs)?);
-    // The peak grows with E_av near a stable orbit; a first step of 0.01 J moves it by a few %.
-    let (mut e1, mut r1) = (e0, r0);
-    if (r0.0 - peak).abs() > SETTLE_TOL * peak {
-        e1 = energy_avg + if r0.0 < peak { 0.01 } else { -0.01 };
-        r1 = run(e1, &mut runs)?;
-    }
-    while (r1.0 - peak).abs() > SETTLE_TOL * peak {
+    // (E_av, its run) of the last two runs, and the nearest runs below and above the peak:
+    // the secant while no run is on each side, then regula falsi (Illinois) inside that
+    // bracket, which the sampled loop's scatter about its mean cannot throw the search out of.
+    let r = run(energy_avg, &mut runs)?;
+    let (mut prev, mut last) = ((energy_avg, r), (energy_avg, r));
+    let (mut below, mut above): (Option<(f64, f64)>, Option<(f64, f64)>) = (None, None);
+    let mut side = 0i8;
+    loop {
+        let (e1, r1) = last;
+        let f1 = r1.0 - peak;
+        if f1.abs() <= SETTLE_TOL * peak {
+            break;
+        }
+        if f1 < 0.0 {
+            below = Some((e1, f1));
+        } else {
+            above = Some((e1, f1));
+        }
         if runs >= MAX_RUNS {
             return Err(format!(
                 "the simulated loop's mean peak did not reach {peak} rad within {MAX_RUNS} \
@@ -621,16 +634,34 @@ pub fn settle_energy_for_peak(
                 r1.0
             ));
         }
-        let slope = (r1.0 - r0.0) / (e1 - e0);
-        let step = if slope.is_finite() && slope > 0.0 {
-            ((peak - r1.0) / slope).clamp(-0.2, 0.2)
-        } else {
-            0.01 * (peak - r1.0).signum()
+        let next = match (below, above) {
+            (Some((ea, fa)), Some((eb, fb))) => {
+                // Illinois: halve the weight of an end that stays.
+                let (fa, fb) = match side {
+                    -1 => (fa, fb * 0.5),
+                    1 => (fa * 0.5, fb),
+                    _ => (fa, fb),
+                };
+                side = if f1 < 0.0 { -1 } else { 1 };
+                ea - fa * (eb - ea) / (fb - fa)
+            }
+            _ => {
+                let (e0, r0) = prev;
+                let slope = (r1.0 - r0.0) / (e1 - e0);
+                // The peak grows with E_av near a stable orbit; a first step of 0.01 J moves
+                // it by a few %.
+                let step = if e1 != e0 && slope.is_finite() && slope > 0.0 {
+                    (-f1 / slope).clamp(-0.2, 0.2)
+                } else {
+                    -0.01 * f1.signum()
+                };
+                e1 + step
+            }
         };
-        (e0, r0) = (e1, r1);
-        e1 += step;
-        r1 = run(e1, &mut runs)?;
+        prev = last;
+        last = (next, run(next, &mut runs)?);
     }
+    let (e1, r1) = last;
     Ok(SettledPeak {
         control_period: dt,
         restitution: pb.params.restitution,

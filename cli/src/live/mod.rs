@@ -242,12 +242,38 @@ impl Job<'_> {
         (model, self.plant_params())
     }
 
+    /// The robot of the nominal run the orbit verdict compares with: the controller's model
+    /// and the plant's parameters; with an external plant (`--plant-cmd`), whose landings are
+    /// its own physics and not the landing law of its parameter file (MuJoCo's file names the
+    /// geometry only), the plant landing by the model's law and restitution, the best account
+    /// of them there is (identified from the robot: `identify --out`).
+    fn nominal_params(&self) -> (tilting_plant::Params, tilting_plant::Params) {
+        let (model, plant) = self.params();
+        if self.args.plant_cmd.is_some() {
+            (model, lands_as_modelled(&model, plant))
+        } else {
+            (model, plant)
+        }
+    }
+
     /// The robot the plant simulates (checked by `check`; the paper's without a file).
     fn plant_params(&self) -> tilting_plant::Params {
         let (plant, _) = self.args.params_files();
         plant
             .and_then(|f| tilting_plant::Params::from_toml_file(&f).ok())
             .unwrap_or_default()
+    }
+}
+
+/// `plant` landing by `model`'s law and restitution.
+fn lands_as_modelled(
+    model: &tilting_plant::Params,
+    plant: tilting_plant::Params,
+) -> tilting_plant::Params {
+    tilting_plant::Params {
+        impact: model.impact,
+        restitution: model.restitution,
+        ..plant
     }
 }
 
@@ -431,7 +457,7 @@ async fn live(
     announce(job);
     let (scenario, check) = orbit::nominal(
         &job.reference,
-        job.params(),
+        job.nominal_params(),
         job.args.rate,
         job.args.duration,
     )
@@ -535,4 +561,33 @@ async fn live(
         endpoints: topo.endpoints(),
     };
     report::summarise(job, &scenario, check, outcome)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lands_as_modelled;
+    use tilting_plant::{ImpactLaw, Params};
+
+    #[test]
+    fn an_external_plants_nominal_lands_by_the_models_law_with_its_own_geometry() {
+        // MuJoCo's parameter file names its geometry and no landing law (the paper's by
+        // default); the identified model lands by the physical law with a pass-through.
+        let model = Params {
+            impact: ImpactLaw::Physical,
+            restitution: -0.11,
+            m_f: 1.0700002,
+            ..Params::default()
+        };
+        let plant = Params {
+            m_f: 1.07,
+            i_f: 0.04,
+            ..Params::default()
+        };
+        let p = lands_as_modelled(&model, plant);
+        assert_eq!(
+            (p.impact, p.restitution, p.m_f, p.i_f),
+            (ImpactLaw::Physical, -0.11, 1.07, 0.04)
+        );
+        p.validate().unwrap();
+    }
 }
