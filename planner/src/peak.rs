@@ -614,7 +614,8 @@ pub fn settle_energy_for_peak(
     // bracket, which the sampled loop's scatter about its mean cannot throw the search out of.
     let r = run(energy_avg, &mut runs)?;
     let (mut prev, mut last) = ((energy_avg, r), (energy_avg, r));
-    let (mut below, mut above): (Option<(f64, f64)>, Option<(f64, f64)>) = (None, None);
+    let mut below: Option<(f64, f64)> = None;
+    let mut above = below;
     let mut side = 0i8;
     loop {
         let (e1, r1) = last;
