@@ -37,11 +37,10 @@ pub struct Trig {
 }
 
 impl Trig {
-    /// The sines and cosines of `x`'s angles.
+    /// The angles' sums from the sines and cosines of `alpha` (`sa`, `ca`) and `beta` (`sb`,
+    /// `cb`) by the angle-sum formulas.
     #[inline(always)]
-    pub fn new(x: &State) -> Self {
-        let (sa, ca) = x[0].sin_cos();
-        let (sb, cb) = x[1].sin_cos();
+    fn from_sin_cos(sa: f64, ca: f64, sb: f64, cb: f64) -> Self {
         Self {
             sa,
             ca,
@@ -50,6 +49,14 @@ impl Trig {
             sab: sa * cb + ca * sb,
             cab: ca * cb - sa * sb,
         }
+    }
+
+    /// The sines and cosines of `x`'s angles.
+    #[inline(always)]
+    pub fn new(x: &State) -> Self {
+        let (sa, ca) = x[0].sin_cos();
+        let (sb, cb) = x[1].sin_cos();
+        Self::from_sin_cos(sa, ca, sb, cb)
     }
 }
 
@@ -72,14 +79,7 @@ impl Trig {
         let ca = tr0.ca + (tr0.ca * cma - tr0.sa * sda);
         let sb = tr0.sb + (tr0.sb * cmb + tr0.cb * sdb);
         let cb = tr0.cb + (tr0.cb * cmb - tr0.sb * sdb);
-        Self {
-            sa,
-            ca,
-            sb,
-            cb,
-            sab: sa * cb + ca * sb,
-            cab: ca * cb - sa * sb,
-        }
+        Self::from_sin_cos(sa, ca, sb, cb)
     }
 
     /// Largest angle difference (rad) [`Trig::near`] takes by the series.
