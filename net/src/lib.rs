@@ -373,6 +373,35 @@ pub fn say_err(text: &str) {
     let _ = writeln!(err, "{text}").and_then(|()| err.flush());
 }
 
+/// The nodes' default sizing of zenoh's runtimes (zenoh-runtime's `ZENOH_RUNTIME`, a RON map
+/// of runtime -> `worker_threads`, `max_blocking_threads`, `handover`): the acceptor, tx, rx and
+/// net runtimes hand their tasks over to the application runtime, which has one worker and at
+/// most 4 blocking threads. A node then has 4-6 threads instead of zenoh's default 10-12 (app 1,
+/// acc 1, tx 1, rx 2, net 1 workers, each runtime its own pool). Measured with
+/// `bench/robots_bench.py` on 2 cores under load (docs/guide/performance.md): 8 robots at 1 kHz
+/// missed 7-22 % of their periods instead of 49-81 %, 4 robots 1.1-3.1 % instead of 2.7-11 %.
+pub const NODE_ZENOH_RUNTIME: &str = "(app: (worker_threads: 1, max_blocking_threads: 4), \
+     acc: (handover: app), tx: (handover: app), rx: (handover: app), net: (handover: app))";
+
+/// The `ZENOH_RUNTIME` a node should set given the one it was started with: `None` (keep it)
+/// when the environment already names one (the user's override; `()` gives zenoh's own
+/// sizing), else [`NODE_ZENOH_RUNTIME`].
+pub fn zenoh_runtime_default(current: Option<&std::ffi::OsStr>) -> Option<&'static str> {
+    match current {
+        Some(_) => None,
+        None => Some(NODE_ZENOH_RUNTIME),
+    }
+}
+
+/// Sizes zenoh's runtimes for a node ([`NODE_ZENOH_RUNTIME`]) unless `ZENOH_RUNTIME` is set.
+/// Call first thing in `main`, before any thread starts and before zenoh reads the variable
+/// (at its runtimes' first use): setting the environment is not thread-safe.
+pub fn size_zenoh_runtime() {
+    if let Some(v) = zenoh_runtime_default(std::env::var_os("ZENOH_RUNTIME").as_deref()) {
+        std::env::set_var("ZENOH_RUNTIME", v);
+    }
+}
+
 /// Builds the tracing subscriber of a binary: logs to stderr, filter from `RUST_LOG` or
 /// `default_filter` (e.g. `"warn,tilting_plant=info,tilting_net=info"`).
 pub fn init_tracing(default_filter: &str) {
@@ -768,6 +797,20 @@ pub async fn shutdown_signal() {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn zenoh_runtime_default_keeps_an_override_and_sizes_otherwise() {
+        let given = std::ffi::OsString::from("(app: (worker_threads: 2))");
+        assert_eq!(zenoh_runtime_default(Some(&given)), None);
+        assert_eq!(zenoh_runtime_default(Some(std::ffi::OsStr::new(""))), None);
+        let d = zenoh_runtime_default(None).unwrap();
+        // Every runtime but app hands over to app, and app has one worker.
+        for rt in ["acc", "tx", "rx", "net"] {
+            assert!(d.contains(&format!("{rt}: (handover: app)")), "{rt} in {d}");
+        }
+        assert!(d.contains("app: (worker_threads: 1"), "{d}");
+    }
+
     use super::*;
 
     #[test]

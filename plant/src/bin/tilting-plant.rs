@@ -4,6 +4,8 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // Before any thread: zenoh's runtimes sized small unless ZENOH_RUNTIME is set.
+    tilting_net::size_zenoh_runtime();
     let args = tilting_plant::node::PlantArgs::parse();
     // RustDDS (--ros2 dds) warns per packet it cannot route (e.g. to its own loopback
     // announcements): errors only.
