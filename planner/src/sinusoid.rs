@@ -101,17 +101,8 @@ pub fn tilt_start(p: &Params, a: f64, w: f64) -> Option<(f64, Mode)> {
                     r
                 }
             };
-            let (mut lo, mut hi) = (t0, t1);
-            while hi - lo > 1e-13 {
-                let mid = 0.5 * (lo + hi);
-                if g(mid) > 0.0 {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
             let side = if left_first { Mode::Left } else { Mode::Right };
-            return Some((hi, side));
+            return Some((bisect(g, t0, t1), side));
         }
         t0 = t1;
         l0 = l1;
@@ -186,6 +177,8 @@ pub fn ideal_tilt(p: &Params, a: f64, w: f64, tol: Tolerance) -> Result<Tilt, Si
     })
 }
 
+/// The end `hi` of the bracket `[lo, hi]` (s) of a sign change of `g` from positive (at `lo`)
+/// to non-positive (at `hi`), halved until it is at most 1e-13 s wide.
 fn bisect(g: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
     while hi - lo > 1e-13 {
         let mid = 0.5 * (lo + hi);
