@@ -7,7 +7,7 @@ use crate::orbit::{self, OrbitProblem, OrbitSolution};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
-use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
+use tilting_controller::ComputedTorque;
 use tilting_plant::{Mode, Observer, Plant, SimConfig, TiltPeak};
 
 /// What to sweep.
@@ -151,14 +151,7 @@ pub fn classify(peaks: &[f64], tol: f64) -> Option<usize> {
 /// Simulates the adapted loop for one `k` and returns its row.
 pub fn run_one(sw: &Sweep, k: f64) -> Row {
     let pb = &sw.problem;
-    let control = ControlConfig {
-        law: LawSpec {
-            k,
-            energy_avg: sw.energy_avg,
-            ..pb.control.law
-        },
-        ..pb.control
-    };
+    let control = pb.with_adaptation(k, sw.energy_avg).control;
     let mut row = Row {
         k,
         peaks: Vec::new(),
@@ -259,14 +252,7 @@ impl Observer for LastLeftTilt {
 /// gain `k`: the last left tilt of a simulation of `tilts` tilts from the orbit start.
 pub fn attracting_orbit_guess(sw: &Sweep, k: f64, tilts: usize) -> Option<[f64; 3]> {
     let pb = &sw.problem;
-    let control = ControlConfig {
-        law: LawSpec {
-            k,
-            energy_avg: sw.energy_avg,
-            ..pb.control.law
-        },
-        ..pb.control
-    };
+    let control = pb.with_adaptation(k, sw.energy_avg).control;
     let law = ComputedTorque::new(control).ok()?;
     let cfg = SimConfig {
         params: pb.params,
