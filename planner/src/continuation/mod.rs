@@ -267,19 +267,30 @@ pub fn grid(p0: f64, to: f64, step: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The problem `base` with `param` at `p0` and its period-1 orbit from `guess` `(beta0,
-/// beta_dot0, t_end)` as a first point.
-fn first_point(
-    c: &Continuation,
+/// The continuation of `base` in `param` from `p0`, its first point (the period-1 orbit from
+/// `guess` `(beta0, beta_dot0, t_end)`) and the first direction: the parameter decreasing when
+/// `down`, increasing otherwise.
+fn begin(
+    base: &OrbitProblem,
+    param: Param,
     p0: f64,
     guess: [f64; 3],
-) -> Result<arclength::Solved, OrbitError> {
+    down: bool,
+) -> Result<(Continuation, arclength::Solved, DVector<f64>), OrbitError> {
+    let c = Continuation {
+        base: *base,
+        param,
+        scale: p0.abs().max(1.0),
+    };
     let pb = c.param.set(&c.base, p0).map_err(OrbitError::Invalid)?;
     let s = orbit::solve(&pb, guess)?;
     let y = c.join(&DVector::from_vec(vec![s.beta0, s.beta_dot0, s.t_end]), p0);
     let mut t = DVector::zeros(4);
     t[3] = 1.0;
-    c.correct(&y, &t)
+    let first = c.correct(&y, &t)?;
+    let mut dir = DVector::zeros(4);
+    dir[3] = if down { -1.0 } else { 1.0 };
+    Ok((c, first, dir))
 }
 
 /// The period-1 branch alone from `p0`, increasing the parameter (decreasing with `down`).
@@ -291,14 +302,7 @@ pub fn one_branch(
     set: &Settings,
     down: bool,
 ) -> Result<Branch, OrbitError> {
-    let c = Continuation {
-        base: *base,
-        param,
-        scale: p0.abs().max(1.0),
-    };
-    let first = first_point(&c, p0, guess)?;
-    let mut dir = DVector::zeros(4);
-    dir[3] = if down { -1.0 } else { 1.0 };
+    let (c, first, dir) = begin(base, param, p0, guess, down)?;
     Ok(branch::follow(&c, first, dir, set, false, &|_, _| {}))
 }
 
@@ -329,14 +333,7 @@ pub fn diagram(
     set: &Settings,
     tick: &(dyn Fn(usize, f64) + Sync),
 ) -> Result<Diagram, OrbitError> {
-    let c = Continuation {
-        base: *base,
-        param,
-        scale: p0.abs().max(1.0),
-    };
-    let first = first_point(&c, p0, guess)?;
-    let mut dir = DVector::zeros(4);
-    dir[3] = if p0 >= set.p_max { -1.0 } else { 1.0 };
+    let (c, first, dir) = begin(base, param, p0, guess, p0 >= set.p_max)?;
     let mut branches = vec![branch::follow(&c, first, dir, set, false, tick)];
     let mut flips = Vec::new();
     loop {
