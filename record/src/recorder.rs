@@ -316,6 +316,27 @@ struct CsvFiles {
     dir: PathBuf,
 }
 
+impl CsvFiles {
+    /// Applies `write` (a flush) to the three files in turn; the first failure stops it, as
+    /// [`RecordError::Csv`] naming that file's path.
+    fn each(
+        &mut self,
+        write: impl Fn(&mut RowWriter) -> std::io::Result<()>,
+    ) -> Result<(), RecordError> {
+        for (w, name) in [
+            (&mut self.state, STATE_CSV),
+            (&mut self.torque, TORQUE_CSV),
+            (&mut self.events, EVENTS_CSV),
+        ] {
+            write(w).map_err(|cause| RecordError::Csv {
+                path: self.dir.join(name),
+                cause,
+            })?;
+        }
+        Ok(())
+    }
+}
+
 /// The current tilt, for peak tracking: its mode and extreme alpha so far.
 struct Tilt {
     mode: u8,
@@ -504,16 +525,7 @@ impl Writer {
     fn flush_if_due(&mut self) -> Result<(), RecordError> {
         self.mcap.flush_if_due()?;
         if let Some(c) = &mut self.csv {
-            for (w, name) in [
-                (&mut c.state, STATE_CSV),
-                (&mut c.torque, TORQUE_CSV),
-                (&mut c.events, EVENTS_CSV),
-            ] {
-                w.flush_if_due().map_err(|cause| RecordError::Csv {
-                    path: c.dir.join(name),
-                    cause,
-                })?;
-            }
+            c.each(RowWriter::flush_if_due)?;
         }
         Ok(())
     }
@@ -597,16 +609,7 @@ impl Writer {
     fn close(&mut self) -> Result<(), RecordError> {
         self.mcap.finish()?;
         if let Some(c) = &mut self.csv {
-            for (w, name) in [
-                (&mut c.state, STATE_CSV),
-                (&mut c.torque, TORQUE_CSV),
-                (&mut c.events, EVENTS_CSV),
-            ] {
-                w.flush().map_err(|cause| RecordError::Csv {
-                    path: c.dir.join(name),
-                    cause,
-                })?;
-            }
+            c.each(RowWriter::flush)?;
         }
         Ok(())
     }
