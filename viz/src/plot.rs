@@ -57,6 +57,27 @@ pub fn padded_range(v: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
     }
 }
 
+/// Draws the legend of `chart`'s labelled series in its upper right corner, on a white box.
+fn legend_upper_right<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font(("sans-serif", 18))
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK.mix(0.4))
+        .draw()?;
+    Ok(())
+}
+
 /// One angle-against-time panel of a run or fit-check figure: its caption, the time axis
 /// `t` (s) and the angle axis `y` (rad, labelled `ylabel`), with the light mesh both figures
 /// share; the caller draws the curves.
@@ -169,13 +190,7 @@ pub fn plot_trace(path: &Path, sc: &Scenario, r: &Trace) -> Result<()> {
             BLACK.stroke_width(2),
         ))?;
         if i == 0 && !r.events.is_empty() {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .label_font(("sans-serif", 18))
-                .background_style(WHITE.mix(0.9))
-                .border_style(BLACK.mix(0.4))
-                .draw()?;
+            legend_upper_right(&mut chart)?;
         }
     }
     root.present()?;
@@ -234,13 +249,7 @@ pub fn plot_fit(
                     });
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", 18))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK.mix(0.4))
-            .draw()?;
+        legend_upper_right(&mut chart)?;
     }
     root.present()?;
     Ok(())
