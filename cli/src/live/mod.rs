@@ -458,8 +458,8 @@ async fn live(
     let (scenario, check) = orbit::nominal(
         &job.reference,
         job.nominal_params(),
-        job.args.rate,
-        job.args.duration,
+        (job.args.rate, job.args.duration),
+        job.args.law.plan.as_deref(),
     )
     .await?;
     if check.is_none() {
