@@ -563,6 +563,9 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() -> anyhow::Result<()> {
+    // The raw ping-pong's sessions (this process and the pong) get the nodes' runtime sizing,
+    // so the loop is compared with zenoh sized alike (ZENOH_RUNTIME='()': zenoh's defaults).
+    tilting_net::size_zenoh_runtime();
     let argv: Vec<String> = std::env::args().collect();
     if argv.get(1).map(String::as_str) == Some("pong") {
         anyhow::ensure!(
