@@ -314,6 +314,16 @@ pub enum NodeArgsError {
 /// as well overrides the key.
 #[cfg(feature = "clap")]
 pub fn parse_node<C: clap::Parser>(argv: &[std::ffi::OsString]) -> Result<C, NodeArgsError> {
+    parse_node_with(argv, &|d| d)
+}
+
+/// [`parse_node`] with the file's flag defaults passed through `select` first (a node that
+/// takes only some keys of a section, or a parameter table under another flag).
+#[cfg(feature = "clap")]
+pub fn parse_node_with<C: clap::Parser>(
+    argv: &[std::ffi::OsString],
+    select: &dyn Fn(Vec<FlagDefault>) -> Vec<FlagDefault>,
+) -> Result<C, NodeArgsError> {
     let base = C::command();
     let first = base
         .clone()
@@ -330,7 +340,7 @@ pub fn parse_node<C: clap::Parser>(argv: &[std::ffi::OsString]) -> Result<C, Nod
         Some(f) => {
             let doc = read_doc(f).map_err(NodeArgsError::File)?;
             let defaults = flag_defaults(&doc, f, &NODE_SECTIONS).map_err(NodeArgsError::File)?;
-            apply(base, &defaults, f, false).map_err(NodeArgsError::File)?
+            apply(base, &select(defaults), f, false).map_err(NodeArgsError::File)?
         }
     };
     let matches = cmd
@@ -343,8 +353,14 @@ pub fn parse_node<C: clap::Parser>(argv: &[std::ffi::OsString]) -> Result<C, Nod
 /// file with code 2 and its message.
 #[cfg(feature = "clap")]
 pub fn parse_node_args<C: clap::Parser>() -> C {
-    let argv: Vec<std::ffi::OsString> = std::env::args_os().collect();
-    match parse_node::<C>(&argv) {
+    exit_on_error(parse_node::<C>(&std::env::args_os().collect::<Vec<_>>()))
+}
+
+/// The parsed flags, or the exit of [`parse_node_args`]: a bad flag as clap exits, a bad robot
+/// file with code 2 and its message.
+#[cfg(feature = "clap")]
+pub fn exit_on_error<C>(parsed: Result<C, NodeArgsError>) -> C {
+    match parsed {
         Ok(c) => c,
         Err(NodeArgsError::Clap(e)) => e.exit(),
         Err(NodeArgsError::File(e)) => {

@@ -279,12 +279,21 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
     if let Some(p) = args.params_files().0 {
         v.extend(["--params".into(), p.display().to_string()]);
     }
-    let imperfect = args.imperfect.to_args();
-    if job.impairment.is_some() || !imperfect.is_empty() {
-        // The link, and the seed of the sensor noise.
-        v.extend(args.network.to_args());
+    if args.plant_cmd.is_none() {
+        // The link, the seed and the sensors: the run's robot file ([network], [sensors]).
+        v.extend([
+            format!("--{}", robot_file::NODE_FILE_FLAG),
+            run_file_path(job).display().to_string(),
+        ]);
+    } else {
+        // An external plant (docs/mujoco.md) still takes them as flags.
+        let imperfect = args.imperfect.to_args();
+        if job.impairment.is_some() || !imperfect.is_empty() {
+            // The link, and the seed of the sensor noise.
+            v.extend(args.network.to_args());
+        }
+        v.extend(imperfect);
     }
-    v.extend(imperfect);
     v.extend(args.ros2.plant_args());
     v
 }

@@ -125,6 +125,12 @@ pub struct PlantArgs {
     /// the controller's certificate publish torques): accept /<robot>/effort_command anyway
     #[arg(long, requires = "ros2")]
     pub ros2_allow_commands: bool,
+    /// A robot file (TOML): the defaults of the flags of its [network] (the emulated link and
+    /// --seed) and [sensors] (the imperfections), and its parameters ([plant], else [robot])
+    /// as --params; a flag given as well overrides its key. `tilting live` hands the plant its
+    /// run's robot.toml, with only the wiring (session, ports, ids, rate, start) as flags
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot_file: Option<PathBuf>,
 }
 
 /// Allowed control periods (s): 100 us (10 kHz; a faster loop spends its period in the
@@ -298,6 +304,63 @@ mod tests {
     use super::*;
     use clap::Parser;
 
+    /// A plant given a robot file equals one given today's flags: its [network] and [sensors]
+    /// keys are the flags' values, its parameters are [plant]'s (not [robot]'s); the keys that
+    /// are not the plant's ([law], [deploy], the controller's `sample_on_event`) are left out;
+    /// a flag given as well overrides its key; a bad value is refused naming its key.
+    #[test]
+    fn a_plant_from_a_robot_file_equals_one_from_flags() {
+        let dir = std::env::temp_dir().join(format!("plant_robot_file_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("robot.toml");
+        let text = "[robot]\nm_l = 0.3\n[plant]\nm_l = 0.25\n\
+                    [network]\nstate_delay = 0.002\nloss = 0.1\nseed = 7\nsample_on_event = true\n\
+                    [sensors]\nnoise_alpha = 0.001\nencoder_counts = 4096\n\
+                    [law]\nkd = 14.0\n[deploy]\nrate = 500.0\n";
+        std::fs::write(&file, text).unwrap();
+        let argv = |extra: &[&str]| -> Vec<std::ffi::OsString> {
+            ["tilting-plant"]
+                .iter()
+                .chain(extra)
+                .map(Into::into)
+                .collect()
+        };
+        let f = file.to_str().unwrap();
+        let from_file = PlantArgs::from_argv(&argv(&["--robot-file", f])).unwrap();
+        let from_flags = PlantArgs::try_parse_from(argv(&[
+            "--state-delay=0.002",
+            "--loss=0.1",
+            "--seed=7",
+            "--noise-alpha=0.001",
+            "--encoder-counts=4096",
+        ]))
+        .unwrap();
+        assert_eq!(from_file.network, from_flags.network);
+        assert_eq!(from_file.imperfect, from_flags.imperfect);
+        assert_eq!(from_file.params.load().unwrap().unwrap().m_l, 0.25);
+        assert!(!from_file.sample_on_event);
+        assert_eq!(from_file.rate, 1000.0);
+        // Without [plant], [robot] is the plant's robot.
+        let robot_only = dir.join("robot_only.toml");
+        std::fs::write(&robot_only, "[robot]\nm_l = 0.3\n").unwrap();
+        let a = PlantArgs::from_argv(&argv(&["--robot-file", robot_only.to_str().unwrap()]));
+        assert_eq!(a.unwrap().params.load().unwrap().unwrap().m_l, 0.3);
+        // A flag overrides its key.
+        let over = PlantArgs::from_argv(&argv(&["--robot-file", f, "--seed", "9"])).unwrap();
+        assert_eq!(over.network.seed, 9);
+        assert_eq!(over.imperfect, from_flags.imperfect);
+        // A bad value is refused naming the key.
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "[network]\nloss = \"lots\"\n").unwrap();
+        match PlantArgs::from_argv(&argv(&["--robot-file", bad.to_str().unwrap()])) {
+            Err(crate::robot_file::NodeArgsError::File(e)) => {
+                assert!(e.contains("network.loss"), "{e}")
+            }
+            other => panic!("{other:?}"),
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn flags_parse_with_defaults() {
         let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
@@ -430,5 +493,41 @@ mod tests {
         let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
         assert_eq!(a.mode, paper::ORBIT_MODE);
         assert_eq!(a.x0, None); // resolved to paper::orbit_x0() by `run`
+    }
+}
+
+impl PlantArgs {
+    /// Parses a plant's command line `argv` (its first item the program's name), with the keys
+    /// of its `--robot-file` as the defaults of its flags: the emulated link's and the sensors'
+    /// flags ([`tilting_link::NetworkArgs`], [`crate::imperfect::ImperfectArgs`]) and the
+    /// parameters ([plant] if the file has it, else [robot]) as `--params`. The file's other
+    /// keys (the law, the deployment, the controller's --sample-on-event) are not the plant's.
+    /// A bad value is refused naming the key ([`crate::robot_file::apply`]).
+    pub fn from_argv(
+        argv: &[std::ffi::OsString],
+    ) -> Result<Self, crate::robot_file::NodeArgsError> {
+        use clap::Args as _;
+        let own = clap::Command::new("plant");
+        let own = crate::imperfect::ImperfectArgs::augment_args(
+            tilting_link::NetworkArgs::augment_args(own),
+        );
+        let longs: Vec<String> = own
+            .get_arguments()
+            .filter_map(|a| a.get_long().map(str::to_owned))
+            .collect();
+        crate::robot_file::parse_node_with(argv, &|defaults| {
+            let has_plant = defaults.iter().any(|d| d.key == "[plant]");
+            defaults
+                .into_iter()
+                .filter_map(|mut d| match d.key.as_str() {
+                    "[plant]" => {
+                        d.flag = "params".into();
+                        Some(d)
+                    }
+                    "[robot]" => (!has_plant).then_some(d),
+                    _ => longs.contains(&d.flag).then_some(d),
+                })
+                .collect()
+        })
     }
 }
