@@ -33,9 +33,9 @@ pub struct BridgeArgs {
     /// Robot name and zenoh endpoints (default: connect to tcp/127.0.0.1:7447).
     #[command(flatten)]
     pub zenoh: ZenohArgs,
-    /// ROS 2 domain id (ROS_DOMAIN_ID)
-    #[arg(long, default_value_t = 0, value_name = "0-232")]
-    pub ros_domain: u32,
+    /// ROS 2 domain id, 0 to 232 [default: ROS_DOMAIN_ID, else 0]
+    #[arg(long, value_name = "0-232")]
+    pub ros_domain: Option<u32>,
     /// Stop after this many seconds [default: until Ctrl-C]
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub seconds: Option<f64>,
@@ -57,25 +57,18 @@ pub fn bridge(args: &BridgeArgs) -> Result<(), CommandError> {
     tilting_net::init_tracing("warn");
     check_seconds("--seconds", args.seconds)?;
     let keys = session_args(&args.zenoh)?;
-    if args.ros_domain > 232 {
-        return Err(CommandError::Usage(anyhow!(
-            "invalid --ros-domain = {}: allowed 0 to 232",
-            args.ros_domain
-        )));
-    }
+    // One rule with the plant's `--ros2`: the flag, else ROS_DOMAIN_ID, else 0 (0 to 232).
+    let env = std::env::var("ROS_DOMAIN_ID").ok();
+    let domain = tilting_ros2::domain_id(args.ros_domain, env.as_deref())
+        .map_err(|e| CommandError::Usage(anyhow!(e)))?;
     tilting_ros2::robot::Topics::new(keys.robot()).map_err(|e| CommandError::Usage(anyhow!(e)))?;
     let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
     let summary = rt
         .block_on(async {
             let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
             let robot = keys.robot();
-            let node = RosNode::declare(
-                &session,
-                args.ros_domain,
-                &format!("/{robot}"),
-                "tilting_bridge",
-            )
-            .await?;
+            let node =
+                RosNode::declare(&session, domain, &format!("/{robot}"), "tilting_bridge").await?;
             let tx = Mirror::declare(&node, robot).await?.spawn(256)?;
             let received = Arc::new(AtomicU64::new(0));
             // The newest torque of the controller, for the efforts of joint_states.
@@ -134,7 +127,7 @@ pub fn bridge(args: &BridgeArgs) -> Result<(), CommandError> {
             eprintln!(
                 "ros2 bridge: tilting/{robot}/** as /{robot}/joint_states, /{robot}/contact_mode \
                  and /rosout in ROS domain {} (Ctrl-C stops)",
-                args.ros_domain
+                domain
             );
             let end = args
                 .seconds
