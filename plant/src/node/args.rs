@@ -299,6 +299,42 @@ impl PlantArgs {
     }
 }
 
+impl PlantArgs {
+    /// Parses a plant's command line `argv` (its first item the program's name), with the keys
+    /// of its `--robot-file` as the defaults of its flags: the emulated link's and the sensors'
+    /// flags ([`tilting_link::NetworkArgs`], [`crate::imperfect::ImperfectArgs`]) and the
+    /// parameters ([plant] if the file has it, else [robot]) as `--params`. The file's other
+    /// keys (the law, the deployment, the controller's --sample-on-event) are not the plant's.
+    /// A bad value is refused naming the key ([`crate::robot_file::apply`]).
+    pub fn from_argv(
+        argv: &[std::ffi::OsString],
+    ) -> Result<Self, crate::robot_file::NodeArgsError> {
+        use clap::Args as _;
+        let own = clap::Command::new("plant");
+        let own = crate::imperfect::ImperfectArgs::augment_args(
+            tilting_link::NetworkArgs::augment_args(own),
+        );
+        let longs: Vec<String> = own
+            .get_arguments()
+            .filter_map(|a| a.get_long().map(str::to_owned))
+            .collect();
+        crate::robot_file::parse_node_with(argv, &|defaults| {
+            let has_plant = defaults.iter().any(|d| d.key == "[plant]");
+            defaults
+                .into_iter()
+                .filter_map(|mut d| match d.key.as_str() {
+                    "[plant]" => {
+                        d.flag = "params".into();
+                        Some(d)
+                    }
+                    "[robot]" => (!has_plant).then_some(d),
+                    _ => longs.contains(&d.flag).then_some(d),
+                })
+                .collect()
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -493,41 +529,5 @@ mod tests {
         let a = PlantArgs::try_parse_from(["tilting-plant"]).unwrap();
         assert_eq!(a.mode, paper::ORBIT_MODE);
         assert_eq!(a.x0, None); // resolved to paper::orbit_x0() by `run`
-    }
-}
-
-impl PlantArgs {
-    /// Parses a plant's command line `argv` (its first item the program's name), with the keys
-    /// of its `--robot-file` as the defaults of its flags: the emulated link's and the sensors'
-    /// flags ([`tilting_link::NetworkArgs`], [`crate::imperfect::ImperfectArgs`]) and the
-    /// parameters ([plant] if the file has it, else [robot]) as `--params`. The file's other
-    /// keys (the law, the deployment, the controller's --sample-on-event) are not the plant's.
-    /// A bad value is refused naming the key ([`crate::robot_file::apply`]).
-    pub fn from_argv(
-        argv: &[std::ffi::OsString],
-    ) -> Result<Self, crate::robot_file::NodeArgsError> {
-        use clap::Args as _;
-        let own = clap::Command::new("plant");
-        let own = crate::imperfect::ImperfectArgs::augment_args(
-            tilting_link::NetworkArgs::augment_args(own),
-        );
-        let longs: Vec<String> = own
-            .get_arguments()
-            .filter_map(|a| a.get_long().map(str::to_owned))
-            .collect();
-        crate::robot_file::parse_node_with(argv, &|defaults| {
-            let has_plant = defaults.iter().any(|d| d.key == "[plant]");
-            defaults
-                .into_iter()
-                .filter_map(|mut d| match d.key.as_str() {
-                    "[plant]" => {
-                        d.flag = "params".into();
-                        Some(d)
-                    }
-                    "[robot]" => (!has_plant).then_some(d),
-                    _ => longs.contains(&d.flag).then_some(d),
-                })
-                .collect()
-        })
     }
 }
