@@ -19,6 +19,7 @@
 
 mod bands;
 mod survey;
+mod text;
 
 pub use bands::{band_point, search, BandPoint, Bands, Edge, Knob, Search};
 pub use survey::{

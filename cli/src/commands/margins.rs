@@ -10,9 +10,7 @@ use crate::CommandError;
 use anyhow::Context as _;
 use clap::Args;
 use std::path::PathBuf;
-use tilting_planner::margins::{
-    Bands, Base, Criteria, Edge, Knob, MarginsReport, RobotMargins, Survey, SurveyShard,
-};
+use tilting_planner::margins::{Bands, Base, Criteria, MarginsReport, Survey, SurveyShard};
 
 /// Flags of `tilting plan margins`.
 #[derive(Debug, Clone, Args)]
@@ -159,129 +157,6 @@ fn bands(r: &RobotMapArgs) -> Result<Bands, String> {
     })
 }
 
-/// The imperfection maps as text.
-fn robot_text(r: &RobotMargins) -> String {
-    let mut s = format!(
-        "\nthe robot is not the model, at {} Hz over a perfect network (one imperfection at a \
-             time)\n",
-        r.rate
-    );
-    for map in [&r.angle_noise, &r.rate_noise, &r.mass_error] {
-        let Some(first) = map.first() else { continue };
-        s += &format!("  {}\n", first.imperfection.describe());
-        for p in map {
-            s += &format!(
-                "  {:>10}: {}{}\n",
-                p.value,
-                if p.survived { "survives" } else { "fails" },
-                if p.why.is_empty() {
-                    format!(" (last peaks {:.4} rad)", p.last_peak)
-                } else {
-                    format!(" ({})", p.why)
-                }
-            );
-        }
-    }
-    let f =
-        |v: Option<f64>, unit: &str| v.map_or("none of the grid".into(), |v| format!("{v} {unit}"));
-    s += &format!(
-        "largest angle noise survived: {}\nlargest rate noise survived: {}\narm-mass errors \
-             survived: {}\n",
-        f(r.largest_angle_noise, "rad"),
-        f(r.largest_rate_noise, "rad/s"),
-        r.mass_error_range
-            .map_or("none of the grid".into(), |(a, b)| format!("{a} to {b}")),
-    );
-    s += &edges_text(&r.edges);
-    s
-}
-
-/// One edge in words: the farthest surviving value, and the nearest failing one past it.
-fn edge_text(e: &Edge) -> String {
-    let v = |x: f64| match e.knob {
-        Knob::Parameter(_) => format!("{:+.1} %", 100.0 * x),
-        Knob::EncoderBits(_) => format!("{x}"),
-        Knob::AngleNoise(_) => format!("{:.3} mrad", 1e3 * x),
-        _ => format!("{x:.3}"),
-    };
-    match (e.edge, e.beyond) {
-        (None, _) => format!("none ({} fails)", v(e.start)),
-        (Some(x), None) => format!("{} (end)", v(x)),
-        (Some(x), Some(b)) => format!("{} ({} fails)", v(x), v(b)),
-    }
-}
-
-/// The robot rows searched by bisection, as tables.
-fn edges_text(edges: &[Edge]) -> String {
-    if edges.is_empty() {
-        return String::new();
-    }
-    let find = |knob: Knob, robust: bool, up: bool| {
-        edges
-            .iter()
-            .find(|e| e.knob == knob && e.robust == robust && (e.end > e.start) == up)
-    };
-    let mut s = String::from(
-        "\nthe robot rows, by bisection (the edge survives, the value in brackets fails)\n",
-    );
-    let mut knobs: Vec<Knob> = Vec::new();
-    for e in edges {
-        if !knobs.contains(&e.knob) {
-            knobs.push(e.knob);
-        }
-    }
-    let params: Vec<Knob> = knobs
-        .iter()
-        .copied()
-        .filter(|k| matches!(k, Knob::Parameter(_)))
-        .collect();
-    if !params.is_empty() {
-        s += &format!(
-            "  {:<6}{:<50}{}\n",
-            "param", "band, plain law (plant = (1 + e) model)", "band, robust law (--orbit-peak)"
-        );
-        for k in params {
-            let side = |robust: bool| {
-                let down = find(k, robust, false).map_or("-".into(), edge_text);
-                let up = find(k, robust, true).map_or("n/a".into(), edge_text);
-                format!("{down} to {up}")
-            };
-            s += &format!("  {:<6}{:<50}{}\n", k.name(), side(false), side(true));
-        }
-    }
-    for (k, label) in [
-        (Knob::Viscous, "viscous friction b_v (N m s/rad)"),
-        (Knob::Coulomb, "Coulomb friction tau_c (N m)"),
-    ] {
-        if knobs.contains(&k) {
-            let f = |robust| find(k, robust, true).map_or("-".into(), edge_text);
-            s += &format!("  {label}: plain {}, robust {}\n", f(false), f(true));
-        }
-    }
-    for (knob, label) in [
-        (
-            Knob::AngleNoise as fn(_) -> Knob,
-            "angle noise, --measure angles",
-        ),
-        (Knob::EncoderBits, "fewest encoder bits, --measure angles"),
-    ] {
-        let (obs, fd) = (
-            knob(tilting_controller::EstimatorChoice::Observer),
-            knob(tilting_controller::EstimatorChoice::Fd),
-        );
-        if knobs.contains(&obs) || knobs.contains(&fd) {
-            let f = |k| {
-                edges
-                    .iter()
-                    .find(|e| e.knob == k)
-                    .map_or("-".into(), edge_text)
-            };
-            s += &format!("  {label}: observer {}, fd {}\n", f(obs), f(fd));
-        }
-    }
-    s
-}
-
 /// The PNG of the imperfection maps beside `--plot FILE.png`: `FILE-robot.png`.
 pub fn robot_plot_path(plot: &std::path::Path) -> PathBuf {
     let stem = plot
@@ -415,75 +290,9 @@ fn plot(p: &std::path::Path, report: &MarginsReport) -> Result<(), CommandError>
     .map_err(CommandError::Failed)
 }
 
-/// The report as tables: the delay × loss maps, the rate maps, the boundaries, the robot.
+/// The report as tables ([`MarginsReport::summary`]) and the plots' paths.
 fn human(args: &MarginsArgs, report: &MarginsReport) -> String {
-    let mut s = format!("survives = {}\n", report.survives_means);
-    for (name, map) in [
-        ("plain controller", &report.delay_loss),
-        ("--predict auto", &report.delay_loss_predict),
-    ] {
-        s += &format!(
-            "\ndelay × loss at {} Hz, {name} (rows: total delay, columns: loss of each direction)\n{:>12}",
-            report.rate, "delay \\ loss"
-        );
-        for l in &args.losses {
-            s += &format!("{l:>8}");
-        }
-        s += "\n";
-        for d in &args.delays {
-            s += &format!("{:>10.4} s ", d);
-            for l in &args.losses {
-                let p = map.iter().find(|p| p.delay == *d && p.loss == *l);
-                s += &format!(
-                    "{:>8}",
-                    p.map_or("?", |p| if p.survived { "yes" } else { "no" })
-                );
-            }
-            s += "\n";
-        }
-    }
-    for (name, rates) in [
-        ("periodic samples", &report.rates),
-        ("--sample-on-event", &report.rates_events),
-    ] {
-        s += &format!("\ncontrol rate (perfect network), {name}\n");
-        for p in rates.iter() {
-            s += &format!(
-                "  {:>7.1} Hz: {}{}\n",
-                p.rate,
-                if p.survived { "survives" } else { "fails" },
-                if p.why.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", p.why)
-                }
-            );
-        }
-    }
-    let f =
-        |v: Option<f64>, unit: &str| v.map_or("none of the grid".into(), |v| format!("{v} {unit}"));
-    s += &format!(
-        "\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
-        "",
-        "plain",
-        "--predict auto",
-        "largest delay survived (no loss)",
-        f(report.largest_delay, "s"),
-        f(report.largest_delay_predict, "s"),
-        "largest loss survived (no delay)",
-        f(report.largest_loss, ""),
-        f(report.largest_loss_predict, ""),
-    );
-    s += &format!(
-        "{:<38}{:>18}{:>22}\n{:<38}{:>18}{:>22}\n",
-        "",
-        "periodic",
-        "--sample-on-event",
-        "lowest rate survived",
-        f(report.lowest_rate, "Hz"),
-        f(report.lowest_rate_events, "Hz"),
-    );
-    s += &robot_text(&report.robot);
+    let mut s = report.summary(&args.delays, &args.losses);
     if let Some(p) = &args.plot {
         s += &format!(
             "plot: {} and {}\n",
