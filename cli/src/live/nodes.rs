@@ -499,8 +499,11 @@ mod tests {
         std::fs::write(&file.path, file.to_toml_string()).unwrap();
         let topo = Topology::ports(&job).unwrap();
         let once = |bin: &'static str, v: Vec<String>| std::iter::once(bin.to_owned()).chain(v);
-        let plant =
-            PlantArgs::try_parse_from(once("tilting-plant", plant_args(&job, &topo))).unwrap();
+        // The plant reads its network and sensors from the run file, as its binary does.
+        let argv_plant: Vec<std::ffi::OsString> = once("tilting-plant", plant_args(&job, &topo))
+            .map(Into::into)
+            .collect();
+        let plant = PlantArgs::from_argv(&argv_plant).unwrap();
         assert_eq!(plant.network, live.network);
         assert_eq!(plant.zenoh.robot, live.robot);
         assert_eq!((plant.rate, plant.duration), (500.0, Some(2.5)));
