@@ -686,18 +686,25 @@ pub fn sinusoid(
     })
 }
 
-/// The law of a plan (`tilting plan orbit --json`, a [`crate::jobs::OrbitReport`]): its
-/// gains, the adaptation's `E_av` (J) and the start of its first stable orbit.
-pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<tilting_controller::LawSpec> {
+/// A plan file (`tilting plan orbit --json`, given as `--plan FILE`), read; an unreadable file
+/// or other JSON is an error naming the file.
+pub fn read_plan(path: &std::path::Path) -> anyhow::Result<OrbitReport> {
     use anyhow::Context as _;
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("--plan {}: cannot read it", path.display()))?;
-    let r: OrbitReport = serde_json::from_str(&text).with_context(|| {
+    serde_json::from_str(&text).with_context(|| {
         format!(
             "--plan {}: not the JSON of `tilting plan orbit --json`",
             path.display()
         )
-    })?;
+    })
+}
+
+/// The law of a plan (`tilting plan orbit --json`, a [`crate::jobs::OrbitReport`]): its
+/// gains, the adaptation's `E_av` (J) and the start of its first stable orbit.
+pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<tilting_controller::LawSpec> {
+    use anyhow::Context as _;
+    let r = read_plan(path)?;
     let Some(o) = r.solutions.iter().find(|o| o.stable) else {
         anyhow::bail!(
             "--plan {}: no stable orbit among its {} solutions (a loop cannot hold an \

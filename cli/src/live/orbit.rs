@@ -13,7 +13,6 @@ use super::summary::{OrbitState, OrbitVerdict};
 use anyhow::Context as _;
 use std::path::Path;
 use tilting_controller::LawSpec;
-use tilting_planner::jobs::OrbitReport;
 use tilting_planner::margins::{self, peaks_hold, Criteria, LAST_PEAKS, SECONDS_PER_TILT};
 use tilting_plant::Params;
 use tilting_sim::Scenario;
@@ -37,14 +36,7 @@ pub(super) struct OrbitCheck {
 /// tilt of the plan's first stable orbit, the one `--plan` takes the law from
 /// (`tilting_planner::jobs::law_of_plan`). An unreadable plan is an error naming the file.
 pub(super) fn plan_peak(path: &Path) -> anyhow::Result<f64> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("--plan {}: cannot read it", path.display()))?;
-    let r: OrbitReport = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "--plan {}: not the JSON of `tilting plan orbit --json`",
-            path.display()
-        )
-    })?;
+    let r = tilting_planner::jobs::read_plan(path)?;
     let orbit = r.solutions.iter().find(|o| o.stable);
     match (&r.settled, orbit) {
         (Some(s), _) => Ok(s.peak_mean.abs()),
