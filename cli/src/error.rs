@@ -2,6 +2,7 @@
 //! libraries report (their own typed errors) to the process's exit status.
 
 use tilting_launch::LaunchError;
+use tilting_live::LiveError;
 use tilting_planner::jobs::JobError;
 use tilting_planner::margins::{InvalidSurvey, SurveyError};
 use tilting_planner::node::NodeError;
@@ -57,9 +58,18 @@ impl std::error::Error for CommandError {}
 impl From<NodeError> for CommandError {
     /// An invalid flag or law is a usage error; a missing orbit or a failed session is not.
     fn from(e: NodeError) -> Self {
+        LiveError::from(e).into()
+    }
+}
+
+impl From<LiveError> for CommandError {
+    /// The live run's ending, one variant each: usage, failure, fault, lost orbit.
+    fn from(e: LiveError) -> Self {
         match e {
-            NodeError::Invalid(_) => CommandError::Usage(e.into()),
-            NodeError::NoOrbit { .. } | NodeError::Run(_) => CommandError::Failed(e.into()),
+            LiveError::Usage(e) => CommandError::Usage(e),
+            LiveError::Failed(e) => CommandError::Failed(e),
+            LiveError::Fault(e) => CommandError::Fault(e),
+            LiveError::OrbitLost(e) => CommandError::OrbitLost(e),
         }
     }
 }

@@ -3,12 +3,13 @@
 //! - [`error`]: [`CommandError`], the exit codes (the libraries return their own errors);
 //! - [`commands`]: the subcommands, grouped by what a person wants (run: `live`, `simulate`;
 //!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`, `animate`);
-//! - [`foxglove`]: the Foxglove flags, `tilting view`, and the server of `live --foxglove`;
-//! - [`live`]: the main job, the three nodes live on localhost with a status line, a recording
-//!   and a report;
+//! - [`foxglove`]: `tilting view` and `tilting replay --foxglove`;
 //! - [`robot`]: the robot file at the front door (its keys as the flags' defaults) and
 //!   `tilting config`;
-//! - [`record`]: the live run's recording (CSV files with flat memory, and its plot);
+//!
+//! `tilting live`, the main job (the nodes live on localhost with a status line, a recording and
+//! a report), is [`tilting_live`]'s; this crate parses its flags and maps its ending to an exit
+//! code.
 //!
 //! Child processes and the secure deployment's certificates, zenoh configurations and router
 //! are `tilting_launch`'s; `security` and `supervise` here are that crate under the names
@@ -23,8 +24,6 @@
 pub mod commands;
 pub mod error;
 pub mod foxglove;
-pub mod live;
-pub mod record;
 pub mod robot;
 
 pub use error::CommandError;

@@ -7,7 +7,7 @@ use tilting::commands::{
     animate, certs, continuation, figures, identify, margins, plan, recording, ros2, shard,
     simulate, topics,
 };
-use tilting::live;
+use tilting_live as live;
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
 const HELP: &str = "\
@@ -145,7 +145,7 @@ fn main() -> ExitCode {
     // A command given a robot file reads its keys as the defaults of its flags.
     let cli: Cli = tilting::robot::parse();
     let result = match &cli.command {
-        Command::Live(args) => live::run(args),
+        Command::Live(args) => live::run(args, tilting::robot::merged()).map_err(Into::into),
         Command::Simulate(args) => simulate::run(args),
         Command::Config(args) => tilting::robot::config(args),
         Command::Plan(Plan::Orbit(args)) => plan::orbit(args),

@@ -217,10 +217,10 @@ mod tests {
 
     #[derive(Debug, clap::Subcommand)]
     enum Sub {
-        Live(Box<crate::live::LiveArgs>),
+        Live(Box<tilting_live::LiveArgs>),
     }
 
-    fn live(argv: &[&str]) -> Result<crate::live::LiveArgs, Failure> {
+    fn live(argv: &[&str]) -> Result<tilting_live::LiveArgs, Failure> {
         let argv: Vec<std::ffi::OsString> = std::iter::once("tilting")
             .chain(argv.iter().copied())
             .map(Into::into)

@@ -39,6 +39,7 @@ mod acl;
 mod certs;
 mod config;
 mod error;
+mod ports;
 mod router;
 mod session;
 mod supervise;
@@ -50,12 +51,13 @@ pub use certs::{
 };
 pub use config::{client_config, direct_config, router_config};
 pub use error::LaunchError;
+pub use ports::{endpoint, free_port, reserve_port, PortLease};
 pub use router::{lower_priority, router, RouterArgs, ROUTER_NICE};
 pub use session::{
     direct_recorder, session_flags, DirectEndpoints, DIRECT, DIRECT_PLANT_PORT,
     DIRECT_RECORDER_PORT, RECORDER,
 };
 pub use supervise::{
-    check_fifo, endpoint, free_port, profile_dir, utc_timestamp, Child, NodeBinaries,
-    CONTROLLER_BIN, PLANT_BIN, ROUTER_BIN,
+    check_fifo, profile_dir, utc_timestamp, Child, NodeBinaries, CONTROLLER_BIN, PLANT_BIN,
+    ROUTER_BIN,
 };

@@ -144,7 +144,7 @@ mod tests {
         // Whether `dialler` (its `-direct.json5`) links to `listener` on 127.0.0.1 within
         // `wait`.
         let link = |dir: &Path, listener: &str, dialler: &str, wait: Duration| {
-            let port = crate::supervise::free_port().unwrap();
+            let port = crate::ports::free_port().unwrap();
             let ep = format!("[\"tls/127.0.0.1:{port}\"]");
             let cfg = |node: &str, listen: &str, connect: &str| {
                 let mut c =

@@ -86,19 +86,6 @@ pub fn profile_dir() -> anyhow::Result<PathBuf> {
     Ok(dir)
 }
 
-/// A free TCP port on 127.0.0.1 (chosen by the OS, released before use).
-pub fn free_port() -> anyhow::Result<u16> {
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")
-        .context("cannot bind 127.0.0.1:0")?
-        .local_addr()?
-        .port())
-}
-
-/// `tcp/127.0.0.1:{port}`, the zenoh endpoint of a loopback port.
-pub fn endpoint(port: u16) -> String {
-    format!("tcp/127.0.0.1:{port}")
-}
-
 /// Whether this process may run threads under `SCHED_FIFO` at `priority` (1 to 99): tried on a
 /// short-lived thread of its own, so nothing else changes. The error says what to do.
 pub fn check_fifo(priority: i32) -> anyhow::Result<()> {
@@ -403,12 +390,5 @@ mod tests {
         let t = utc_timestamp();
         assert_eq!(t.len(), 20, "{t}");
         assert!(t.ends_with('Z') && !t.contains(':'), "{t}");
-    }
-
-    #[test]
-    fn free_ports_are_distinct_and_bindable() {
-        let (a, b) = (free_port().unwrap(), free_port().unwrap());
-        assert!(a > 0 && b > 0);
-        assert_eq!(endpoint(a), format!("tcp/127.0.0.1:{a}"));
     }
 }

@@ -116,7 +116,7 @@ pub fn robot(tag: &str) -> String {
 }
 
 /// `summary.json` of a `tilting live` run whose output directory is `out`.
-pub fn live_summary(out: &Path) -> tilting::live::summary::LiveSummary {
+pub fn live_summary(out: &Path) -> tilting_live::summary::LiveSummary {
     let text = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json: {e}\n{text}"))
 }

@@ -17,7 +17,7 @@
 
 use std::path::Path;
 use std::time::{Duration, Instant};
-use tilting::live::summary::{LiveSummary, OrbitState};
+use tilting_live::summary::{LiveSummary, OrbitState};
 use tilting_tests::*;
 
 fn summary_at(path: &Path) -> LiveSummary {

@@ -14,7 +14,7 @@
 
 use std::process::Command;
 use std::time::{Duration, Instant};
-use tilting::live::summary::OrbitState;
+use tilting_live::summary::OrbitState;
 use tilting_proto::{PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 

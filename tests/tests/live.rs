@@ -15,7 +15,7 @@
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use tilting::live::summary::LiveResult;
+use tilting_live::summary::LiveResult;
 use tilting_proto::{ModeEvent, PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 

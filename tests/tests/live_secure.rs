@@ -4,7 +4,7 @@
 //! robot is refused with a message that says so.
 
 use std::process::Command;
-use tilting::live::summary::{LiveResult, LiveSummary};
+use tilting_live::summary::{LiveResult, LiveSummary};
 use tilting_tests::*;
 
 #[test]

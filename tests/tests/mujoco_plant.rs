@@ -83,7 +83,7 @@ const KEEPS_UP: f64 = 0.1;
 /// checks that hold however busy the machine is (it completed every period, the recording
 /// holds every state, the summary names the command and carries the plant's own), and a
 /// context for failure messages.
-fn live_run(dir: &Path, attempt: u32) -> (tilting::live::summary::LiveSummary, String) {
+fn live_run(dir: &Path, attempt: u32) -> (tilting_live::summary::LiveSummary, String) {
     let out = dir.join(format!("out{attempt}"));
     let cmd = plant_cmd().join(" ");
     let args: Vec<String> = [
@@ -147,7 +147,7 @@ fn live_runs_the_mujoco_plant() {
         return;
     }
     let dir = Scratch::new("mujoco-live");
-    let kept_up = |s: &tilting::live::summary::LiveSummary| {
+    let kept_up = |s: &tilting_live::summary::LiveSummary| {
         let p = s.plant.as_ref().expect("the plant's summary");
         (p.deadline_misses as f64) < KEEPS_UP * p.steps as f64
     };
@@ -219,7 +219,7 @@ fn a_mujoco_fault_ends_the_live_run_as_a_fault() {
     let status = live.expect_exit(Duration::from_secs(120));
     assert_eq!(status.code(), Some(3), "{}", live.logs());
     let summary = live_summary(&out);
-    assert_eq!(summary.result, tilting::live::summary::LiveResult::Failed);
+    assert_eq!(summary.result, tilting_live::summary::LiveResult::Failed);
     let plant = summary.plant.as_ref().expect("the plant's summary");
     assert_eq!(plant.result, RunResult::Faulted, "{plant:?}");
     let fault = plant.fault.as_deref().unwrap_or_default();

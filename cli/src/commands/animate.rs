@@ -10,10 +10,9 @@ use anyhow::{Context as _, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tilting_plant::Params;
 use tilting_record::{Trace, Window};
 use tilting_sim::{ScenarioArgs, SimOptions};
-use tilting_viz::animate::{animate, Options, Output, Rendered};
+use tilting_viz::animate::{animate, Options, Output};
 
 /// Flags of `tilting animate`.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -260,25 +259,6 @@ fn load_run(from: &Path, w: Window) -> Result<Trace> {
         );
     }
     Ok(run.trace)
-}
-
-/// Seconds of the end of a live run in its animation (`run.gif`).
-pub const LIVE_CLIP: f64 = 8.0;
-
-/// The short animation of a live run beside `run.png`: the last [`LIVE_CLIP`] s of the
-/// recording in `dir`, real time at 20 fps, 480 x 360 px, into `gif`.
-pub fn live_clip(dir: &Path, gif: &Path, params: &Params) -> Result<Rendered> {
-    let w = Window {
-        tail: Some(LIVE_CLIP),
-        ..Window::default()
-    };
-    let trace = load_run(dir, w)?;
-    let opts = Options {
-        fps: 20.0,
-        size: (480, 360),
-        ..Options::default()
-    };
-    animate(Output::Gif(gif), params, &trace, &opts, &|_, _| {})
 }
 
 #[cfg(test)]

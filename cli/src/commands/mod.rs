@@ -1,5 +1,5 @@
 //! The subcommands of `tilting`, grouped by what a person wants to do: [`simulate`] (run),
-//! [`plan`] (plan), [`figures`], [`animate`] and [`topics`] (look: `echo`, `hz`); `live` is [`crate::live`]. Each is a thin shell: flags,
+//! [`plan`] (plan), [`figures`], [`animate`] and [`topics`] (look: `echo`, `hz`); `live` is [`tilting_live`]. Each is a thin shell: flags,
 //! validation that names the field and its range, a progress bar, and output (a human summary,
 //! or one JSON object with `--json`); the computations live in the library crates.
 

@@ -208,7 +208,7 @@ pub struct ReplayArgs {
     pub fast: bool,
     /// Play into a Foxglove server (with the 3D scene) instead of zenoh.
     #[command(flatten)]
-    pub fox: crate::foxglove::FoxgloveArgs,
+    pub fox: tilting_live::foxglove::FoxgloveArgs,
     /// With --foxglove: the robot's geometry for the scene (TOML, the keys of docs/model.md)
     /// [default: the paper's]
     #[arg(long, value_name = "FILE.toml")]

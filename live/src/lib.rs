@@ -9,7 +9,7 @@
 //!   children get SIGINT, then SIGTERM, then SIGKILL if they do not exit in time (a second
 //!   Ctrl-C kills at once);
 //! - a recording in `--out DIR` (default `runs/<UTC timestamp>/`): `run.mcap` (all five
-//!   topics; with `--csv` also `state.csv`, `torque.csv`, `events.csv`, see [`crate::record`]),
+//!   topics; with `--csv` also `state.csv`, `torque.csv`, `events.csv`, see [`record`]),
 //!   `run.png`, `run.gif` (the last 8 s, moving), `summary.json` ([`summary`]), `robot.toml`
 //!   (the robot file with the flags given over it, as `tilting config` prints it), and the
 //!   children's output (`plant.log`, `plant.json`, `controller.log`, `controller.json`);
@@ -28,7 +28,7 @@
 //!
 //! With `--secure` (and optionally `--certs DIR` of `tilting certs`; by default certificates are
 //! made in `OUT/certs`), every link is mutual TLS and each session that accepts links holds
-//! access control ([`crate::security`]): the plant listens on its own TLS endpoint, the
+//! access control ([`tilting_launch`]): the plant listens on its own TLS endpoint, the
 //! controller dials it, the recorder (a session of its own with the logger's identity) listens
 //! on another and dials the plant, and the controller dials it too; a `tilting-router` child
 //! carries the rest (the in-process planner, with the planner's identity, is its client) and
@@ -36,16 +36,21 @@
 //!
 //! The topology without `--secure`: the plant listens on its port; the in-process planner session listens on its
 //! own port and connects to the plant; the controller listens on a third port and connects to
-//! both. The children are started and stopped by [`crate::supervise`].
+//! both. The children are started and stopped by [`tilting_launch`].
 //!
 //! The run is a composition of its steps, one module each: `nodes` (spawn the router, the plant
 //! and the controller, with the flags of their own parsers' `to_args()`), `tap` (the planner's
 //! session: record the five topics, publish the reference), `monitor` (status line and health),
 //! `shutdown` (stop the children in order) and `report` (figure, `summary.json`, report).
 
+#![warn(missing_docs)]
+
+mod error;
+pub mod foxglove;
 mod monitor;
 mod nodes;
 mod orbit;
+pub mod record;
 mod report;
 pub mod ros2;
 mod shutdown;
@@ -53,20 +58,22 @@ pub mod status;
 pub mod summary;
 mod tap;
 
-use crate::record::Recorder;
-use crate::security;
-use crate::supervise::{utc_timestamp, NodeBinaries};
-use crate::CommandError;
+pub use error::LiveError;
+
 use anyhow::{anyhow, Context as _};
 use monitor::{Signals, Watch};
 use nodes::Topology;
+use record::Recorder;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tap::Tap;
 use tilting_controller::LawSpec;
+use tilting_launch as security;
+use tilting_launch::{utc_timestamp, NodeBinaries};
 use tilting_link::{Impairment, Jitter, LinkSpec, NetworkArgs};
 use tilting_planner::node::{check_seconds, PlannerLawArgs};
 use tilting_proto::Keys;
+use tilting_sim::robot::RobotFile;
 
 /// Flags of `tilting live`.
 #[derive(Debug, Clone, clap::Args)]
@@ -164,7 +171,7 @@ pub struct LiveArgs {
     pub ros2: ros2::LiveRos2Args,
     /// Serve the run to Foxglove (`crate::foxglove`).
     #[command(flatten)]
-    pub foxglove: crate::foxglove::FoxgloveArgs,
+    pub foxglove: foxglove::FoxgloveArgs,
 }
 
 impl LiveArgs {
@@ -286,44 +293,47 @@ pub(crate) fn describe_io(e: &std::io::Error) -> String {
     }
 }
 
-/// `tilting live`.
-pub fn run(args: &LiveArgs) -> Result<(), CommandError> {
+/// `tilting live`: checks `args`, runs the robot live until `--duration` s of plant time (or
+/// Ctrl-C), and writes the recording and the report into the output directory. `robot` is the
+/// robot file given at the front door, its keys merged under the flags (`tilting config`), if
+/// any; it is written with the flags over it to `OUT/robot.toml`, which the nodes read.
+pub fn run(args: &LiveArgs, robot: Option<&RobotFile>) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
     let job = check(args)?;
-    let bins = NodeBinaries::next_to_current_exe().map_err(CommandError::Failed)?;
+    let bins = NodeBinaries::next_to_current_exe().map_err(LiveError::Failed)?;
     std::fs::create_dir_all(&job.dir)
         .with_context(|| format!("cannot create the output directory {}", job.dir.display()))
-        .map_err(CommandError::Failed)?;
+        .map_err(LiveError::Failed)?;
     // The run's robot file: the file given (if any) with the flags over it and the law
     // resolved (`nodes::run_file`); the controller reads it.
-    let robot = nodes::run_file(&job, crate::robot::merged())
-        .map_err(|e| CommandError::Failed(anyhow!("the run's robot file: {e}")))?;
+    let robot = nodes::run_file(&job, robot)
+        .map_err(|e| LiveError::Failed(anyhow!("the run's robot file: {e}")))?;
     std::fs::write(&robot.path, robot.to_toml_string())
         .with_context(|| format!("cannot write {}", robot.path.display()))
-        .map_err(CommandError::Failed)?;
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+        .map_err(LiveError::Failed)?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     let signals = Signals::start(&rt);
     let ending = rt
         .block_on(live(&job, &bins, signals))
-        .map_err(CommandError::Failed)?;
+        .map_err(LiveError::Failed)?;
     let logs = job.dir.display();
     match ending {
         report::Ending::Clean => Ok(()),
-        report::Ending::Failed => Err(CommandError::Failed(anyhow!(
+        report::Ending::Failed => Err(LiveError::Failed(anyhow!(
             "the live run did not end cleanly (see above; logs in {logs})"
         ))),
-        report::Ending::Fault => Err(CommandError::Fault(anyhow!(
+        report::Ending::Fault => Err(LiveError::Fault(anyhow!(
             "the live run ended on a fault of the model (see above; logs in {logs})"
         ))),
-        report::Ending::OrbitLost => Err(CommandError::OrbitLost(anyhow!(
+        report::Ending::OrbitLost => Err(LiveError::OrbitLost(anyhow!(
             "the live run lost the orbit (see the verdict above; logs in {logs})"
         ))),
     }
 }
 
 /// Checks the flags (usage errors) and resolves the law.
-fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
-    let usage = CommandError::Usage;
+fn check(args: &LiveArgs) -> Result<Job<'_>, LiveError> {
+    let usage = LiveError::Usage;
     check_seconds("--duration", args.duration, false)?;
     args.ros2.check(&args.robot, args.secure)?;
     let (lo, hi) = tilting_plant::node::PERIOD_RANGE;
@@ -356,7 +366,7 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, CommandError> {
                 "invalid `--realtime` = {p}: allowed 1 to 99"
             )));
         }
-        crate::supervise::check_fifo(p).map_err(|e| usage(e.context("--realtime")))?;
+        tilting_launch::check_fifo(p).map_err(|e| usage(e.context("--realtime")))?;
     }
     if args.plant_cmd.as_ref().is_some_and(|c| c.trim().is_empty()) {
         return Err(usage(anyhow!(
@@ -472,7 +482,7 @@ async fn live(
         topo.start_router(job, bins).await?;
     }
     let mut fox =
-        crate::foxglove::LiveServer::start(&job.args.foxglove, &job.keys, job.plant_params()).await;
+        foxglove::LiveServer::start(&job.args.foxglove, &job.keys, job.plant_params()).await;
     let mut plant = nodes::spawn_plant(job, &topo, bins)?;
     let (record, planner) = topo.front_door_sessions(job.keys.robot())?;
     let tap = Tap::open(

@@ -1,7 +1,7 @@
 //! `tilting live --ros2`: the flags handed to the plant, which then is a ROS 2 node as well
 //! (`tilting_plant::node` `--ros2`, docs/ros2.md).
 
-use crate::CommandError;
+use crate::LiveError;
 use anyhow::anyhow;
 
 /// The ROS 2 flags of `tilting live`.
@@ -26,11 +26,11 @@ pub struct LiveRos2Args {
 impl LiveRos2Args {
     /// Usage errors: the domain's range, the robot name as a ROS 2 name, and `--secure`
     /// without `--ros2-allow-commands`.
-    pub fn check(&self, robot: &str, secure: bool) -> Result<(), CommandError> {
+    pub fn check(&self, robot: &str, secure: bool) -> Result<(), LiveError> {
         if self.ros2.is_none() {
             return Ok(());
         }
-        let usage = |m: String| CommandError::Usage(anyhow!(m));
+        let usage = |m: String| LiveError::Usage(anyhow!(m));
         let env = std::env::var("ROS_DOMAIN_ID").ok();
         tilting_ros2::domain_id(self.ros_domain, env.as_deref()).map_err(usage)?;
         tilting_ros2::robot::Topics::new(robot).map_err(usage)?;

@@ -5,12 +5,12 @@ use super::orbit::OrbitCheck;
 use super::status::status_line;
 use super::tap::Tap;
 use crate::record::Recorder;
-use crate::supervise::Child;
 use std::io::{IsTerminal as _, Write as _};
 use std::process::ExitStatus;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tilting_launch::Child;
 use tilting_plant::node::stats::{Lateness, LATE_SHARE};
 use tilting_proto::Status;
 

@@ -2,8 +2,8 @@
 //! summary), then the controller; what went wrong, one sentence each.
 
 use super::monitor::{End, GRACE_S, START_TIMEOUT_S};
-use crate::supervise::Child;
 use std::process::ExitStatus;
+use tilting_launch::Child;
 
 /// How the children ended.
 pub(super) struct Stopped {

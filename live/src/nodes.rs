@@ -9,11 +9,11 @@
 
 use super::summary::Endpoints;
 use super::Job;
-use crate::security;
-use crate::supervise::{endpoint, free_port, Child, NodeBinaries};
 use anyhow::Context as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+use tilting_launch as security;
+use tilting_launch::{endpoint, reserve_port, Child, NodeBinaries, PortLease};
 use tilting_net::ZenohArgs;
 use tilting_plant::robot_file::{self, PARAMS_SECTIONS};
 use tilting_sim::robot::{key_of_flag, value_of_text, RobotFile};
@@ -36,20 +36,33 @@ pub(super) struct Topology {
     ctl_port: u16,
     my_port: u16,
     secure: Option<Secure>,
+    /// The reservations of the ports chosen here, held for the run: another run started at the
+    /// same time is not given them before the sessions bind them ([`reserve_port`]).
+    leases: Vec<PortLease>,
 }
 
 impl Topology {
-    /// Free loopback ports for the three sessions (the plant's is `--port` if given).
+    /// Free loopback ports for the three sessions (the plant's is `--port` if given), each
+    /// reserved until the run ends.
     pub(super) fn ports(job: &Job) -> anyhow::Result<Self> {
+        let mut leases = Vec::new();
+        let mut free = || -> anyhow::Result<u16> {
+            let lease = reserve_port()?;
+            let port = lease.port();
+            leases.push(lease);
+            Ok(port)
+        };
         let plant_port = match job.args.port {
             Some(p) => p,
-            None => free_port()?,
+            None => free()?,
         };
+        let (ctl_port, my_port) = (free()?, free()?);
         Ok(Self {
             plant_port,
-            ctl_port: free_port()?,
-            my_port: free_port()?,
+            ctl_port,
+            my_port,
             secure: None,
+            leases,
         })
     }
 
@@ -72,7 +85,9 @@ impl Topology {
                 c.canonicalize()?
             }
         };
-        let endpoint = format!("tls/127.0.0.1:{}", free_port()?);
+        let lease = reserve_port()?;
+        let endpoint = format!("tls/127.0.0.1:{}", lease.port());
+        self.leases.push(lease);
         let config = certs.join("router.json5").display().to_string();
         let args = [
             "--config".into(),
@@ -434,7 +449,7 @@ pub(super) fn spawn_controller(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::live::LiveArgs;
+    use crate::LiveArgs;
     use clap::Parser as _;
     use tilting_controller::node::ControllerArgs;
     use tilting_plant::node::PlantArgs;
@@ -489,7 +504,7 @@ mod tests {
             "fd",
         ];
         let live = Cli::try_parse_from(argv).unwrap().live;
-        let job = crate::live::check(&live).unwrap();
+        let job = crate::check(&live).unwrap();
         // The flags over an empty file, as `robot::parse` merges them.
         let cmd = <Cli as clap::CommandFactory>::command();
         let m = cmd.clone().try_get_matches_from(argv).unwrap();

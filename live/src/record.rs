@@ -1,13 +1,16 @@
 //! The recording of a live run: the one [`Recorder`] of `tilting_record` (the robot's five
 //! topics as received, streamed with flat memory into `run.mcap` and optionally the CSV files
 //! of `--csv`; see [`tilting_record::recorder`]), and the figure drawn from the recording at
-//! the end.
+//! the end, and its short animation.
 
 use anyhow::Result;
 use std::path::Path;
+use tilting_plant::Params;
 use tilting_record::trace::RUN_MCAP;
+use tilting_record::Window;
 pub use tilting_record::{Record, RecordSender, RecordView, Recorder};
 use tilting_sim::Scenario;
+use tilting_viz::animate::{animate, Options, Output, Rendered};
 use tilting_viz::plot::plot_trace;
 
 /// The figure of a live run, beside the recording.
@@ -40,6 +43,25 @@ pub fn plot_recording(
         ..run.trace
     };
     plot_trace(png, &sc, &trace)
+}
+
+/// Seconds of the end of a live run in its animation (`run.gif`).
+pub const LIVE_CLIP: f64 = 8.0;
+
+/// The short animation of a live run beside `run.png`: the last [`LIVE_CLIP`] s of the
+/// recording in `dir`, real time at 20 fps, 480 x 360 px, into `gif`.
+pub fn live_clip(dir: &Path, gif: &Path, params: &Params) -> Result<Rendered> {
+    let w = Window {
+        tail: Some(LIVE_CLIP),
+        ..Window::default()
+    };
+    let trace = tilting_record::load(dir, w, None)?.trace;
+    let opts = Options {
+        fps: 20.0,
+        size: (480, 360),
+        ..Options::default()
+    };
+    animate(Output::Gif(gif), params, &trace, &opts, &|_, _| {})
 }
 
 #[cfg(test)]

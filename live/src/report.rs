@@ -62,7 +62,7 @@ fn draw(
     }
     if view.states > 0 {
         let gif = dir.join("run.gif");
-        if let Err(e) = crate::commands::animate::live_clip(dir, &gif, &scenario.params) {
+        if let Err(e) = record::live_clip(dir, &gif, &scenario.params) {
             problems.push(format!("cannot animate {}: {e:#}", gif.display()));
         }
     }
@@ -202,7 +202,7 @@ fn save_summary(dir: &Path, text: &str) -> bool {
         return true;
     };
     let _ = std::fs::remove_file(&path);
-    let first = crate::live::describe_io(&e);
+    let first = crate::describe_io(&e);
     let fallback = fallback_summary(dir);
     match std::fs::write(&fallback, format!("{text}\n")) {
         Ok(()) => tilting_net::say_err(&format!(
@@ -215,7 +215,7 @@ fn save_summary(dir: &Path, text: &str) -> bool {
                 "live: error: cannot write {} ({first}) nor {} ({}); the summary follows on stdout",
                 path.display(),
                 fallback.display(),
-                crate::live::describe_io(&e2)
+                crate::describe_io(&e2)
             ));
             let _ = tilting_net::say_out(text);
         }
