@@ -3,7 +3,6 @@
 //! - [`error`]: [`CommandError`], the exit codes (the libraries return their own errors);
 //! - [`commands`]: the subcommands, grouped by what a person wants (run: `live`, `simulate`;
 //!   plan: `plan orbit|sinusoid|bifurcation|gains`; look: `figures`, `animate`);
-//! - [`foxglove`]: `tilting view` and `tilting replay --foxglove`;
 //! - [`robot`]: the robot file at the front door (its keys as the flags' defaults) and
 //!   `tilting config`;
 //!
@@ -23,7 +22,6 @@
 
 pub mod commands;
 pub mod error;
-pub mod foxglove;
 pub mod robot;
 
 pub use error::CommandError;

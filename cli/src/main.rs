@@ -4,10 +4,10 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use tilting::commands::{
-    animate, certs, continuation, figures, identify, margins, plan, recording, ros2, shard,
-    simulate, topics,
+    animate, certs, continuation, figures, identify, margins, plan, ros2, shard, simulate,
 };
 use tilting_live as live;
+use tilting_live::{recording, topics};
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
 const HELP: &str = "\
@@ -99,7 +99,7 @@ enum Command {
     Replay(recording::ReplayArgs),
     /// Serve any robot on the network to Foxglove (WebSocket protocol): its five topics, a 3D
     /// scene of the plate and the arm, and log entries; until Ctrl-C
-    View(Box<tilting::foxglove::ViewArgs>),
+    View(Box<tilting_live::view::ViewArgs>),
     /// Summarise an MCAP recording: plant-time span, channels, counts, tilts, faults
     Info(recording::InfoArgs),
     /// The robot's physical parameters from a recording: least squares on the dynamics'
@@ -159,12 +159,12 @@ fn main() -> ExitCode {
         Command::Plan(Plan::Stability(args)) => continuation::stability(args),
         Command::Figures(args) => figures::figures(args),
         Command::Animate(args) => animate::run(args),
-        Command::Echo(args) => topics::echo(args),
-        Command::Hz(args) => topics::hz(args),
-        Command::Record(args) => recording::record(args),
-        Command::Replay(args) => recording::replay(args),
-        Command::Info(args) => recording::info(args),
-        Command::View(args) => tilting::foxglove::view(args),
+        Command::Echo(args) => topics::echo(args).map_err(Into::into),
+        Command::Hz(args) => topics::hz(args).map_err(Into::into),
+        Command::Record(args) => recording::record(args).map_err(Into::into),
+        Command::Replay(args) => recording::replay(args).map_err(Into::into),
+        Command::Info(args) => recording::info(args).map_err(Into::into),
+        Command::View(args) => tilting_live::view::view(args).map_err(Into::into),
         Command::Identify(args) => identify::run(args),
         Command::Certs(args) => certs::run(args),
         Command::Ros2(ros2::Ros2Command::Bridge(args)) => ros2::bridge(args),

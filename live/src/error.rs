@@ -1,6 +1,8 @@
-//! The error of a live run, sorted by how it ended; the front door maps each to its exit code.
+//! The error of a live run (or of a tool that watches a robot), sorted by how it ended; the
+//! front door maps each to its exit code.
 
 use tilting_planner::node::NodeError;
+use tilting_record::ReadError;
 
 /// The error of [`crate::run`], sorted by exit code (`tilting` maps them: 2, 1, 3, 4).
 #[derive(Debug)]
@@ -42,5 +44,12 @@ impl From<NodeError> for LiveError {
             NodeError::Invalid(_) => LiveError::Usage(e.into()),
             NodeError::NoOrbit { .. } | NodeError::Run(_) => LiveError::Failed(e.into()),
         }
+    }
+}
+
+impl From<ReadError> for LiveError {
+    /// A recording that cannot be read: a failure.
+    fn from(e: ReadError) -> Self {
+        LiveError::Failed(e.into())
     }
 }

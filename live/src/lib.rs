@@ -1,4 +1,10 @@
-//! The `live` command: the main job in one command. It starts the plant (`tilting-plant`) and
+//! A robot live on the network. [`run`] is `tilting live`, the main job in one command (below);
+//! the tools that look at a running robot, ours or not, are here too: [`topics`] (`tilting echo`,
+//! `tilting hz`), [`recording`] (`tilting record`, `replay`, `info`) and [`view`] (`tilting view`,
+//! `replay --foxglove`, over [`foxglove`]). Each takes its clap flags and returns a
+//! [`LiveError`], which the front door maps to an exit code.
+//!
+//! `tilting live` starts the plant (`tilting-plant`) and
 //! the controller (`tilting-controller`) as child processes, runs the planner's reference
 //! publisher in-process, all on 127.0.0.1 with explicit endpoints on free ports, and runs the
 //! paper's stabilised tilting orbit in real time at 1 kHz:
@@ -50,13 +56,17 @@ pub mod foxglove;
 mod monitor;
 mod nodes;
 mod orbit;
+pub mod out;
 pub mod record;
+pub mod recording;
 mod report;
 pub mod ros2;
 mod shutdown;
 pub mod status;
 pub mod summary;
 mod tap;
+pub mod topics;
+pub mod view;
 
 pub use error::LiveError;
 

@@ -5,7 +5,7 @@
 
 use std::process::Command;
 use std::time::Duration;
-use tilting::commands::topics::{HzReport, InvalidPayload};
+use tilting_live::topics::{HzReport, InvalidPayload};
 use tilting_proto::{PlantState, Topic, TorqueCommand};
 use tilting_tests::*;
 

@@ -1,5 +1,5 @@
 //! The subcommands of `tilting`, grouped by what a person wants to do: [`simulate`] (run),
-//! [`plan`] (plan), [`figures`], [`animate`] and [`topics`] (look: `echo`, `hz`); `live` is [`tilting_live`]. Each is a thin shell: flags,
+//! [`plan`] (plan), [`figures`], [`animate`] (look); `live`, `echo`, `hz`, `record`, `replay`, `info` and `view` are [`tilting_live`]'s. Each is a thin shell: flags,
 //! validation that names the field and its range, a progress bar, and output (a human summary,
 //! or one JSON object with `--json`); the computations live in the library crates.
 
@@ -10,11 +10,9 @@ pub mod figures;
 pub mod identify;
 pub mod margins;
 pub mod plan;
-pub mod recording;
 pub mod ros2;
 pub mod shard;
 pub mod simulate;
-pub mod topics;
 
 use crate::CommandError;
 use anyhow::anyhow;
@@ -89,21 +87,7 @@ pub fn emit<T: Serialize>(
     }
 }
 
-/// A progress bar on stderr (hidden with `--json` or when stderr is not a terminal).
-pub fn bar(len: u64, what: &str, json: bool) -> indicatif::ProgressBar {
-    if json || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let b = indicatif::ProgressBar::new(len);
-    b.set_style(
-        indicatif::ProgressStyle::with_template(&format!(
-            "{what} [{{bar:40}}] {{pos}}/{{len}} {{elapsed_precise}} (eta {{eta}})"
-        ))
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    b
-}
+pub use tilting_live::out::bar;
 
 /// The progress of a planner job ([`tilting_planner::jobs::Progress`]) as one progress bar a
 /// stage on stderr ([`bar`]: hidden with `--json` or when stderr is not a terminal).
@@ -171,13 +155,8 @@ pub fn simulate_with_bar(
     r
 }
 
-/// Writes `text` to stdout; a closed pipe (`| head`) is not an error.
+/// Writes `text` to stdout; a closed pipe (`| head`) is not an error
+/// ([`tilting_live::out::print_stdout`]).
 pub fn print_stdout(text: &str) -> Result<(), CommandError> {
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(CommandError::Failed(
-            anyhow::Error::new(e).context("cannot write to stdout"),
-        )),
-        _ => Ok(()),
-    }
+    Ok(tilting_live::out::print_stdout(text)?)
 }

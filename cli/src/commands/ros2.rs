@@ -2,7 +2,6 @@
 //! rmw_zenoh's conventions (`tilting_ros2`, docs/ros2.md), and the robot's URDF from the
 //! model's parameters.
 
-use super::topics::{check_seconds, session_args};
 use crate::CommandError;
 use anyhow::{anyhow, Context as _};
 use clap::{Args, Subcommand};
@@ -11,6 +10,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+use tilting_live::topics::{check_seconds, session_args};
 use tilting_net::{DropCounter, Role, ZenohArgs};
 use tilting_plant::{Params, ParamsArgs};
 use tilting_proto::{ModeEvent, PlantState, Status, TorqueCommand};

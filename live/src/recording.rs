@@ -2,9 +2,9 @@
 //! (the format is `tilting_record`'s), made from any robot on the network, played back into
 //! nodes under test, and summarised.
 
-use super::print_stdout;
-use super::topics::{check_seconds, parse_topic, session_args};
-use crate::CommandError;
+use crate::out::print_stdout;
+use crate::topics::{check_seconds, parse_topic, session_args};
+use crate::LiveError;
 use anyhow::anyhow;
 use clap::Args;
 use std::path::PathBuf;
@@ -56,7 +56,7 @@ pub struct RecordArgs {
 /// (`--plant-id`, `--controller-id`, or each pinned by its first message, as `tilting live`'s
 /// recorder does); messages from any other session are counted as foreign, reported, and not
 /// recorded (`--any-source` records them).
-pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
+pub fn record(args: &RecordArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
     check_seconds("--seconds", args.seconds)?;
     check_seconds("--wait", Some(args.wait))?;
@@ -75,8 +75,8 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
         }),
     };
     let rec = Recorder::with_options(&opts, &keys)
-        .map_err(|e| CommandError::Failed(anyhow!("--out {e}")))?;
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+        .map_err(|e| LiveError::Failed(anyhow!("--out {e}")))?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     rt.block_on(async {
         let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
         let received = Arc::new(AtomicU64::new(0));
@@ -152,7 +152,7 @@ pub fn record(args: &RecordArgs) -> Result<(), CommandError> {
         .map_err(|e| anyhow!("{e}"))?;
         anyhow::Ok(())
     })
-    .map_err(CommandError::Failed)
+    .map_err(LiveError::Failed)
 }
 
 /// What `record` refused, in words, if anything: per topic, and the first refusal (which names
@@ -208,7 +208,7 @@ pub struct ReplayArgs {
     pub fast: bool,
     /// Play into a Foxglove server (with the 3D scene) instead of zenoh.
     #[command(flatten)]
-    pub fox: tilting_live::foxglove::FoxgloveArgs,
+    pub fox: crate::foxglove::FoxgloveArgs,
     /// With --foxglove: the robot's geometry for the scene (TOML, the keys of docs/model.md)
     /// [default: the paper's]
     #[arg(long, value_name = "FILE.toml")]
@@ -228,10 +228,10 @@ pub struct ReplayArgs {
 /// paced by their log times. While replaying a node's topics it holds that node's liveliness
 /// token (the plant's for state/event/status, the controller's for torque, the planner's for
 /// reference), as the node did.
-pub fn replay(args: &ReplayArgs) -> Result<(), CommandError> {
+pub fn replay(args: &ReplayArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
     if !(args.speed.is_finite() && args.speed > 0.0 && args.speed <= 1e6) {
-        return Err(CommandError::Usage(anyhow!(
+        return Err(LiveError::Usage(anyhow!(
             "invalid `--speed` = {}: allowed a factor in (0, 1e6] (use --fast for no pacing)",
             args.speed
         )));
@@ -248,14 +248,14 @@ pub fn replay(args: &ReplayArgs) -> Result<(), CommandError> {
         args.topics.clone()
     };
     if topics.is_empty() {
-        return Err(CommandError::Failed(anyhow!(
+        return Err(LiveError::Failed(anyhow!(
             "{} holds no message to replay",
             args.file.display()
         )));
     }
     for &t in &topics {
         if run.count(t) == 0 {
-            return Err(CommandError::Usage(anyhow!(
+            return Err(LiveError::Usage(anyhow!(
                 "`--topics`: {} holds no {t} message (it holds: {})",
                 args.file.display(),
                 held(&run)
@@ -275,12 +275,12 @@ pub fn replay(args: &ReplayArgs) -> Result<(), CommandError> {
         );
     }
     if args.fox.foxglove.is_some() {
-        return crate::foxglove::replay(args, &keys, &run, &topics);
+        return crate::view::replay(args, &keys, &run, &topics);
     }
     args.fox.check()?;
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     rt.block_on(replay_async(args, &keys, &run, &topics))
-        .map_err(CommandError::Failed)
+        .map_err(LiveError::Failed)
 }
 
 fn held(run: &Recording) -> String {
@@ -350,7 +350,7 @@ async fn replay_async(
     // Routes exist; give the remote subscriber's declaration a moment to settle.
     tokio::time::sleep(Duration::from_millis(100)).await;
     let total: u64 = topics.iter().map(|&t| run.count(t)).sum();
-    let bar = super::bar(total, "messages", false);
+    let bar = crate::out::bar(total, "messages", false);
     let started = Instant::now();
     let mut first: Option<u64> = None;
     let mut sent = [0u64; 5];
@@ -418,11 +418,11 @@ pub struct InfoArgs {
 }
 
 /// `tilting info`.
-pub fn info(args: &InfoArgs) -> Result<(), CommandError> {
+pub fn info(args: &InfoArgs) -> Result<(), LiveError> {
     let run = tilting_record::read(&args.file)?;
     let info = run.info();
     let text = if args.json {
-        serde_json::to_string_pretty(&info).map_err(|e| CommandError::Failed(e.into()))? + "\n"
+        serde_json::to_string_pretty(&info).map_err(|e| LiveError::Failed(e.into()))? + "\n"
     } else {
         info_text(&info, &run)
     };

@@ -1,8 +1,9 @@
-//! Foxglove at the front door: `tilting view` (any robot on the network, served to Foxglove)
-//! and `tilting replay --foxglove`. The flags, the subscription and the live run's server are
-//! [`tilting_live::foxglove`]'s; the server itself is `tilting_foxglove`'s.
+//! `tilting view` (any robot on the network, served to Foxglove) and `tilting replay
+//! --foxglove`. The flags, the subscription and the live run's server are [`crate::foxglove`]'s;
+//! the server itself is `tilting_foxglove`'s.
 
-use crate::CommandError;
+use crate::foxglove::{parse_addr, report, start, subscribe, FoxgloveArgs};
+use crate::LiveError;
 use anyhow::anyhow;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -10,16 +11,15 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tilting_foxglove::{Feed, DEFAULT_ADDR};
-use tilting_live::foxglove::{parse_addr, report, start, subscribe, FoxgloveArgs};
 use tilting_net::{Role, ZenohArgs};
 use tilting_proto::{Keys, Topic};
 
 /// The robot's geometry from `--params` (the paper's without it); the error names the flag.
-pub fn scene_params(file: Option<&PathBuf>) -> Result<tilting_plant::Params, CommandError> {
+pub fn scene_params(file: Option<&PathBuf>) -> Result<tilting_plant::Params, LiveError> {
     match file {
         None => Ok(tilting_plant::Params::default()),
         Some(f) => tilting_plant::Params::from_toml_file(f)
-            .map_err(|e| CommandError::Usage(anyhow!("invalid `--params` = {}: {e}", f.display()))),
+            .map_err(|e| LiveError::Usage(anyhow!("invalid `--params` = {}: {e}", f.display()))),
     }
 }
 
@@ -63,11 +63,11 @@ pub struct ViewArgs {
 /// `tilting view`: serves any robot on the network (ours, a Python plant, a real one) to
 /// Foxglove, subscribing to its five topics as `tilting record` does, until Ctrl-C or
 /// `--seconds`.
-pub fn view(args: &ViewArgs) -> Result<(), CommandError> {
+pub fn view(args: &ViewArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
-    crate::commands::topics::check_seconds("--seconds", args.seconds)?;
-    crate::commands::topics::check_seconds("--wait", Some(args.wait))?;
-    let keys = crate::commands::topics::session_args(&args.zenoh)?;
+    crate::topics::check_seconds("--seconds", args.seconds)?;
+    crate::topics::check_seconds("--wait", Some(args.wait))?;
+    let keys = crate::topics::session_args(&args.zenoh)?;
     let flags = FoxgloveArgs {
         foxglove: Some(args.addr),
         foxglove_any: args.foxglove_any,
@@ -76,11 +76,11 @@ pub fn view(args: &ViewArgs) -> Result<(), CommandError> {
     flags.check()?;
     let params = scene_params(args.params.as_ref())?;
     let opts = flags.options(&keys, params).expect("--foxglove is set");
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     rt.block_on(async {
         let server = start(&opts, "view")
             .await
-            .map_err(|e| CommandError::Failed(e.into()))?;
+            .map_err(|e| LiveError::Failed(e.into()))?;
         let run = async {
             let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
             let received = Arc::default();
@@ -92,7 +92,7 @@ pub fn view(args: &ViewArgs) -> Result<(), CommandError> {
         };
         let result = run.await;
         report("view", &server.close().await);
-        result.map_err(CommandError::Failed)
+        result.map_err(LiveError::Failed)
     })
 }
 
@@ -132,19 +132,19 @@ async fn watch(args: &ViewArgs, keys: &Keys, received: &AtomicU64) {
 /// publisher takes them, nothing dropped). It waits up to `--wait` s for a first client, then
 /// plays, and stops serving at the end (or at Ctrl-C).
 pub fn replay(
-    args: &crate::commands::recording::ReplayArgs,
+    args: &crate::recording::ReplayArgs,
     keys: &Keys,
     run: &tilting_record::Recording,
     topics: &[Topic],
-) -> Result<(), CommandError> {
+) -> Result<(), LiveError> {
     args.fox.check()?;
     let params = scene_params(args.params.as_ref())?;
     let opts = args.fox.options(keys, params).expect("--foxglove is set");
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     rt.block_on(async {
         let server = start(&opts, "replay")
             .await
-            .map_err(|e| CommandError::Failed(e.into()))?;
+            .map_err(|e| LiveError::Failed(e.into()))?;
         let deadline = Instant::now() + Duration::from_secs_f64(args.wait);
         while server.clients() == 0 && Instant::now() < deadline {
             tokio::time::sleep(Duration::from_millis(20)).await;
@@ -177,7 +177,7 @@ pub fn replay(
 
 /// Feeds the recording to `feed`, paced; the number of messages fed.
 fn play(
-    args: &crate::commands::recording::ReplayArgs,
+    args: &crate::recording::ReplayArgs,
     run: &tilting_record::Recording,
     topics: &[Topic],
     feed: &Feed,

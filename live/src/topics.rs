@@ -3,8 +3,8 @@
 //! default connecting to a plant on `tcp/127.0.0.1:7447`), decode every payload with the wire
 //! codec, and never publish anything.
 
-use super::print_stdout;
-use crate::CommandError;
+use crate::out::print_stdout;
+use crate::LiveError;
 use anyhow::anyhow;
 use clap::Args;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -100,15 +100,17 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
 }
 
 /// The session flags of `echo` and `hz`.
-pub(crate) fn session_args(z: &ZenohArgs) -> Result<Keys, CommandError> {
-    let keys = z.keys().map_err(CommandError::Usage)?;
-    z.config(Role::Peer).map_err(CommandError::Usage)?;
+pub fn session_args(z: &ZenohArgs) -> Result<Keys, LiveError> {
+    let keys = z.keys().map_err(LiveError::Usage)?;
+    z.config(Role::Peer).map_err(LiveError::Usage)?;
     Ok(keys)
 }
 
-pub(crate) fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), CommandError> {
+/// `Ok` unless `v` (a flag's seconds) is given and is not a positive number up to 1e7; the
+/// error names `flag`.
+pub fn check_seconds(flag: &str, v: Option<f64>) -> Result<(), LiveError> {
     match v {
-        Some(s) if !(s.is_finite() && s > 0.0 && s <= 1e7) => Err(CommandError::Usage(anyhow!(
+        Some(s) if !(s.is_finite() && s > 0.0 && s <= 1e7) => Err(LiveError::Usage(anyhow!(
             "invalid `{flag}` = {s}: allowed a positive number of seconds up to 1e7"
         ))),
         _ => Ok(()),
@@ -136,11 +138,11 @@ pub struct EchoArgs {
 }
 
 /// `tilting echo`.
-pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
+pub fn echo(args: &EchoArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
     check_seconds("--seconds", args.seconds)?;
     let keys = session_args(&args.zenoh)?;
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     rt.block_on(async {
         let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
         // The callback only queues: printing (maybe into a slow pipe) must not hold a zenoh
@@ -187,7 +189,7 @@ pub fn echo(args: &EchoArgs) -> Result<(), CommandError> {
         let _ = session.close().await;
         printed.map_err(|e| anyhow!("{e}"))
     })
-    .map_err(CommandError::Failed)
+    .map_err(LiveError::Failed)
 }
 
 /// `echo`'s end of its queue: prints each payload as a line, up to `limit`.
@@ -198,11 +200,11 @@ struct Printer {
     printed: Arc<AtomicU64>,
     /// Set when stdout fails (the first error is kept in `error`).
     failed: Arc<AtomicBool>,
-    error: Option<CommandError>,
+    error: Option<LiveError>,
 }
 
 impl Drain<Vec<u8>> for Printer {
-    type Output = Result<(), CommandError>;
+    type Output = Result<(), LiveError>;
 
     fn message(&mut self, bytes: Vec<u8>) {
         let n = self.printed.load(Ordering::Relaxed);
@@ -229,7 +231,7 @@ impl Drain<Vec<u8>> for Printer {
 
     fn idle(&mut self) {}
 
-    fn finish(self) -> Result<(), CommandError> {
+    fn finish(self) -> Result<(), LiveError> {
         self.error.map_or(Ok(()), Err)
     }
 }
@@ -279,7 +281,7 @@ pub struct TopicStats {
 }
 
 /// `tilting hz`.
-pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
+pub fn hz(args: &HzArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
     check_seconds("--seconds", args.seconds)?;
     check_seconds("--every", Some(args.every))?;
@@ -289,7 +291,7 @@ pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
     } else {
         args.topics.clone()
     };
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     rt.block_on(async {
         let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
         let stats: Arc<Mutex<Vec<TopicStats>>> =
@@ -358,7 +360,7 @@ pub fn hz(args: &HzArgs) -> Result<(), CommandError> {
         let _ = session.close().await;
         anyhow::Ok(())
     })
-    .map_err(CommandError::Failed)
+    .map_err(LiveError::Failed)
 }
 
 /// One report of `hz --json` (fields in the order of the JSON).
