@@ -27,7 +27,8 @@
 # plan.json`, the plant starts on the planned orbit's start state and the re-entry of
 # --orbit-peak hands over there, instead of the paper's orbit start, the plant's default;
 # default the physical law's two from the plan's start, the paper's law's two from its own),
-# REUSE (1: keep a chain's recordings when OUT has them, identify and plan again, and run only
+# DWELL (0: remove the `contact_dwell` identify wrote, so that the controller answers the
+# contact's flat reports at a landing as flat), REUSE (1: keep a chain's recordings when OUT has them, identify and plan again, and run only
 # the RUNS without a summary.json yet; the figures of all RUNS are computed again).
 # Needs: cargo build --release -p tilting; python3 -m pip install ./mujoco_plant.
 set -uo pipefail
@@ -162,7 +163,13 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
         grep '^i_f' "$d/true.toml" >>"$d/robot.toml"
         note="${note:+$note; }true i_f appended"
     fi
-    grep -Ev '^(impact|restitution)' "$d/robot.toml" >"$d/robot-paper.toml"
+    # DWELL=0: the controller answers every flat report as flat (the robot file without the
+    # contact's flat spell that identify measured), for contrast.
+    if [ "${DWELL:-1}" = 0 ] && grep -q '^contact_dwell' "$d/robot.toml"; then
+        sed -i '/^contact_dwell/d' "$d/robot.toml"
+        note="${note:+$note; }contact_dwell removed (DWELL=0)"
+    fi
+    grep -Ev '^(impact|restitution|contact_dwell)' "$d/robot.toml" >"$d/robot-paper.toml"
 
     say "3. plan orbit --peak $PEAK (paper's gains)"
     local peak=$PEAK

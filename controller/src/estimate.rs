@@ -402,6 +402,10 @@ pub struct Estimation {
     choice: EstimatorChoice,
     model: SimConfig,
     estimator: Option<Estimator>,
+    /// The last mode reported ([`Estimation::mode`]).
+    last_reported: Option<Mode>,
+    /// The flat spell in progress after a tilt: its first report's time (s) and the tilt.
+    spell: Option<(f64, Mode)>,
 }
 
 impl Estimation {
@@ -411,7 +415,24 @@ impl Estimation {
             choice,
             model,
             estimator: None,
+            last_reported: None,
+            spell: None,
         }
+    }
+
+    /// The mode the law answers in for the mode `reported` at `t` (s): `reported`, except a
+    /// flat report at a pass-through landing, within the model's
+    /// [`tilting_plant::Params::contact_dwell`] of the first flat report after a tilt, which
+    /// is the tilt the plate passes into ([`tilting_plant::Params::sensed_mode`]). Reports
+    /// must come in time order.
+    pub fn mode(&mut self, t: f64, reported: Mode) -> Mode {
+        match (reported, self.last_reported) {
+            (Mode::Flat, Some(from)) if from != Mode::Flat => self.spell = Some((t, from)),
+            (Mode::Flat, _) => {}
+            _ => self.spell = None,
+        }
+        self.last_reported = Some(reported);
+        self.model.params.sensed_mode(t, reported, self.spell)
     }
 
     /// The state the law answers for: the measured one with `auto` and measured rates, else the

@@ -163,3 +163,48 @@ fn finite_difference_error_matches_its_closed_form_on_a_sinusoid() {
     assert!(worst < 1e-9, "{worst:e}");
     assert!(largest_error > 0.1, "the lag is visible: {largest_error}");
 }
+
+/// The controller's mode at a pass-through landing: a robot whose contact reports the plate
+/// flat for up to 2 ms between two tilts ([`tilting_plant::Params::contact_dwell`]). The
+/// flat reports of that spell are the tilt passed into; a longer flat spell turns flat after
+/// 2 ms; the next tilt's report ends the spell; a flat start stays flat.
+#[test]
+fn flat_reports_of_a_pass_through_are_the_tilt_passed_into() {
+    use tilting_controller::{Estimation, EstimatorChoice};
+    let params = tilting_plant::Params::from_toml_str(
+        "impact = \"physical\"\nrestitution = -0.11\ncontact_dwell = 0.002",
+    )
+    .unwrap();
+    let model = SimConfig {
+        params,
+        ..SimConfig::default()
+    };
+    let mut e = Estimation::new(EstimatorChoice::Auto, model);
+    let (l, r, f) = (Mode::Left, Mode::Right, Mode::Flat);
+    // (time on the 1 kHz grid, reported, the mode the law answers in).
+    let steps = [
+        (f, f), // a flat start: no tilt before, flat
+        (l, l),
+        (l, l),
+        (f, r), // the spell's first report: 0 ms
+        (f, r), // 1 ms
+        (f, r), // 2 ms
+        (r, r), // the tilt shows
+        (f, l), // the next landing's spell, from the right tilt
+        (l, l),
+        (f, r), // a spell that lasts: 0, 1, 2 ms into the right tilt ...
+        (f, r),
+        (f, r),
+        (f, f), // ... then the plate is flat
+        (f, f),
+    ];
+    for (k, (reported, want)) in steps.into_iter().enumerate() {
+        let t = k as f64 * 1e-3;
+        assert_eq!(e.mode(t, reported), want, "report {k} at {t} s: {reported}");
+    }
+    // Without a dwell (the paper's robot), every report is the mode.
+    let mut e = Estimation::new(EstimatorChoice::Auto, SimConfig::default());
+    for (k, (reported, _)) in steps.into_iter().enumerate() {
+        assert_eq!(e.mode(k as f64 * 1e-3, reported), reported);
+    }
+}

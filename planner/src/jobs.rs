@@ -576,10 +576,7 @@ pub fn orbit_for_peak(
             "finite, >= 0 and <= 0.1 (s; 0 for a continuous law)",
         )?;
     }
-    let plastic = Params {
-        restitution: 0.0,
-        ..params
-    };
+    let plastic = params.plastic();
     let pb = OrbitProblem::new(plastic, impact, kp, kd).with_adaptation(k, 0.0);
     let found = crate::peak::energy_for_peak(&pb, &crate::peak::PeakSearch::new(peak), tick)
         .map_err(|e| match e {

@@ -1,6 +1,6 @@
 //! Physical parameters of the tilting system.
 
-use crate::ImpactLaw;
+use crate::{ImpactLaw, Mode};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -98,6 +98,15 @@ pub struct Params {
     /// landings do). Only the `physical` law uses it; 0 (the default) is a plastic landing.
     #[serde(skip_serializing_if = "is_zero")]
     pub restitution: f64,
+    /// How long (s) the robot's contact sensing may report the plate flat at a pass-through
+    /// landing (`restitution < 0`), in `[0, 0.05]`: a compliant contact takes a few
+    /// milliseconds to carry the plate from one edge to the other (MuJoCo's stiff contact
+    /// about 2 ms), with both edges loaded, where the rigid model passes through at once. A
+    /// controller takes a flat report within this long of the first flat report after a
+    /// tilt as the tilt the plate passes into ([`Params::sensed_mode`]). 0 (the default):
+    /// every flat report is flat.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub contact_dwell: f64,
 }
 
 fn is_paper(v: &ImpactLaw) -> bool {
@@ -129,9 +138,14 @@ impl Default for Params {
             i_f: 0.0,
             impact: ImpactLaw::Paper,
             restitution: 0.0,
+            contact_dwell: 0.0,
         }
     }
 }
+
+/// The largest [`Params::contact_dwell`] (s): a landing's spring motion longer than this is
+/// not a landing the rigid model describes.
+pub const MAX_CONTACT_DWELL: f64 = 0.05;
 
 impl Params {
     /// Checks every value, naming the first bad one: the masses, lengths and `g` finite and
@@ -179,6 +193,21 @@ impl Params {
                 field: "restitution",
                 value: format!("{e} (with impact = {})", self.impact.as_str()),
                 allowed: "0 unless impact = \"physical\" (only the physical law rebounds)",
+            });
+        }
+        let d = self.contact_dwell;
+        if !(d.is_finite() && (0.0..=MAX_CONTACT_DWELL).contains(&d)) {
+            return Err(ConfigError::OutOfRange {
+                field: "contact_dwell",
+                value: format!("{d}"),
+                allowed: "finite, >= 0 and <= 0.05 s",
+            });
+        }
+        if d != 0.0 && e >= 0.0 {
+            return Err(ConfigError::OutOfRange {
+                field: "contact_dwell",
+                value: format!("{d} (with restitution = {e})"),
+                allowed: "0 unless the landings pass through (restitution < 0)",
             });
         }
         Ok(())
@@ -234,7 +263,37 @@ impl Params {
         self.impact = law;
         if law != ImpactLaw::Physical {
             self.restitution = 0.0;
+            self.contact_dwell = 0.0;
         }
+        self
+    }
+
+    /// The mode a controller takes a sensed `reported` mode for, at `t` (s), in a flat spell
+    /// that began at `spell = (t_flat, from)` (the first flat report after a tilt on `from`):
+    /// with a pass-through landing (`restitution < 0`) and a [`Params::contact_dwell`], a flat
+    /// report within `contact_dwell` of the spell's start is the pass-through in progress, so
+    /// the tilt on the other side; otherwise `reported`. (1 ns of slack on the comparison:
+    /// sample times on a grid are sums of the period.)
+    pub fn sensed_mode(&self, t: f64, reported: Mode, spell: Option<(f64, Mode)>) -> Mode {
+        match (reported, spell) {
+            (Mode::Flat, Some((t_flat, from)))
+                if self.contact_dwell > 0.0 && t - t_flat <= self.contact_dwell + 1e-9 =>
+            {
+                match from {
+                    Mode::Left => Mode::Right,
+                    Mode::Right => Mode::Left,
+                    Mode::Flat => Mode::Flat,
+                }
+            }
+            _ => reported,
+        }
+    }
+
+    /// The same robot landing plastically: `restitution` and `contact_dwell` 0 (what the
+    /// orbit planner's shooting plans).
+    pub fn plastic(mut self) -> Self {
+        self.restitution = 0.0;
+        self.contact_dwell = 0.0;
         self
     }
 

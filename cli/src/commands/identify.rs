@@ -350,6 +350,16 @@ fn landing_summary(s: &mut String, l: &identify::landing::LandingFit) {
             }
         );
     }
+    if let Some(d) = &l.contact_dwell {
+        let _ = writeln!(
+            s,
+            "  the contact reports the plate flat for {:.2} ms on average (longest {:.2} ms) \
+             at {} landings that pass on into the other tilt",
+            d.mean * 1e3,
+            d.longest * 1e3,
+            d.spells
+        );
+    }
     for f in &l.laws {
         let _ = writeln!(
             s,

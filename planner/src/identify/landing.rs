@@ -105,6 +105,9 @@ pub struct LandingFit {
     /// the landing's own instant is a few milliseconds of spring motion that no sample
     /// resolves. `None` without a landing followed by a recorded tilt.
     pub by_tilts: Option<TiltRestitution>,
+    /// The flat spells the contact reports at the landings that pass on into the other tilt
+    /// ([`contact_dwell`]); `None` without such a landing.
+    pub contact_dwell: Option<ContactDwell>,
     /// The three laws, paper, striking-edge, physical.
     pub laws: Vec<LawFit>,
     /// The law with the smallest residual.
@@ -140,6 +143,65 @@ impl LandingFit {
             _ => 0.0,
         }
     }
+
+    /// The [`tilting_plant::Params::contact_dwell`] to write (s): with a pass-through written
+    /// ([`LandingFit::restitution_written`] below 0), the longest flat spell the contact
+    /// reported between two tilts ([`ContactDwell::longest`]); otherwise 0 (a rigid model's
+    /// plastic landing is itself flat for a while, and a rebound's stays on its edge).
+    pub fn contact_dwell_written(&self) -> f64 {
+        match &self.contact_dwell {
+            Some(d) if self.restitution_written() < 0.0 => d.longest,
+            _ => 0.0,
+        }
+    }
+}
+
+/// The flat spells of a recording's contact sensing at pass-through landings: a tilt, a flat
+/// report, and a tilt on the other side within [`tilting_plant::params::MAX_CONTACT_DWELL`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ContactDwell {
+    /// The longest spell (s), from the event into flat to the event out of it.
+    pub longest: f64,
+    /// The spells' mean (s).
+    pub mean: f64,
+    /// Spells measured (a pass-through with no flat report counts, as 0 s).
+    pub spells: usize,
+}
+
+/// The flat spells of `events` between a tilt and a tilt on the other side, no longer than
+/// [`tilting_plant::params::MAX_CONTACT_DWELL`] (a longer one is the plate at rest, not a
+/// landing's spring motion); `None` without one. A compliant contact (MuJoCo's, a real
+/// robot's) reports the plate flat for a few milliseconds while it carries it from one edge
+/// to the other: both edges bear load. A direct tilt-to-tilt event is a spell of 0 s.
+pub fn contact_dwell(events: &[tilting_record::EventRecord]) -> Option<ContactDwell> {
+    let max = tilting_plant::params::MAX_CONTACT_DWELL;
+    let other = |m: Mode| match m {
+        Mode::Left => Mode::Right,
+        Mode::Right => Mode::Left,
+        Mode::Flat => Mode::Flat,
+    };
+    let mut spells = Vec::new();
+    for (i, e) in events.iter().enumerate() {
+        if e.from == Mode::Flat {
+            continue;
+        }
+        if e.to == other(e.from) {
+            spells.push(0.0);
+        } else if let Some(n) = events.get(i + 1) {
+            let gap = n.t - e.t;
+            if e.to == Mode::Flat && n.from == Mode::Flat && n.to == other(e.from) && gap <= max {
+                spells.push(gap.max(0.0));
+            }
+        }
+    }
+    if spells.is_empty() {
+        return None;
+    }
+    Some(ContactDwell {
+        longest: spells.iter().copied().fold(0.0, f64::max),
+        mean: spells.iter().sum::<f64>() / spells.len() as f64,
+        spells: spells.len(),
+    })
 }
 
 /// The landings of `trace` and the law they follow, with the identified parameters `p`
@@ -158,6 +220,7 @@ pub fn fit(trace: &Trace, tau: &[Option<f64>], p: &Params) -> Option<LandingFit>
     let by_tilts = restitution_by_tilts(trace, tau, p, &landings);
     let mut fit = regress(landings, skipped, p)?;
     fit.by_tilts = by_tilts;
+    fit.contact_dwell = contact_dwell(&trace.events);
     Some(fit)
 }
 
@@ -514,6 +577,7 @@ fn regress(landings: Vec<LandingEstimate>, skipped: usize, p: &Params) -> Option
         restitution_std_error,
         rebounds,
         by_tilts: None,
+        contact_dwell: None,
         laws,
         best,
     })
@@ -705,5 +769,38 @@ mod tests {
         assert!((f.c - c).abs() < 1e-8);
         assert_eq!(f.best, ImpactLaw::Physical);
         assert!(f.restitution.abs() < 1e-8, "{}", f.restitution);
+    }
+
+    /// The contact's flat spells between two tilts, from events written by hand: the spells
+    /// are the gaps between the events into and out of flat, a direct pass-through is 0 s,
+    /// and spells that are not between opposite tilts (a rebound over the same edge, the plate
+    /// at rest longer than 50 ms, a flat start) are left out.
+    #[test]
+    fn contact_dwell_is_the_flat_spell_between_opposite_tilts() {
+        let ev = |t: f64, from: Mode, to: Mode| EventRecord {
+            t,
+            from,
+            to,
+            x_before: [0.0; 4],
+            x_after: [0.0; 4],
+        };
+        let (l, r, f) = (Mode::Left, Mode::Right, Mode::Flat);
+        let events = [
+            ev(0.10, f, l),   // a flat start: not a spell
+            ev(0.5004, l, f), // 1.6 ms into the right tilt
+            ev(0.5020, f, r),
+            ev(1.0000, r, f), // 2.0 ms into the left tilt
+            ev(1.0020, f, l),
+            ev(1.5000, l, r), // a direct pass-through: 0 s
+            ev(2.0000, r, f), // a rebound over the same edge: not one
+            ev(2.0010, f, r),
+            ev(2.5000, r, f), // flat for 0.1 s: at rest, not one
+            ev(2.6000, f, l),
+        ];
+        let d = contact_dwell(&events).unwrap();
+        assert_eq!(d.spells, 3);
+        assert!((d.longest - 0.002).abs() < 1e-12, "{d:?}");
+        assert!((d.mean - (0.0016 + 0.002) / 3.0).abs() < 1e-12, "{d:?}");
+        assert!(contact_dwell(&events[6..]).is_none());
     }
 }

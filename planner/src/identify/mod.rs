@@ -322,9 +322,11 @@ fn write_landing(params: &mut Params, l: &landing::LandingFit, warnings: &mut Ve
     match l.decisive() {
         Some(best) => {
             params.impact = best;
-            params.restitution = match best {
-                tilting_plant::ImpactLaw::Physical => l.restitution_written(),
-                _ => 0.0,
+            (params.restitution, params.contact_dwell) = match best {
+                tilting_plant::ImpactLaw::Physical => {
+                    (l.restitution_written(), l.contact_dwell_written())
+                }
+                _ => (0.0, 0.0),
             };
         }
         None => {
@@ -338,6 +340,7 @@ fn write_landing(params: &mut Params, l: &landing::LandingFit, warnings: &mut Ve
             // The prior's physical law: its restitution is still the landings' to tell.
             if params.impact == tilting_plant::ImpactLaw::Physical {
                 params.restitution = l.restitution_written();
+                params.contact_dwell = l.contact_dwell_written();
             }
         }
     }
