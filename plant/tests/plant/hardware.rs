@@ -1122,6 +1122,20 @@ fn bad_landing_values_are_refused_with_the_field_and_its_range() {
         ("impact = \"physical\"\nrestitution = nan", "restitution"),
         ("restitution = 0.2", "restitution"),
         ("impact = \"bouncy\"", "impact"),
+        // The contact's flat spell: only beside a pass-through, and at most 50 ms.
+        (
+            "impact = \"physical\"\nrestitution = -0.1\ncontact_dwell = -0.001",
+            "contact_dwell",
+        ),
+        (
+            "impact = \"physical\"\nrestitution = -0.1\ncontact_dwell = 0.06",
+            "contact_dwell",
+        ),
+        (
+            "impact = \"physical\"\nrestitution = 0.2\ncontact_dwell = 0.002",
+            "contact_dwell",
+        ),
+        ("contact_dwell = 0.002", "contact_dwell"),
     ] {
         let e = Params::from_toml_str(text).unwrap_err().to_string();
         assert!(e.contains(field), "{text}: {e}");
@@ -1133,4 +1147,42 @@ fn bad_landing_values_are_refused_with_the_field_and_its_range() {
     );
     // Written back and read again, the same robot.
     assert_eq!(Params::from_toml_str(&p.to_toml_string()).unwrap(), p);
+    let p =
+        Params::from_toml_str("impact = \"physical\"\nrestitution = -0.1\ncontact_dwell = 0.002")
+            .unwrap();
+    assert_eq!(Params::from_toml_str(&p.to_toml_string()).unwrap(), p);
+    // Another landing law has neither.
+    let q = p.with_impact(ImpactLaw::Paper);
+    assert_eq!((q.restitution, q.contact_dwell), (0.0, 0.0));
+    q.validate().unwrap();
+}
+
+/// A flat report at a pass-through is the other tilt for `contact_dwell` from the spell's
+/// first report, then flat; every report is itself without a dwell.
+#[test]
+fn a_flat_report_within_the_contact_dwell_is_the_tilt_passed_into() {
+    let p =
+        Params::from_toml_str("impact = \"physical\"\nrestitution = -0.1\ncontact_dwell = 0.002")
+            .unwrap();
+    let spell = Some((1.0, Mode::Left));
+    // 1 kHz samples of the spell: the first (1.000), 1.001 and 1.002 (by sums of the period,
+    // 1.002 lies a rounding error above 1 + 0.002) are the right tilt; 1.003 is flat.
+    let t2 = 1.0 + 0.001 + 0.001;
+    assert_eq!(p.sensed_mode(1.0, Mode::Flat, spell), Mode::Right);
+    assert_eq!(p.sensed_mode(1.001, Mode::Flat, spell), Mode::Right);
+    assert_eq!(p.sensed_mode(t2, Mode::Flat, spell), Mode::Right);
+    assert_eq!(p.sensed_mode(1.003, Mode::Flat, spell), Mode::Flat);
+    // Mirror: from the right tilt into the left.
+    assert_eq!(
+        p.sensed_mode(1.001, Mode::Flat, Some((1.0, Mode::Right))),
+        Mode::Left
+    );
+    // A tilted report is taken as it is; without a spell (a flat start) flat is flat.
+    for m in [Mode::Left, Mode::Right] {
+        assert_eq!(p.sensed_mode(1.001, m, spell), m);
+    }
+    assert_eq!(p.sensed_mode(1.001, Mode::Flat, None), Mode::Flat);
+    // The paper's robot: no dwell, every report as it is.
+    let paper = Params::default();
+    assert_eq!(paper.sensed_mode(1.0, Mode::Flat, spell), Mode::Flat);
 }
