@@ -4,9 +4,10 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use tilting::commands::{
-    animate, certs, continuation, figures, identify, margins, plan, ros2, shard, simulate,
+    animate, certs, continuation, figures, identify, margins, plan, shard, simulate,
 };
 use tilting_live as live;
+use tilting_live::bridge as ros2;
 use tilting_live::{recording, topics};
 
 /// The help page lists the subcommands in groups, by what a person wants to do.
@@ -167,8 +168,8 @@ fn main() -> ExitCode {
         Command::View(args) => tilting_live::view::view(args).map_err(Into::into),
         Command::Identify(args) => identify::run(args),
         Command::Certs(args) => certs::run(args),
-        Command::Ros2(ros2::Ros2Command::Bridge(args)) => ros2::bridge(args),
-        Command::Ros2(ros2::Ros2Command::Urdf(args)) => ros2::urdf(args),
+        Command::Ros2(ros2::Ros2Command::Bridge(args)) => ros2::bridge(args).map_err(Into::into),
+        Command::Ros2(ros2::Ros2Command::Urdf(args)) => ros2::urdf(args).map_err(Into::into),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

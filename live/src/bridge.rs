@@ -2,7 +2,9 @@
 //! rmw_zenoh's conventions (`tilting_ros2`, docs/ros2.md), and the robot's URDF from the
 //! model's parameters.
 
-use crate::CommandError;
+use crate::out::print_stdout;
+use crate::topics::{check_seconds, session_args};
+use crate::LiveError;
 use anyhow::{anyhow, Context as _};
 use clap::{Args, Subcommand};
 use serde::{Deserialize, Serialize};
@@ -10,7 +12,6 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use tilting_live::topics::{check_seconds, session_args};
 use tilting_net::{DropCounter, Role, ZenohArgs};
 use tilting_plant::{Params, ParamsArgs};
 use tilting_proto::{ModeEvent, PlantState, Status, TorqueCommand};
@@ -53,16 +54,16 @@ pub struct BridgeSummary {
 }
 
 /// `tilting ros2 bridge`.
-pub fn bridge(args: &BridgeArgs) -> Result<(), CommandError> {
+pub fn bridge(args: &BridgeArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
     check_seconds("--seconds", args.seconds)?;
     let keys = session_args(&args.zenoh)?;
     // One rule with the plant's `--ros2`: the flag, else ROS_DOMAIN_ID, else 0 (0 to 232).
     let env = std::env::var("ROS_DOMAIN_ID").ok();
     let domain = tilting_ros2::domain_id(args.ros_domain, env.as_deref())
-        .map_err(|e| CommandError::Usage(anyhow!(e)))?;
-    tilting_ros2::robot::Topics::new(keys.robot()).map_err(|e| CommandError::Usage(anyhow!(e)))?;
-    let rt = tilting_net::runtime().map_err(CommandError::Failed)?;
+        .map_err(|e| LiveError::Usage(anyhow!(e)))?;
+    tilting_ros2::robot::Topics::new(keys.robot()).map_err(|e| LiveError::Usage(anyhow!(e)))?;
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     let summary = rt
         .block_on(async {
             let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
@@ -151,9 +152,9 @@ pub fn bridge(args: &BridgeArgs) -> Result<(), CommandError> {
             let _ = session.close().await;
             anyhow::Ok(summary)
         })
-        .map_err(CommandError::Failed)?;
-    super::print_stdout(
-        &(serde_json::to_string(&summary).map_err(|e| CommandError::Failed(anyhow!(e)))? + "\n"),
+        .map_err(LiveError::Failed)?;
+    print_stdout(
+        &(serde_json::to_string(&summary).map_err(|e| LiveError::Failed(anyhow!(e)))? + "\n"),
     )
 }
 
@@ -188,22 +189,26 @@ pub fn geometry(p: &Params, max_torque: f64) -> Geometry {
 }
 
 /// `tilting ros2 urdf`.
-pub fn urdf(args: &UrdfArgs) -> Result<(), CommandError> {
+pub fn urdf(args: &UrdfArgs) -> Result<(), LiveError> {
     let p = args
         .params
         .params()
-        .map_err(|e| CommandError::Usage(e.into()))?;
+        .map_err(|e| LiveError::Usage(e.into()))?;
     let tau = args
         .max_torque
         .unwrap_or(tilting_plant::node::DEFAULT_MAX_TORQUE);
-    super::check("max-torque", tau, tau > 0.0, "a positive number of N m")?;
+    if !(tau.is_finite() && tau > 0.0) {
+        return Err(LiveError::Usage(anyhow!(
+            "invalid `--max-torque` = {tau}: must be a positive number of N m"
+        )));
+    }
     tilting_ros2::names::validate_ros_name(&args.name)
-        .map_err(|e| CommandError::Usage(anyhow!("--name: {e}")))?;
+        .map_err(|e| LiveError::Usage(anyhow!("--name: {e}")))?;
     let text = tilting_ros2::urdf::urdf(&args.name, &geometry(&p, tau));
     match &args.out {
         Some(path) => std::fs::write(path, text)
             .with_context(|| format!("cannot write --out {}", path.display()))
-            .map_err(CommandError::Failed),
-        None => super::print_stdout(&text),
+            .map_err(LiveError::Failed),
+        None => print_stdout(&text),
     }
 }

@@ -1,7 +1,8 @@
 //! A robot live on the network. [`run`] is `tilting live`, the main job in one command (below);
 //! the tools that look at a running robot, ours or not, are here too: [`topics`] (`tilting echo`,
 //! `tilting hz`), [`recording`] (`tilting record`, `replay`, `info`) and [`view`] (`tilting view`,
-//! `replay --foxglove`, over [`foxglove`]). Each takes its clap flags and returns a
+//! `replay --foxglove`, over [`foxglove`]) and [`bridge`] (`tilting ros2 bridge`, `tilting ros2
+//! urdf`). Each takes its clap flags and returns a
 //! [`LiveError`], which the front door maps to an exit code.
 //!
 //! `tilting live` starts the plant (`tilting-plant`) and
@@ -51,6 +52,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bridge;
 mod error;
 pub mod foxglove;
 mod monitor;

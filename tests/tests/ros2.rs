@@ -11,7 +11,7 @@
 use std::io::Write;
 use std::process::{Command, Stdio};
 use std::time::Duration;
-use tilting::commands::ros2::geometry;
+use tilting_live::bridge::geometry;
 use tilting_plant::kinematics::point_masses;
 use tilting_plant::{Mode, Params, State};
 use tilting_proto::PlantState;

@@ -1,6 +1,6 @@
 //! The subcommands of `tilting`, grouped by what a person wants to do: [`simulate`] (run),
-//! [`plan`] (plan), [`figures`], [`animate`] (look); `live`, `echo`, `hz`, `record`, `replay`, `info` and `view` are [`tilting_live`]'s. Each is a thin shell: flags,
-//! validation that names the field and its range, a progress bar, and output (a human summary,
+//! [`plan`] (plan), [`figures`], [`animate`] (look); `live`, `echo`, `hz`, `record`, `replay`,
+//! `info`, `view` and `ros2` are [`tilting_live`]'s. Each is a thin shell: flags, validation that names the field and its range, a progress bar, and output (a human summary,
 //! or one JSON object with `--json`); the computations live in the library crates.
 
 pub mod animate;
@@ -10,7 +10,6 @@ pub mod figures;
 pub mod identify;
 pub mod margins;
 pub mod plan;
-pub mod ros2;
 pub mod shard;
 pub mod simulate;
 
