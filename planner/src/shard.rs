@@ -11,6 +11,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::fmt;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// Shard `index` of `count` (0-based: `0 <= index < count`), written `I/N`.
@@ -50,6 +51,10 @@ pub enum ShardError {
         /// `N`.
         count: usize,
     },
+    /// A shard file that cannot be read, is not one, or is not of the others' sweep (the
+    /// message names the files and, for grids, the first field that differs).
+    #[error("{0}")]
+    File(String),
     /// Shards of different splits were given together.
     #[error("shard {a} and shard {b} split the sweep differently (N = {} and {})", a.count, b.count)]
     Split {
@@ -238,6 +243,149 @@ pub fn first_difference(a: &serde_json::Value, b: &serde_json::Value) -> Option<
         _ if a == b => None,
         _ => Some(String::new()),
     }
+}
+
+// The shard files of `--shard I/N` and `tilting plan merge`.
+
+/// The format tag of a shard file.
+pub const FORMAT: &str = "tilting-shard/1";
+
+/// One shard of a sweep, as printed by `--shard` and read by `merge`.
+#[derive(Debug, Serialize, Deserialize)]
+pub struct ShardFile {
+    /// [`FORMAT`].
+    pub format: String,
+    /// The command whose sweep this is (`plan margins`, ...).
+    pub command: String,
+    /// Which shard.
+    pub shard: Shard,
+    /// Everything the sweep's points depend on: shards merge only with equal grids.
+    pub grid: serde_json::Value,
+    /// The shard's results (the command's own form).
+    pub part: serde_json::Value,
+}
+
+impl ShardFile {
+    /// The file of `shard` of `command` over `grid`, with its results `part`.
+    pub fn new(
+        command: &str,
+        shard: Shard,
+        grid: &impl Serialize,
+        part: &impl Serialize,
+    ) -> Result<Self, serde_json::Error> {
+        Ok(ShardFile {
+            format: FORMAT.into(),
+            command: command.into(),
+            shard,
+            grid: serde_json::to_value(grid)?,
+            part: serde_json::to_value(part)?,
+        })
+    }
+}
+
+fn file_error(message: String) -> ShardError {
+    ShardError::File(message)
+}
+
+/// The shards of one sweep, read and checked to belong together: one command, one grid, one
+/// `N`. The shards' results are for the command to gather.
+pub struct Shards {
+    /// The command (`plan margins`, ...).
+    pub command: String,
+    /// The grid they share.
+    pub grid: serde_json::Value,
+    /// Each shard and its results, in the order given.
+    pub parts: Vec<(Shard, serde_json::Value)>,
+}
+
+fn read_file(path: &Path) -> Result<ShardFile, ShardError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| file_error(format!("cannot read shard file {}: {e}", path.display())))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        file_error(format!(
+            "{} is not a shard file (not one JSON object: {e}); was its shard run to the end?",
+            path.display()
+        ))
+    })?;
+    if v.get("format").and_then(serde_json::Value::as_str) != Some(FORMAT) {
+        return Err(file_error(format!(
+            "{} is not a shard file of this version (no \"format\": \"{FORMAT}\"); shard \
+             files come from a sweep run with --shard I/N",
+            path.display()
+        )));
+    }
+    serde_json::from_value(v)
+        .map_err(|e| file_error(format!("{} is not a valid shard file: {e}", path.display())))
+}
+
+/// Reads the files and checks they are shards of one sweep (command, grid).
+pub fn read_all(files: &[PathBuf]) -> Result<Shards, ShardError> {
+    let mut first: Option<(&PathBuf, ShardFile)> = None;
+    let mut parts = Vec::with_capacity(files.len());
+    for path in files {
+        let f = read_file(path)?;
+        if let Some((p0, f0)) = &first {
+            if f.command != f0.command {
+                return Err(file_error(format!(
+                    "{} is a shard of `{}`, {} of `{}`: shards of different sweeps do not merge",
+                    path.display(),
+                    f.command,
+                    p0.display(),
+                    f0.command
+                )));
+            }
+            if let Some(field) = first_difference(&f0.grid, &f.grid) {
+                return Err(file_error(format!(
+                    "{} and {} are shards of different grids (`{field}` differs: {} and {}); \
+                     merge only the shards of one sweep",
+                    p0.display(),
+                    path.display(),
+                    lookup(&f0.grid, &field),
+                    lookup(&f.grid, &field),
+                )));
+            }
+        }
+        parts.push((f.shard, f.part.clone()));
+        if first.is_none() {
+            first = Some((path, f));
+        }
+    }
+    let (_, f0) = first.ok_or_else(|| file_error("no shard files given".into()))?;
+    Ok(Shards {
+        command: f0.command,
+        grid: f0.grid,
+        parts,
+    })
+}
+
+/// The value at a path of [`first_difference`] (`delays[1]`, `criteria.tilts`), as JSON text.
+fn lookup(v: &serde_json::Value, path: &str) -> String {
+    let mut cur = Some(v);
+    for seg in path.split('.') {
+        let (key, idx) = seg.split_once('[').unwrap_or((seg, ""));
+        if !key.is_empty() {
+            cur = cur.and_then(|c| c.get(key));
+        }
+        for i in idx.split('[').filter(|s| !s.is_empty()) {
+            let i: usize = i.trim_end_matches(']').parse().unwrap_or(usize::MAX);
+            cur = cur.and_then(|c| c.get(i));
+        }
+    }
+    cur.map_or("absent".into(), serde_json::Value::to_string)
+}
+
+/// Parses the parts as `T` (each a command's own form).
+pub fn parts<T: serde::de::DeserializeOwned>(
+    parts: Vec<(Shard, serde_json::Value)>,
+) -> Result<Vec<(Shard, T)>, ShardError> {
+    parts
+        .into_iter()
+        .map(|(s, v)| {
+            serde_json::from_value(v)
+                .map(|t| (s, t))
+                .map_err(|e| file_error(format!("shard {s} is not a valid shard: {e}")))
+        })
+        .collect()
 }
 
 #[cfg(test)]

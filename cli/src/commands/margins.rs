@@ -4,7 +4,7 @@
 //! [`tilting_planner::margins::Survey`]; this command checks the flags, draws the progress bar,
 //! the maps and the tables.
 
-use super::shard::{self, ShardArgs, ShardFile, Shards};
+use super::shard::{self, ShardArgs, Shards};
 use super::{bar, emit, usage};
 use crate::CommandError;
 use anyhow::Context as _;
@@ -238,7 +238,7 @@ pub fn margins(args: &MarginsArgs) -> Result<(), CommandError> {
         }
         let b = bar(s.len(survey.points()) as u64, "margins", true);
         let part = survey.run_shard(s, &|| b.inc(1))?;
-        return ShardFile::new(COMMAND, s, &survey, &part)?.emit();
+        return shard::emit_shard(COMMAND, s, &survey, &part);
     }
     let b = bar(survey.units(), "margins", args.json);
     let report = survey.run(&|| b.inc(1));

@@ -2,7 +2,7 @@
 //! Sec. III. The computations live in `tilting_planner`'s [`orbit`], [`sinusoid`],
 //! [`bifurcation`] and [`gains`].
 
-use super::shard::{self, ShardArgs, ShardFile, Shards};
+use super::shard::{self, ShardArgs, Shards};
 use super::{bar, emit, usage, ModelArgs};
 use crate::CommandError;
 use clap::Args;
@@ -407,7 +407,7 @@ pub fn bifurcation(args: &BifurcationArgs) -> Result<(), CommandError> {
     let job = bifurcation_job(args)?;
     if let Some(s) = args.sharding.shard {
         let part = job.run_shard(s)?;
-        return ShardFile::new(BIFURCATION, s, &job, &part)?.emit();
+        return shard::emit_shard(BIFURCATION, s, &job, &part);
     }
     let b = bar(job.ks.len() as u64, "bifurcation", args.model.json);
     let report = job.run(&|| b.inc(1));
@@ -541,7 +541,7 @@ pub fn gains_job(args: &GainsArgs) -> Result<GainsJob, CommandError> {
 pub fn gains(args: &GainsArgs) -> Result<(), CommandError> {
     let job = gains_job(args)?;
     if let Some(s) = args.sharding.shard {
-        return ShardFile::new(GAINS, s, &job, &job.run_shard(s))?.emit();
+        return shard::emit_shard(GAINS, s, &job, &job.run_shard(s));
     }
     let b = bar(job.kps.len() as u64, "gains", args.model.json);
     let report = job.run(&|| b.inc(1));
