@@ -62,6 +62,15 @@ use tilting_plant::{paper, Mode, Params, State, TorqueLaw};
 /// Trim gain `g`: the relative change of the scale per unit relative peak error, per tilt
 /// (0.035 and 0.05 converge faster but fail more points of the robustness table).
 pub const TRIM_GAIN: f64 = 0.02;
+/// How steep (`d ln(peak) / d ln(m_l)`, magnitude) the orbit is that [`TRIM_GAIN`] was tuned
+/// on: the paper's, -10.9 (`tilting plan orbit --peak 0.0406 --json`, `peak_per_arm_mass`).
+/// On a steeper orbit ([`crate::LawSpec::orbit_steepness`]) the gain is scaled by
+/// `TRIM_STEEPNESS / |steepness|`: the settled peak moves that much more per step of the
+/// scale, and with the orbit's own slow convergence the trim at the full gain swings ever
+/// wider (MuJoCo, the physical law's 0.018 rad orbit of the paper's gains, steepness -39:
+/// peaks from 0.016 to 0.032 rad and back within 20 tilts, growing, until the plate landed
+/// for good).
+pub const TRIM_STEEPNESS: f64 = 10.9;
 /// Exponent `q` of the first trim, `s_1 = s_0 (p* / p_0)^q`, made on the law's first tilt
 /// instead of [`TRIM_GAIN`]'s step. The first tilt starts from the orbit's own start state,
 /// so its peak measures the loop's mismatch without the memory later tilts carry, and it
@@ -144,6 +153,9 @@ pub struct RobustLaw {
     /// Whether the scale is trimmed (the robust option); `false`: a launcher
     /// ([`RobustLaw::launcher`]), the plain law with the re-entry only.
     trims: bool,
+    /// The trim's gain per tilt: [`TRIM_GAIN`], scaled down on a steep orbit
+    /// ([`TRIM_STEEPNESS`]).
+    gain: f64,
     memory: Cell<Memory>,
 }
 
@@ -174,12 +186,17 @@ impl RobustLaw {
             .law
             .orbit_start
             .unwrap_or([FRAC_PI_2, paper::ORBIT_BETA_DOT0]);
+        let gain = TRIM_GAIN
+            * c.law
+                .orbit_steepness
+                .map_or(1.0, |st| (TRIM_STEEPNESS / st.abs()).min(1.0));
         Self {
             law,
             peak,
             papers,
             handover,
             trims: true,
+            gain,
             memory: Cell::new(Memory {
                 scale: 1.0,
                 tilt: None,
@@ -234,7 +251,7 @@ impl RobustLaw {
         let s = if m.tilts == 0 && m.orbit_start == Some(true) {
             m.scale * (self.peak / p).powf(FIRST_TRIM_EXPONENT)
         } else {
-            m.scale * (1.0 + TRIM_GAIN * (self.peak - p) / self.peak)
+            m.scale * (1.0 + self.gain * (self.peak - p) / self.peak)
         };
         m.scale = s.clamp(SCALE_RANGE.0, SCALE_RANGE.1);
         m.tilts += 1;
@@ -444,6 +461,50 @@ impl TorqueLaw for RobustLaw {
                 self.scaled(m.scale, tau)
             }
             p => self.reentry_torque(t, mode, x, p, m.scale),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{ControlConfig, LawSpec};
+
+    /// The scale after one tilt of peak `p` (rad) to the left, then a landing, for a planned
+    /// orbit (not the paper's start: the first trim is a gain step) of peak `peak` whose
+    /// steepness is `steepness`.
+    fn scale_after_one_tilt(peak: f64, p: f64, steepness: Option<f64>) -> f64 {
+        let law = LawSpec {
+            orbit_peak: Some(peak),
+            orbit_start: Some([FRAC_PI_2 + 0.01, 0.4]),
+            orbit_steepness: steepness,
+            ..LawSpec::default()
+        };
+        let c = ComputedTorque::new(ControlConfig::new(Params::default(), law)).unwrap();
+        let r = RobustLaw::new(c, peak);
+        let x = |a: f64| State::new(a, FRAC_PI_2, 0.0, 0.0);
+        for (k, a) in [0.0, 0.5 * p, p, 0.5 * p].into_iter().enumerate() {
+            let _ = r.torque(k as f64 * 1e-3, Mode::Left, &x(a));
+        }
+        let _ = r.torque(0.004, Mode::Flat, &x(0.0));
+        assert_eq!(r.status().tilts, 1);
+        r.status().scale
+    }
+
+    /// The trim's step is `TRIM_GAIN (p* - p) / p*` on an orbit no steeper than the one it
+    /// was tuned on, and `TRIM_STEEPNESS / |steepness|` of it on a steeper one, either sign.
+    #[test]
+    fn the_trim_steps_more_gently_on_a_steeper_orbit() {
+        let (peak, p) = (0.02, 0.016); // 20 % low: the scale steps up
+        let full = TRIM_GAIN * (peak - p) / peak;
+        for st in [None, Some(-5.0), Some(10.9), Some(-10.9)] {
+            let s = scale_after_one_tilt(peak, p, st);
+            assert!((s - (1.0 + full)).abs() < 1e-12, "{st:?}: {s}");
+        }
+        for st in [-39.0, 24.0, 200.0] {
+            let s = scale_after_one_tilt(peak, p, Some(st));
+            let want = 1.0 + full * TRIM_STEEPNESS / st.abs();
+            assert!((s - want).abs() < 1e-12, "{st}: {s} vs {want}");
         }
     }
 }

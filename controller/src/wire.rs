@@ -101,6 +101,7 @@ impl From<&Reference> for LawSpec {
             // Not on the wire: the controller keeps its own (`Node::on_reference`).
             orbit_peak: None,
             orbit_start: None,
+            orbit_steepness: None,
         }
     }
 }

@@ -698,7 +698,8 @@ pub fn read_plan(path: &std::path::Path) -> anyhow::Result<OrbitReport> {
 }
 
 /// The law of a plan (`tilting plan orbit --json`, a [`crate::jobs::OrbitReport`]): its
-/// gains, the adaptation's `E_av` (J) and the start of its first stable orbit.
+/// gains, the adaptation's `E_av` (J), the start of its first stable orbit and (a `--peak`
+/// plan's) how steep its peak is in the arm's mass.
 pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<tilting_controller::LawSpec> {
     use anyhow::Context as _;
     let r = read_plan(path)?;
@@ -716,6 +717,7 @@ pub fn law_of_plan(path: &std::path::Path) -> anyhow::Result<tilting_controller:
         k: r.k,
         energy_avg: r.energy_avg_adaptation.unwrap_or(o.energy_avg),
         orbit_start: Some([std::f64::consts::FRAC_PI_2 + o.beta0, o.beta_dot0]),
+        orbit_steepness: r.peak_per_arm_mass,
         ..tilting_controller::LawSpec::default()
     };
     law.validate()

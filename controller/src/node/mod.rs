@@ -94,6 +94,8 @@ struct Node {
     orbit_peak: Option<f64>,
     /// The orbit start of the flags (not on the wire either).
     orbit_start: Option<[f64; 2]>,
+    /// The orbit's steepness (the trim's gain), the controller's own (not on the wire).
+    orbit_steepness: Option<f64>,
     law: Mutex<Controller>,
     states: DropCounter,
     /// The plausibility window of the states (`tilting_proto::plausible`): a forged state
@@ -255,6 +257,7 @@ impl Node {
         let cfg = ControlConfig::from_wire(self.params, &r).map(|mut c| {
             c.law.orbit_peak = self.orbit_peak;
             c.law.orbit_start = self.orbit_start;
+            c.law.orbit_steepness = self.orbit_steepness;
             c
         });
         match cfg.and_then(Controller::new) {
@@ -496,6 +499,7 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         params: law.config().params,
         orbit_peak: law.config().law.orbit_peak,
         orbit_start: law.config().law.orbit_start,
+        orbit_steepness: law.config().law.orbit_steepness,
         law: Mutex::new(law),
         states: DropCounter::new(keys.plant_state()),
         // The period is learnt by the predictor only; the window bounds jumps by the shortest
