@@ -7,7 +7,7 @@
 //! | `[robot]` | the robot's parameters (the controller's model) | the keys of a parameter file (`m_f`, `l`, `i_f`, `impact`, `restitution`, ...), or `params = "file.toml"` |
 //! | `[plant]` | the robot a simulation runs when it is not the model | the same |
 //! | `[prior]` | the builder's prior for `identify` | the same |
-//! | `[law]` | the law and its reference | the flags of the law: `law`, `kp`, `kd`, `k`, `energy_avg`, `reference`, `torque_limit`, `orbit_peak`, `orbit_start`, `plan`, `from_orbit` |
+//! | `[law]` | the law and its reference | the flags of the law: `law`, `kp`, `kd`, `k`, `energy_avg`, `reference`, `torque_limit`, `orbit_peak`, `orbit_start`, `orbit_steepness`, `plan`, `from_orbit` |
 //! | `[run]` | the start and the length of a run | `x0`, `mode`, `duration`, `control_period`, `rtol` |
 //! | `[network]` | the network between the nodes | `delay`, `jitter`, `loss`, `loss_burst` (each also `state_`, `torque_`), `seed`, `max_age`, `predict`, `sample_on_event` |
 //! | `[sensors]` | what the plant measures and the controller estimates | `measure`, `noise_alpha`, ..., `encoder_counts`, `torque_saturation`, `torque_lag`, `mass_error`, `estimator` |
