@@ -4,7 +4,7 @@
 //!
 //! | section | what it holds | its keys |
 //! |---|---|---|
-//! | `[robot]` | the robot's parameters (the controller's model) | the keys of a parameter file (`m_f`, `l`, `i_f`, `impact`, `restitution`, ...), or `params = "file.toml"` |
+//! | `[robot]` | the robot's parameters (the controller's model) | the keys of a parameter file (`m_f`, `l`, `i_f`, `impact`, `restitution`, `contact_dwell`, ...), or `params = "file.toml"` |
 //! | `[plant]` | the robot a simulation runs when it is not the model | the same |
 //! | `[prior]` | the builder's prior for `identify` | the same |
 //! | `[law]` | the law and its reference | the flags of the law: `law`, `kp`, `kd`, `k`, `energy_avg`, `reference`, `torque_limit`, `orbit_peak`, `orbit_start`, `orbit_steepness`, `plan`, `from_orbit` |
