@@ -8,6 +8,10 @@
 //!   (`tilting_record::schema`), so a layout made on a recording works live;
 //! - `/tilting/NAME/energy`: `{time, energy}` (JSON, schema `tilting.Energy`), the model's total
 //!   energy of each state that carries its rates;
+//! - `/tilting/NAME/plot`: alpha, beta, the torque, the energy and the adapted gain decimated to
+//!   50 ticks a second of plant time, each tick's least and greatest sample (JSON, schema
+//!   `tilting.Plot`, [`plot`]): what the layout's plot panels read, since a plot panel cannot
+//!   keep up with 1 kHz;
 //! - `/tilting/NAME/tf`: `foxglove.FrameTransforms`, the frames `plate` and `arm` of each state
 //!   ([`scene`]);
 //! - `/tilting/NAME/scene`: `foxglove.SceneUpdate`, the plate, the arm, the pivot edge, a title
@@ -32,6 +36,7 @@
 #![forbid(unsafe_code)]
 
 pub mod front;
+pub mod plot;
 pub mod queue;
 pub mod scene;
 pub mod server;

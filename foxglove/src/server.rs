@@ -1,6 +1,7 @@
 //! [`Server`]: the Foxglove WebSocket server (the SDK's) and the thread that publishes into it.
 
 use crate::front::Front;
+use crate::plot::{self, Decimator, Field};
 use crate::queue::{self, Drain, Feed, Item};
 use crate::scene;
 use foxglove::messages::{log::Level, FrameTransforms, Log, SceneEntity, SceneUpdate};
@@ -12,7 +13,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 use tilting_plant::{Mode, Params, State};
-use tilting_proto::{codec, Keys, ModeEvent, PlantState, Status, Topic};
+use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
 use tilting_record::schema::{json_schema, schema_name, to_json};
 
 /// The default address: loopback, Foxglove's default port.
@@ -224,6 +225,8 @@ struct Channels {
     topics: Vec<Arc<RawChannel>>,
     /// `{time, energy}` (JSON).
     energy: Arc<RawChannel>,
+    /// The decimated quantities for plot panels (JSON, [`plot`]).
+    plot: Arc<RawChannel>,
     scene: Channel<SceneUpdate>,
     tf: Channel<FrameTransforms>,
     log: Channel<Log>,
@@ -233,7 +236,7 @@ struct Channels {
 pub const ENERGY_SCHEMA: &str = "tilting.Energy";
 
 /// The JSON channels for robot `keys`: topic, schema name and JSON Schema; the five topics in
-/// [`Topic::ALL`] order, then the energy.
+/// [`Topic::ALL`] order, then the energy, then the plot channel ([`plot`]).
 pub fn json_channels(keys: &Keys) -> Vec<(String, String, serde_json::Value)> {
     let mut v: Vec<_> = Topic::ALL
         .into_iter()
@@ -260,6 +263,11 @@ pub fn json_channels(keys: &Keys) -> Vec<(String, String, serde_json::Value)> {
             "additionalProperties": false,
         }),
     ));
+    v.push((
+        format!("/tilting/{}/plot", keys.robot()),
+        plot::PLOT_SCHEMA.into(),
+        plot::schema(),
+    ));
     v
 }
 
@@ -282,15 +290,20 @@ impl Channels {
         for (topic, name, schema) in all.by_ref().take(Topic::ALL.len()) {
             topics.push(json(topic, name, schema)?);
         }
-        let (topic, name, schema) = all
-            .next()
-            .ok_or_else(|| StartError::Sdk("no energy channel".into()))?;
-        let energy = json(topic, name, schema)?;
+        let mut next = |what: &str| {
+            let (topic, name, schema) = all
+                .next()
+                .ok_or_else(|| StartError::Sdk(format!("no {what} channel")))?;
+            json(topic, name, schema)
+        };
+        let energy = next("energy")?;
+        let plot = next("plot")?;
         let base = format!("/tilting/{}", keys.robot());
         let typed = |suffix: &str| ChannelBuilder::new(format!("{base}/{suffix}")).context(ctx);
         Ok(Self {
             topics,
             energy,
+            plot,
             scene: typed("scene").build(),
             tf: typed("tf").build(),
             log: typed("log").build(),
@@ -317,6 +330,10 @@ struct Publisher {
     status: Option<(u8, String)>,
     /// Invalid payloads already reported, per topic.
     reported: [bool; 5],
+    /// The plot channel's ticks.
+    decimator: Decimator,
+    /// The latest reference (for the plotted gain).
+    reference: Option<Reference>,
 }
 
 impl Publisher {
@@ -334,6 +351,8 @@ impl Publisher {
             flash_until: f64::NEG_INFINITY,
             status: None,
             reported: [false; 5],
+            decimator: Decimator::default(),
+            reference: None,
         }
     }
 
@@ -344,6 +363,8 @@ impl Publisher {
                 self.publish(item);
             }
         }
+        let last = self.decimator.flush();
+        self.plot(last);
         self.counts
     }
 
@@ -387,16 +408,34 @@ impl Publisher {
                     self.status(&s);
                 }
             }
-            _ => {}
+            Topic::Torque => {
+                if let Ok(c) = codec::decode::<TorqueCommand>(&item.wire) {
+                    let done = self.decimator.add(log_time, &[(Field::Tau, c.tau)]);
+                    self.plot(done);
+                }
+            }
+            Topic::Reference => self.reference = codec::decode::<Reference>(&item.wire).ok(),
         }
     }
 
-    /// The frames, the energy and (20 times a second, at mode changes) the scene.
+    /// Publishes closed ticks of the plot channel.
+    fn plot(&mut self, ticks: Vec<(u64, serde_json::Value)>) {
+        for (log_time, json) in ticks {
+            self.ch.plot.log_with_meta(
+                json.to_string().as_bytes(),
+                PartialMetadata::with_log_time(log_time),
+            );
+        }
+    }
+
+    /// The frames, the energy, the plot's samples and (20 times a second, at mode changes)
+    /// the scene.
     fn state(&mut self, s: &PlantState, log_time: u64) {
         let Ok(mode) = s.mode() else { return };
         let meta = || PartialMetadata::with_log_time(log_time);
         let tfs = scene::transforms(&self.params, self.k, s.time, mode, s.alpha, s.beta);
         self.ch.tf.log_with_meta(&tfs, meta());
+        let mut samples = vec![(Field::Alpha, s.alpha), (Field::Beta, s.beta)];
         if let (Some(ad), Some(bd)) = (s.alpha_dot, s.beta_dot) {
             let x = State::new(s.alpha, s.beta, ad, bd);
             let e = tilting_plant::kinematics::energy(&self.params, mode, &x);
@@ -404,7 +443,13 @@ impl Publisher {
             self.ch
                 .energy
                 .log_with_meta(json.to_string().as_bytes(), meta());
+            samples.push((Field::Energy, e));
+            if let Some(r) = &self.reference {
+                samples.push((Field::Gain, plot::gain(r, e)));
+            }
         }
+        let done = self.decimator.add(log_time, &samples);
+        self.plot(done);
         let flashing = s.time < self.flash_until;
         let flash_ended = !flashing && self.last_scene < self.flash_until;
         if mode != self.mode || flash_ended || s.time - self.last_scene >= SCENE_PERIOD {
@@ -598,10 +643,29 @@ mod tests {
                 "{plots:?}"
             );
         };
-        apart("torque.tau", "energy.energy");
+        apart("plot.tau_max", "plot.energy_max");
         // The tilt and the arm angle apart too: alpha's 0.04 rad was a flat line on the axis
         // of beta's 1.57 (seen in Foxglove Studio 1.48).
-        apart("state.alpha", "state.beta");
+        apart("plot.alpha_max", "plot.beta_max");
+        apart("plot.energy_max", "plot.gain_max");
+        // Every plotted line reads the 50 Hz plot channel, never a 1 kHz one (Studio 1.48's
+        // plots went blank for seconds fed the state), and each quantity's min with its max.
+        for p in plots.iter().flatten() {
+            assert!(
+                p.starts_with("/tilting/demo/plot."),
+                "{p}: not the plot channel"
+            );
+        }
+        for (_, name, _) in plot::FIELDS {
+            let (lo, hi) = (format!("plot.{name}_min"), format!("plot.{name}_max"));
+            assert!(
+                plots
+                    .iter()
+                    .any(|p| p.iter().any(|v| v.ends_with(&lo))
+                        && p.iter().any(|v| v.ends_with(&hi))),
+                "{name}: min and max not on one plot: {plots:?}"
+            );
+        }
         // The camera looks at the robot: its target inside the paper's robot's extent (x from
         // the left edge to the right, z from the ground to the arm's length), from -y (theta 0:
         // the model's plane seen face on), a little above, close enough that the 2 m arm fills
