@@ -15,7 +15,7 @@
 # pi3+pi5 = m_l l_c^2 + i_l + n_g^2 j_m the arm's inertia about the joint, tau_c, b_v and b_v's
 # standard error relative to the true b_v; whether the output-error refinement of b_v
 # converged), the planned E_av (J) and peak (rad), and of the 100 s runs the figures
-# cli/tests/headline_cli.rs asserts, with its definitions: a tilt is a lift-off whose peak
+# cli/tests/cli/headline_cli.rs asserts, with its definitions: a tilt is a lift-off whose peak
 # |alpha| exceeds 0.01 rad (`tilt_peaks` of `simulate --json`); whether every tilt alternates
 # in sign; after the first 10 tilts, the worst |peak| error and the mean |peak| error relative
 # to the planned peak; the last tilt more than 10 % off (1-based: "5" is the 5th tilt; "-"
@@ -148,7 +148,7 @@ print(f"{tag}: identify m_f {pct(p['m_f'], true['m_f'])}, l_c {pct(lc, true['l_c
       f"b_v {pct(p['b_v'], true['b_v'])} (standard error {se}); {refined}")
 e_av, peak = float(e_av), float(peak)
 print(f"{tag}: plan E_av {e_av:.9f} J, peak {peak:.6f} rad")
-# The figures of cli/tests/headline_cli.rs.
+# The figures of cli/tests/cli/headline_cli.rs.
 def figures(name):
     run = json.load(open(f"{d}/{name}.json"))
     every = [t["alpha"] for t in run["tilt_peaks"]]

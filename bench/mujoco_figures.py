@@ -4,7 +4,7 @@ summary: tilt_peaks as [t, alpha] pairs, torque ages, losses). Prints one JSON o
 
     mujoco_figures.py RUN_DIR PEAK PERIOD
 
-Definitions (as bench/headline.sh and cli/tests/headline_cli.rs): a tilt is a lift-off whose
+Definitions (as bench/headline.sh and cli/tests/cli/headline_cli.rs): a tilt is a lift-off whose
 peak |alpha| exceeds 0.01 rad; `alternating` counts the tilts whose sign differs from the tilt
 before (the first one counts); after the first 10 tilts: `worst` the largest |peak| error
 relative to PEAK (signed, %), `mean` the mean |peak| relative to PEAK, minus 1 (%);

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A margins survey as a Slurm job array: one shard per array task, then one merge.
 # NOT RUN in this project's CI (there is no Slurm there); the commands it runs are the ones
-# cli/tests/shard_cli.rs tests (N shards merged = the unsharded run, byte for byte).
+# cli/tests/cli/shard_cli.rs tests (N shards merged = the unsharded run, byte for byte).
 #
 #   sbatch --array=0-15 deploy/slurm-margins.sh          # 16 shards, indices 0..15
 #   sbatch --dependency=afterok:<JOBID> --wrap 'deploy/slurm-margins.sh merge'

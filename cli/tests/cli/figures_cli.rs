@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 use tilting::commands::figures::FiguresReport;
 use tilting_viz::figures::Summary;
 
-mod common;
+use crate::common;
 use common::{Scratch, BIN};
 
 const PNG_MAGIC: &[u8] = b"\x89PNG\r\n\x1a\n";

@@ -21,7 +21,7 @@
 
 use std::process::{Command, Output};
 
-mod common;
+use crate::common;
 use common::{Scratch, BIN};
 
 fn tilting(args: &[&str]) -> Output {

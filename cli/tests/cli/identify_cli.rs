@@ -7,7 +7,7 @@
 use std::process::{Command, Output};
 use tilting_plant::Params;
 
-mod common;
+use crate::common;
 use common::{Scratch, BIN};
 
 fn tilting(args: &[&str]) -> Output {

@@ -6,7 +6,7 @@
 use std::process::Command;
 use tilting_planner::margins::{Imperfection, MarginsReport, Point};
 
-mod common;
+use crate::common;
 use common::{Scratch, BIN};
 
 #[test]

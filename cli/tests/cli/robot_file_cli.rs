@@ -3,7 +3,7 @@
 //! a run from the file equals the same run from flags, bit for bit; `identify --out` writes into
 //! a robot file.
 
-mod common;
+use crate::common;
 
 use common::{Scratch, BIN};
 use std::path::Path;

@@ -6,7 +6,7 @@ use tilting_plant::Mode;
 use tilting_sim::closed_loop::Coupling;
 use tilting_sim::SimulationReport;
 
-mod common;
+use crate::common;
 use common::{Scratch, BIN};
 
 fn simulate(args: &[&str]) -> Output {

@@ -34,7 +34,7 @@ def load(name):
 
 plant = load("plant")
 
-# A robot unlike the paper's point masses (as plant/tests/hardware.rs): the centre of mass 0.6 m
+# A robot unlike the paper's point masses (as plant/tests/plant/hardware.rs): the centre of mass 0.6 m
 # short of the tip, an arm inertia of 0.25 kg m^2 about it, a rotor behind a 9:1 gear.
 HW = dict(l_c=1.4, i_l=0.25, j_m=0.002, n_g=9.0)
 M_L, G, L_C = 1.0, 9.81, 1.4

@@ -15,7 +15,7 @@
 //!
 //! `lambda_i = sum_n ln r_ii(n) / (N h)`.
 //!
-//! What the hold changes (measured, `planner/tests/sampled_lyapunov.rs`): after each landing
+//! What the hold changes (measured, `planner/tests/planner/sampled_lyapunov.rs`): after each landing
 //! the plate rests flat under the torque held from the last sample until the next sample
 //! switches it and it tilts back. That rest lasts from the landing to the next sample instant:
 //! a sawtooth in the landing time (slope -1, a jump of `h` at each sample instant). Between the

@@ -4,7 +4,7 @@
 //!
 //! These tests use the recorded (exact) velocities ([`Velocities::Recorded`]): on this
 //! robot's orbit the joint sticks or reverses within every 0.1 s, so the angles-only weak
-//! form (`cli/tests/identify_cli.rs`, `simulate --record`) has no torque window here.
+//! form (`cli/tests/cli/identify_cli.rs`, `simulate --record`) has no torque window here.
 //!
 //! Compared: the seven base parameters (docs/model.md, "Linear in the parameters"), the only
 //! combinations the motion fixes, computed here from the hidden robot by their definitions; and

@@ -231,7 +231,7 @@ fn passive_motion_with_arm_and_rotor_inertia_conserves_energy() {
     ] {
         let (x1, _) = passive_flow(&p, mode, x0, 10.0);
         let (e0, e1) = (energy(&p, mode, &x0), energy(&p, mode, &x1));
-        // As for the point masses (plant/tests/physics.rs): 1e-9 relative over 10 s.
+        // As for the point masses (plant/tests/plant/physics.rs): 1e-9 relative over 10 s.
         assert!(((e1 - e0) / e0).abs() < 1e-9, "{mode}: E0 {e0} E1 {e1}");
         // Not a trivial motion: the arm turned.
         assert!((x1[1] - x0[1]).abs() > 0.1 || (x1[3] - x0[3]).abs() > 0.1);
@@ -526,7 +526,7 @@ fn coulomb(tau_c: f64, b_v: f64) -> Params {
     Params { tau_c, b_v, ..hw() }
 }
 
-/// Tolerances as tight as the mode-transition test's (plant/tests/physics.rs), so event times
+/// Tolerances as tight as the mode-transition test's (plant/tests/plant/physics.rs), so event times
 /// can be compared with closed forms to 1e-10 s.
 fn tight(p: Params) -> SimConfig {
     SimConfig {
@@ -652,7 +652,7 @@ fn stick_and_slip_times_match_closed_forms() {
         (ev.from, ev.to, log.joint.len()),
         (Joint::Forward, Joint::Stuck, 1)
     );
-    // The mode transitions' accuracy at these tolerances (plant/tests/physics.rs): 1e-10 s.
+    // The mode transitions' accuracy at these tolerances (plant/tests/plant/physics.rs): 1e-10 s.
     assert!((ev.t - t_stick).abs() < 1e-10, "{} vs {t_stick}", ev.t);
     let travel = j / b_v * (w0 - tau_c / b_v * (1.0 + b_v * w0 / tau_c).ln());
     assert!((plant.state()[1] - 1.3 - travel).abs() < 1e-10);

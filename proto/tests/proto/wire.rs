@@ -8,7 +8,7 @@ use tilting_proto::{
 };
 
 /// The document whose worked examples must match the codec.
-const PROTOCOL_MD: &str = include_str!("../../docs/protocol.md");
+const PROTOCOL_MD: &str = include_str!("../../../docs/protocol.md");
 
 /// Worked example of `docs/protocol.md`.
 const PLANT_STATE_EXAMPLE_HEX: &str = "2a00000000000000000000000000f83f000000000000d03f182d4454fb21f93f000000000000e0bf0000000000000040010f";

@@ -6,7 +6,7 @@
 pub const BIN: &str = env!("CARGO_BIN_EXE_tilting");
 
 /// The project's one temporary-directory helper (see the file).
-#[path = "../../../tests/src/scratch.rs"]
+#[path = "../../../../tests/src/scratch.rs"]
 mod scratch;
 
 #[allow(unused_imports)] // not every test file uses it
