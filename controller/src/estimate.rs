@@ -342,19 +342,31 @@ impl Estimator {
         t: f64,
     ) -> Option<(Mode, State, Option<Landing>, Option<(f64, State)>)> {
         let mut plant = Plant::new(self.model, l.t, l.mode, l.x).ok()?;
-        let first_after = self.sent.partition_point(|&(ta, _)| ta <= l.t);
-        let mut tau = first_after.checked_sub(1).map_or(0.0, |i| self.sent[i].1);
         let mut obs = Landings::default();
-        for &(ta, next) in self.sent.range(first_after..) {
-            if ta >= t {
-                break;
-            }
-            plant.advance_held(tau, ta, &mut obs).ok()?;
-            tau = next;
-        }
-        plant.advance_held(tau, t, &mut obs).ok()?;
+        advance_under(&mut plant, &self.sent, t, &mut obs)?;
         Some((plant.mode(), plant.state(), obs.last, obs.first))
     }
+}
+
+/// Advances `plant` from its time to `t` (s) under the torques `sent` (`(t_act, tau)`, acting
+/// from `t_act` on, in time order; zero before the first): `None` if the model faults.
+fn advance_under<O: Observer>(
+    plant: &mut Plant,
+    sent: &VecDeque<(f64, f64)>,
+    t: f64,
+    obs: &mut O,
+) -> Option<()> {
+    let first_after = sent.partition_point(|&(ta, _)| ta <= plant.time());
+    let mut tau = first_after.checked_sub(1).map_or(0.0, |i| sent[i].1);
+    for &(ta, next) in sent.range(first_after..) {
+        if ta >= t {
+            break;
+        }
+        plant.advance_held(tau, ta, obs).ok()?;
+        tau = next;
+    }
+    plant.advance_held(tau, t, obs).ok()?;
+    Some(())
 }
 
 /// The covariance `c` of one angle after `dt` (s) of white acceleration noise of density `q`.
@@ -406,6 +418,11 @@ pub struct Estimation {
     last_reported: Option<Mode>,
     /// The flat spell in progress after a tilt: its first report's time (s) and the tilt.
     spell: Option<(f64, Mode)>,
+    /// With a [`tilting_plant::Params::contact_dwell`]: the last tilted report's time (s),
+    /// mode and state as answered, ...
+    last_tilted: Option<(f64, Mode, State)>,
+    /// ... and the torques sent since (`(t_act, tau)`), to carry it across the spell.
+    spell_torques: VecDeque<(f64, f64)>,
 }
 
 impl Estimation {
@@ -417,7 +434,42 @@ impl Estimation {
             estimator: None,
             last_reported: None,
             spell: None,
+            last_tilted: None,
+            spell_torques: VecDeque::new(),
         }
+    }
+
+    /// The mode and state the law answers for at `t` (s), the plant reporting `reported` and
+    /// `y`: [`Estimation::mode`] and [`Estimation::state`], except inside a contact's flat
+    /// spell at a pass-through ([`tilting_plant::Params::contact_dwell`]), whose
+    /// measurements are the contact's spring motion between the edges, which the model does
+    /// not have: there the last tilted state answered, carried to `t` by the model (its
+    /// pass-through landing included) under the torques sent since. Reports must come in time
+    /// order.
+    pub fn observe(&mut self, t: f64, reported: Mode, y: &Measurement) -> (Mode, State) {
+        let mode = self.mode(t, reported);
+        if reported == Mode::Flat && mode != Mode::Flat {
+            if let Some((t0, m0, x0)) = self.last_tilted {
+                let carried = Plant::new(self.model, t0, m0, x0).ok().and_then(|mut p| {
+                    advance_under(&mut p, &self.spell_torques, t, &mut ())?;
+                    Some((p.mode(), p.state()))
+                });
+                if let Some(mx) = carried {
+                    return mx;
+                }
+            }
+        }
+        let x = self.state(t, mode, y);
+        if self.model.params.contact_dwell > 0.0 && reported.is_tilted() {
+            let mut x0 = x;
+            // On its side of the pivot, as the model's tilted modes require.
+            x0[0] = match reported {
+                Mode::Left => x0[0].max(0.0),
+                _ => x0[0].min(0.0),
+            };
+            self.last_tilted = Some((t, reported, x0));
+        }
+        (mode, x)
     }
 
     /// The mode the law answers in for the mode `reported` at `t` (s): `reported`, except a
@@ -459,6 +511,20 @@ impl Estimation {
     pub fn sent(&mut self, t_act: f64, tau: f64) {
         if let Some(e) = &mut self.estimator {
             e.sent(t_act, tau);
+        }
+        if self.model.params.contact_dwell > 0.0 {
+            let q = &mut self.spell_torques;
+            // An answer acting no later than those sent before it overtakes them.
+            while q.back().is_some_and(|&(ta, _)| ta >= t_act) {
+                q.pop_back();
+            }
+            q.push_back((t_act, tau));
+            // Keep the one in force at the last tilted report and those after it.
+            if let Some((t0, ..)) = self.last_tilted {
+                while q.len() >= 2 && q[1].0 <= t0 {
+                    q.pop_front();
+                }
+            }
         }
     }
 

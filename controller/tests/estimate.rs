@@ -208,3 +208,55 @@ fn flat_reports_of_a_pass_through_are_the_tilt_passed_into() {
         assert_eq!(e.mode(k as f64 * 1e-3, reported), reported);
     }
 }
+
+/// Inside the contact's flat spell the law answers for the last tilted state carried by the
+/// model under the torques sent, not for the spell's measurements (the contact's spring
+/// motion): checked against the model run directly, from a state 1 ms before its
+/// pass-through landing, with a held torque.
+#[test]
+fn inside_the_flat_spell_the_last_tilted_state_is_carried_by_the_model() {
+    use tilting_controller::{Estimation, EstimatorChoice};
+    let params = tilting_plant::Params::from_toml_str(
+        "impact = \"physical\"\nrestitution = -0.11\ncontact_dwell = 0.002",
+    )
+    .unwrap();
+    let model = SimConfig {
+        params,
+        impact: params.impact,
+        ..SimConfig::default()
+    };
+    // A left tilt 1 ms before it lands (alpha falling at 0.42 rad/s), the arm moving.
+    let x0 = State::new(0.0003, 1.56, -0.42, 0.02);
+    let (t0, tau) = (10.0, 9.5);
+    let mut e = Estimation::new(EstimatorChoice::Auto, model);
+    let y = |x: &State| Measurement {
+        angles: [x[0], x[1]],
+        rates: Some([x[2], x[3]]),
+    };
+    assert_eq!(e.observe(t0, Mode::Left, &y(&x0)), (Mode::Left, x0));
+    e.sent(t0, tau);
+    // The truth: the model from x0 under the held torque.
+    let truth = |t: f64| {
+        let mut p = Plant::new(model, t0, Mode::Left, x0).unwrap();
+        p.advance_held(tau, t, &mut ()).unwrap();
+        (p.mode(), p.state())
+    };
+    // Two flat reports whose measurements are the contact's (a plate bouncing back).
+    let spring = State::new(-0.00015, 1.56, 0.05, -0.49);
+    for t in [t0 + 0.001, t0 + 0.002] {
+        let (m, x) = e.observe(t, Mode::Flat, &y(&spring));
+        let (tm, tx) = truth(t);
+        assert_eq!(m, tm, "at {t} s");
+        assert_eq!(m, Mode::Right, "the model has passed through by {t} s");
+        for i in 0..4 {
+            assert!((x[i] - tx[i]).abs() < 1e-12, "at {t} s: {x:?} vs {tx:?}");
+        }
+        e.sent(t, tau);
+    }
+    // The tilt's own report: measured again.
+    let x3 = State::new(-0.0001, 1.559, -0.03, -0.45);
+    assert_eq!(
+        e.observe(t0 + 0.003, Mode::Right, &y(&x3)),
+        (Mode::Right, x3)
+    );
+}

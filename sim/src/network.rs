@@ -100,8 +100,7 @@ fn answer<L: TorqueLaw>(
     y: &Measurement,
     periodic: bool,
 ) -> f64 {
-    let mode = est.mode(t, mode);
-    let x: State = est.state(t, mode, y);
+    let (mode, x): (Mode, State) = est.observe(t, mode, y);
     let (tau, t_act) = match predictor {
         Some(p) => (p.answer(law, t, mode, &x, periodic), p.acts_at(t, periodic)),
         None => (law.torque(t, mode, &x), t),

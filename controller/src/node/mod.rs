@@ -177,8 +177,7 @@ impl Node {
         let tau = {
             let law = self.law.lock().unwrap_or_else(|e| e.into_inner());
             let mut est = self.estimation.lock().unwrap_or_else(|e| e.into_inner());
-            let mode = est.mode(s.time, mode);
-            let x = est.state(s.time, mode, &y);
+            let (mode, x) = est.observe(s.time, mode, &y);
             match &self.predict {
                 None => {
                     let tau = law.torque(s.time, mode, &x);
