@@ -13,8 +13,8 @@
 //
 // It connects (retrying until --seconds pass), collects until the server closes or --seconds
 // pass, and writes JSON: the subprotocol, per topic the schema's name, encoding and origin and
-// the messages decoded, the first errors, the states' seq and log time, the log entries, and
-// the scene's entity ids. A refused handshake is written as {"refused": HTTP status}.
+// the messages decoded, the first errors, the states' seq and log time, the log entries, the
+// scene's entity ids, and the plot channel's ticks with their log times. A refused handshake is written as {"refused": HTTP status}.
 
 import wsp from "@foxglove/ws-protocol";
 import { writeFileSync } from "node:fs";
@@ -134,9 +134,11 @@ function listen(client, table, out) {
   });
 }
 
-/** Keeps what the Rust test compares: states, log entries, scene entity ids, frames. */
+/** Keeps what the Rust test compares: states, log entries, scene entity ids, plot ticks. */
 function record(out, topic, m, logTime) {
-  if (topic.endsWith("/plant/state")) {
+  if (topic.endsWith("/plot")) {
+    out.plots.push({ ...m, log_time: Number(logTime) });
+  } else if (topic.endsWith("/plant/state")) {
     out.states.push({ seq: m.seq, time: m.time, mode: m.mode, mode_name: m.mode_name,
       log_time: Number(logTime) });
   } else if (topic.endsWith("/log")) {
@@ -153,7 +155,9 @@ function record(out, topic, m, logTime) {
 
 const a = args();
 const deadline = Date.now() + a.seconds * 1000;
-const out = { subprotocol: null, topics: {}, states: [], logs: [], events: [], sceneEntityIds: [] };
+const out = {
+  subprotocol: null, topics: {}, states: [], logs: [], events: [], sceneEntityIds: [], plots: [],
+};
 const r = await connect(a, out, deadline);
 if (r.refused !== undefined) {
   out.refused = r.refused;

@@ -528,14 +528,15 @@ fn read_json(path: &Path) -> serde_json::Value {
 ///   viewers' JSON Schema parser (`tests/node/schemas.mjs`);
 /// - `@foxglove/ws-protocol`'s `FoxgloveClient` against `replay --foxglove` of that recording,
 ///   offering `foxglove.sdk.v1`, then `foxglove.sdk.v1.1`: every advertised channel
-///   (five topics and the energy as JSON, tf, scene and log as protobuf) decodes with its
+///   (five topics, the energy and the plot as JSON, tf, scene and log as protobuf) decodes with its
 ///   advertised schema, inline under v1, from the connection's schema table under v1.1 (which
 ///   the library alone does not pass on: the test says so, so a library that starts to
 ///   fails here and the docs get updated), and once offering the library's own
 ///   `foxglove.websocket.v1` (Studio 1.48's), which the SDK refuses and our handshake front
 ///   admits; the states are the recording's with their mode names; the log entries carry the
 ///   wall clock and name the plant time, mode changes at debug; a client offering an unknown
-///   name is refused with HTTP 400.
+///   name is refused with HTTP 400; the plot channel ticks at the documented 50 Hz of plant
+///   time and each tick bounds exactly the recording's samples in it.
 #[test]
 fn foxglove_libraries_from_npm_read_the_server_and_the_recording() {
     let dir = match node_ready() {
@@ -585,6 +586,12 @@ fn foxglove_libraries_from_npm_read_the_server_and_the_recording() {
             (s.seq, s)
         })
         .collect();
+    // The recording's states and torques by log time (ns): what the plot channel decimates.
+    let samples: Vec<(u64, Topic, Vec<u8>)> = run
+        .messages()
+        .filter(|e| matches!(e.topic, Topic::State | Topic::Torque))
+        .map(|e| (e.log_time, e.topic, e.wire.clone()))
+        .collect();
     for (subprotocol, from, library) in [
         // The library's own name (FoxgloveClient.SUPPORTED_SUBPROTOCOL), Studio 1.48's: the SDK
         // refuses it, our front hands it `foxglove.sdk.v1`.
@@ -629,7 +636,73 @@ fn foxglove_libraries_from_npm_read_the_server_and_the_recording() {
         assert!(o.status.success(), "replay\n{}", text(&o));
         let got = read_json(&json);
         check_node_client(&got, subprotocol, from, library, &robot, &states);
+        check_plot(&got, subprotocol, &samples);
     }
+}
+
+/// The plot channel's rate as docs/foxglove.md states it: 50 ticks per second of plant time.
+const PLOT_RATE: f64 = 50.0;
+
+/// The plot channel as the client saw it: 50 ticks a second of plant time (from the messages'
+/// log times, within 10 %), and each tick's `alpha`, `beta` and `tau` ranges exactly the least
+/// and greatest of the recording's samples whose log time falls in the tick (20 ms centred on
+/// its `time`), so no peak is lost; the energy's range inside its bounds.
+fn check_plot(got: &serde_json::Value, subprotocol: &str, samples: &[(u64, Topic, Vec<u8>)]) {
+    let ticks = got["plots"].as_array().unwrap();
+    assert!(
+        ticks.len() >= 50,
+        "{subprotocol}: {} plot ticks",
+        ticks.len()
+    );
+    let times: Vec<u64> = ticks
+        .iter()
+        .map(|t| t["log_time"].as_u64().unwrap())
+        .collect();
+    assert!(times.windows(2).all(|w| w[0] < w[1]), "{subprotocol}");
+    let span = (times[times.len() - 1] - times[0]) as f64 * 1e-9;
+    let rate = (times.len() - 1) as f64 / span;
+    assert!(
+        (rate / PLOT_RATE - 1.0).abs() <= 0.1,
+        "{subprotocol}: plot at {rate:.2} Hz of plant time, docs say {PLOT_RATE}"
+    );
+    let half = (0.5e9 / PLOT_RATE) as u64;
+    let mut peak = f64::NEG_INFINITY;
+    for tick in ticks {
+        let t = tick["log_time"].as_u64().unwrap();
+        assert_eq!(tick["time"].as_f64(), Some(t as f64 * 1e-9), "{tick}");
+        let inside = || {
+            samples
+                .iter()
+                .filter(|(lt, _, _)| (t - half..t + half).contains(lt))
+        };
+        let mut want: HashMap<&str, (f64, f64)> = HashMap::new();
+        let mut put = |name, v: f64| {
+            let r = want.entry(name).or_insert((v, v));
+            *r = (r.0.min(v), r.1.max(v));
+        };
+        for (_, topic, wire) in inside() {
+            if *topic == Topic::State {
+                let s: PlantState = tilting_proto::decode(wire).unwrap();
+                put("alpha", s.alpha);
+                put("beta", s.beta);
+            } else {
+                let c: tilting_proto::TorqueCommand = tilting_proto::decode(wire).unwrap();
+                put("tau", c.tau);
+            }
+        }
+        for (name, (lo, hi)) in &want {
+            let got = (
+                tick[format!("{name}_min")].as_f64(),
+                tick[format!("{name}_max")].as_f64(),
+            );
+            assert_eq!(got, (Some(*lo), Some(*hi)), "{subprotocol} {name}: {tick}");
+        }
+        peak = peak.max(tick["alpha_max"].as_f64().unwrap_or(f64::NEG_INFINITY));
+        let (lo, hi) = (tick["energy_min"].as_f64(), tick["energy_max"].as_f64());
+        assert!(lo <= hi && lo.is_some(), "{subprotocol}: {tick}");
+    }
+    // The tilt's peak over the ticks is a recorded state's alpha, and a tilt (over 0.01 rad).
+    assert!(peak > 0.01, "{subprotocol}: alpha peaks at {peak}");
 }
 
 /// What `ws_client.mjs` saw under `subprotocol`: every channel decoded with its schema (taken
@@ -651,6 +724,7 @@ fn check_node_client(
         ("plant/status", "json", "tilting.Status"),
         ("planner/reference", "json", "tilting.Reference"),
         ("energy", "json", "tilting.Energy"),
+        ("plot", "json", "tilting.Plot"),
         ("tf", "protobuf", "foxglove.FrameTransforms"),
         ("scene", "protobuf", "foxglove.SceneUpdate"),
         ("log", "protobuf", "foxglove.Log"),
