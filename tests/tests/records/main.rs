@@ -1,0 +1,10 @@
+//! The recording tests (recordings, their sources, animations of them, the imperfect sensors
+//! recorded), one test binary (issue 30: each binary links zenoh and the workspace, so fewer
+//! binaries keep `cargo test` cheap). Each module was a test file of its own. They run side by
+//! side on threads of one process: robot names carry the tag of their test (`robot(tag)`, tags
+//! distinct across modules) and ports are reserved per run (`free_port`), so no two clash.
+
+mod animate;
+mod imperfect;
+mod record_sources;
+mod recordings;
