@@ -30,6 +30,7 @@ fn law(r: &Reference) -> ComputedTorque {
             torque_limit: (r.torque_limit > 0.0).then_some(r.torque_limit),
             orbit_peak: None,
             orbit_start: None,
+            orbit_steepness: None,
         },
         ..ControlConfig::default()
     })
