@@ -227,16 +227,7 @@ impl Estimator {
     /// Records a torque `tau` (N m) the controller sent, acting at the plant from `t_act` (s).
     /// An answer acting no later than answers sent before it overtakes them: they never act.
     pub fn sent(&mut self, t_act: f64, tau: f64) {
-        while self.sent.back().is_some_and(|&(t, _)| t >= t_act) {
-            self.sent.pop_back();
-        }
-        self.sent.push_back((t_act, tau));
-        if let Some(l) = &self.last {
-            // Keep the one in force at the last sample and those after it.
-            while self.sent.len() >= 2 && self.sent[1].0 <= l.t {
-                self.sent.pop_front();
-            }
-        }
+        record_sent(&mut self.sent, t_act, tau, self.last.map(|l| l.t));
     }
 
     /// The estimated state at `t` (s) in the measured `mode` from the measured `angles`
@@ -345,6 +336,21 @@ impl Estimator {
         let mut obs = Landings::default();
         advance_under(&mut plant, &self.sent, t, &mut obs)?;
         Some((plant.mode(), plant.state(), obs.last, obs.first))
+    }
+}
+
+/// Records the torque `tau` (N m) acting from `t_act` (s) in `sent` (time order): an answer
+/// acting no later than answers recorded before it overtakes them (they never act). With
+/// `keep_from` (s), forgets all but the one in force then and those after it.
+fn record_sent(sent: &mut VecDeque<(f64, f64)>, t_act: f64, tau: f64, keep_from: Option<f64>) {
+    while sent.back().is_some_and(|&(t, _)| t >= t_act) {
+        sent.pop_back();
+    }
+    sent.push_back((t_act, tau));
+    if let Some(t0) = keep_from {
+        while sent.len() >= 2 && sent[1].0 <= t0 {
+            sent.pop_front();
+        }
     }
 }
 
@@ -513,18 +519,8 @@ impl Estimation {
             e.sent(t_act, tau);
         }
         if self.model.params.contact_dwell > 0.0 {
-            let q = &mut self.spell_torques;
-            // An answer acting no later than those sent before it overtakes them.
-            while q.back().is_some_and(|&(ta, _)| ta >= t_act) {
-                q.pop_back();
-            }
-            q.push_back((t_act, tau));
-            // Keep the one in force at the last tilted report and those after it.
-            if let Some((t0, ..)) = self.last_tilted {
-                while q.len() >= 2 && q[1].0 <= t0 {
-                    q.pop_front();
-                }
-            }
+            let from = self.last_tilted.map(|(t0, ..)| t0);
+            record_sent(&mut self.spell_torques, t_act, tau, from);
         }
     }
 

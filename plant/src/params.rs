@@ -279,11 +279,7 @@ impl Params {
             (Mode::Flat, Some((t_flat, from)))
                 if self.contact_dwell > 0.0 && t - t_flat <= self.contact_dwell + 1e-9 =>
             {
-                match from {
-                    Mode::Left => Mode::Right,
-                    Mode::Right => Mode::Left,
-                    Mode::Flat => Mode::Flat,
-                }
+                from.mirrored()
             }
             _ => reported,
         }

@@ -175,21 +175,17 @@ pub struct ContactDwell {
 /// to the other: both edges bear load. A direct tilt-to-tilt event is a spell of 0 s.
 pub fn contact_dwell(events: &[tilting_record::EventRecord]) -> Option<ContactDwell> {
     let max = tilting_plant::params::MAX_CONTACT_DWELL;
-    let other = |m: Mode| match m {
-        Mode::Left => Mode::Right,
-        Mode::Right => Mode::Left,
-        Mode::Flat => Mode::Flat,
-    };
     let mut spells = Vec::new();
     for (i, e) in events.iter().enumerate() {
         if e.from == Mode::Flat {
             continue;
         }
-        if e.to == other(e.from) {
+        if e.to == e.from.mirrored() {
             spells.push(0.0);
         } else if let Some(n) = events.get(i + 1) {
             let gap = n.t - e.t;
-            if e.to == Mode::Flat && n.from == Mode::Flat && n.to == other(e.from) && gap <= max {
+            if e.to == Mode::Flat && n.from == Mode::Flat && n.to == e.from.mirrored() && gap <= max
+            {
                 spells.push(gap.max(0.0));
             }
         }
