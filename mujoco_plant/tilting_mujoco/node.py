@@ -354,10 +354,41 @@ class Node:
                     repub = now + 0.1
                 self.cv.wait(min(end, repub) - now)
 
+    def through_link(self, k, answer):
+        """Lockstep over an emulated link of `--delay` s each way: the answer to state k
+        arrives at t_k + 2 delay and is in force from the first period starting then (within
+        1e-9 periods), the newest arrived answer at most `--max-age` periods old; until the
+        first arrives the torque is 0. The rule of the Rust plant's lockstep hold
+        (`tilting_link::ImpairedHold`) for a fixed delay, so a run over a 50 ms round trip is
+        deterministic and does not depend on the machine's load. Without `--delay`: `answer`."""
+        a = self.a
+        if not a.delay:
+            self.c["torques_applied"] += 1
+            self.age.add(0.0)
+            return answer
+        h = a.period
+        self.flight.append((k, k * h + 2.0 * a.delay, answer))
+        t_k, tol = k * h, 1e-9 * h
+        best = None
+        keep = []
+        for f in self.flight:
+            if f[1] > t_k + tol:
+                keep.append(f)
+            elif k - f[0] <= a.max_age and (best is None or f[0] > best[0]):
+                best = f
+        self.flight = keep
+        if best is not None:
+            self.c["torques_applied"] += 1
+            self.c["torques_late"] += best[0] < k
+            self.age.add(float(k - best[0]))
+            self.link_tau = best[2]
+        return self.link_tau
+
     def run_lockstep(self, n, record):
         a = self.a
         k, safe = 0, False
         self.last_applied = -1
+        self.flight, self.link_tau = [], 0.0
         while not self.done.is_set() and k < n:
             if k > 0:
                 self.publish_state(k)
@@ -372,11 +403,10 @@ class Node:
                 tau = self.safe_torque()
                 self.c["safe_periods"] += 1
             else:
-                self.c["torques_applied"] += 1
-                self.age.add(0.0)
                 if safe:
                     safe = False
                     self.leave_safe(k)
+                tau = self.through_link(k, tau)
             tau = max(-a.torque_limit, min(a.torque_limit, tau))
             if record:
                 record.write(f"{k},{self.sim.t!r},{self.sim.mode},{','.join(map(repr, self.sim.x))},{tau!r}\n")
@@ -545,6 +575,12 @@ def parser():
     ap.add_argument("--safe-kp", type=float, default=25.0)
     ap.add_argument("--safe-kd", type=float, default=10.0)
     ap.add_argument("--lockstep-timeout-ms", type=float, default=1000.0)
+    ap.add_argument(
+        "--delay", type=float, default=0.0,
+        help="lockstep only: an emulated link delaying states and torques this many seconds each "
+        "way, as tilting-plant's --delay (0 to 1; the answer to state k is in force from "
+        "t_k + 2 delay), deterministic",
+    )
     ap.add_argument("--mode", choices=["flat", "left", "right"], default="left")
     ap.add_argument("--x0", type=floats(4), help="initial alpha,beta,alpha_dot,beta_dot (default the paper's orbit start)")
     ap.add_argument("--params", help="TOML with the keys of docs/model.md (default the paper's robot)")
@@ -594,6 +630,13 @@ def main(argv=None):
         ap.error(f"--robot {a.robot!r}: allowed characters are [A-Za-z0-9_-], non-empty")
     if not (0 <= a.max_age <= 1000) or not (1 <= a.watchdog <= 1_000_000):
         ap.error("--max-age: allowed 0 to 1000 periods; --watchdog: 1 to 1,000,000")
+    if not (0.0 <= a.delay <= 1.0):
+        ap.error(f"--delay {a.delay}: allowed 0 to 1 s")
+    if a.delay and a.clock != "lockstep":
+        ap.error(
+            f"--delay {a.delay}: only with --clock lockstep (in real time, delay the messages on "
+            "the network: bench/delay_plant.py or a network namespace, docs/mujoco.md)"
+        )
     if not (a.torque_limit > 0):
         ap.error(f"--torque-limit {a.torque_limit}: allowed > 0")
     a.listen = a.listen or ([] if a.zenoh_config else ["tcp/127.0.0.1:7447"])
