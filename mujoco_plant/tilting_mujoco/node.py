@@ -538,8 +538,9 @@ class ArgumentParser(argparse.ArgumentParser):
         self.print_usage(sys.stderr)
         if message.startswith("unrecognized arguments"):
             message += (
-                " (tilting-plant's flags for an emulated link, imperfect sensors or ROS 2 are not "
-                "this plant's: MuJoCo gives the true state, docs/mujoco.md)"
+                " (of tilting-plant's flags for an emulated link only --delay, in lockstep, is "
+                "this plant's; imperfect sensors and ROS 2 are not: MuJoCo gives the true state, "
+                "docs/mujoco.md)"
             )
         self.exit(1, f"{self.prog}: error: {message}\n")
 
@@ -580,6 +581,11 @@ def parser():
         help="lockstep only: an emulated link delaying states and torques this many seconds each "
         "way, as tilting-plant's --delay (0 to 1; the answer to state k is in force from "
         "t_k + 2 delay), deterministic",
+    )
+    ap.add_argument(
+        "--seed", type=int, default=0,
+        help="accepted and ignored: `tilting live --delay` passes its link's seed, and a fixed "
+        "delay draws nothing",
     )
     ap.add_argument("--mode", choices=["flat", "left", "right"], default="left")
     ap.add_argument("--x0", type=floats(4), help="initial alpha,beta,alpha_dot,beta_dot (default the paper's orbit start)")
