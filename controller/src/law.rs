@@ -7,7 +7,8 @@
 //!   `--reference`, `--torque-limit`) and as scenario-file keys (`kp`, `kd`, `k`, `energy_avg`,
 //!   `reference`, `torque_limit`), every one optional: a layer over a lower one
 //!   ([`LawArgs::over`]). It is flattened into each command and node that takes a law, and
-//!   [`LawArgs::to_args`] turns it back into the flags for a child process;
+//!   its serde form is a robot file's `[law]` (`tilting live` hands its children the file,
+//!   with the law it resolved, not flags);
 //! - [`LawRecord`]: the law in the flat layout of the wire message, for the planner's summary
 //!   and `live`'s `summary.json`;
 //! - the wire message itself ([`tilting_proto::Reference`]) is converted in one place,
@@ -300,12 +301,6 @@ impl LawSpec {
         }
         Ok(())
     }
-
-    /// The flags that give this law to a child process (every setting explicit, a torque
-    /// limit of 0 for none): `LawArgs::parse(to_args()).over(anything)` is `self`.
-    pub fn to_args(&self) -> Vec<String> {
-        LawArgs::from(*self).to_args()
-    }
 }
 
 impl std::fmt::Display for LawSpec {
@@ -502,28 +497,6 @@ impl LawArgs {
             orbit_steepness: self.orbit_steepness.or(base.orbit_steepness),
         }
     }
-
-    /// The flags of the settings given (as `--flag=value`, so that negative numbers pass):
-    /// parsing them gives `self` back.
-    pub fn to_args(&self) -> Vec<String> {
-        let num = |name: &str, v: Option<f64>| v.map(|v| format!("--{name}={v}"));
-        [
-            self.law.map(|l| format!("--law={}", l.name())),
-            num("kp", self.kp),
-            num("kd", self.kd),
-            num("k", self.k),
-            num("energy-avg", self.energy_avg),
-            self.reference.map(|r| format!("--reference={r}")),
-            num("torque-limit", self.torque_limit),
-            num("orbit-peak", self.orbit_peak),
-            self.orbit_start
-                .map(|[b, bd]| format!("--orbit-start={b},{bd}")),
-            num("orbit-steepness", self.orbit_steepness),
-        ]
-        .into_iter()
-        .flatten()
-        .collect()
-    }
 }
 
 impl From<LawSpec> for LawArgs {
@@ -632,83 +605,6 @@ mod tests {
         assert!(Cli::try_parse_from(["x", "--orbit-start=1.57"]).is_err());
         let ok = parse(&["--orbit-start=1.5736,-0.3".into()]);
         assert_eq!(ok.orbit_start, Some([1.5736, -0.3]));
-    }
-
-    #[test]
-    fn to_args_round_trips() {
-        let sin = Trajectory::Sinusoid {
-            amplitude: -0.33,
-            omega: 1.0 / 3.0,
-        };
-        let layers = [
-            LawArgs::default(),
-            LawArgs {
-                kp: Some(60.0),
-                ..LawArgs::default()
-            },
-            LawArgs {
-                kd: Some(0.1 + 0.2),
-                energy_avg: Some(-1e-300),
-                reference: Some(sin),
-                torque_limit: Some(0.0),
-                ..LawArgs::default()
-            },
-            LawArgs::from(LawSpec::default()),
-            LawArgs {
-                k: Some(1234.5678),
-                reference: Some(Trajectory::Hold),
-                torque_limit: Some(40.0),
-                ..LawArgs::from(LawSpec::without_adaptation())
-            },
-        ];
-        for x in layers {
-            assert_eq!(parse(&x.to_args()), x, "{:?}", x.to_args());
-        }
-        let specs = [
-            LawSpec::default(),
-            LawSpec::without_adaptation(),
-            LawSpec {
-                law: LawKind::ComputedTorque,
-                kp: 60.0,
-                kd: 12.0,
-                k: 2500.0,
-                energy_avg: 19.963439703027 * 3.0,
-                torque_limit: Some(5.5),
-                reference: sin,
-                orbit_peak: None,
-                orbit_start: None,
-                orbit_steepness: None,
-            },
-            LawSpec {
-                orbit_peak: Some(0.0413),
-                ..LawSpec::default()
-            },
-            LawSpec {
-                orbit_peak: Some(0.018),
-                orbit_start: Some([1.5736, -0.1 / 3.0]),
-                orbit_steepness: Some(-39.1),
-                ..LawSpec::default()
-            },
-        ];
-        // Over a base that differs everywhere: every setting comes from the flags.
-        let other = LawSpec {
-            law: LawKind::ComputedTorque,
-            kp: 1.0,
-            kd: 2.0,
-            k: 3.0,
-            energy_avg: 4.0,
-            torque_limit: Some(7.0),
-            reference: Trajectory::Sinusoid {
-                amplitude: 0.1,
-                omega: 9.0,
-            },
-            orbit_peak: None,
-            orbit_start: None,
-            orbit_steepness: None,
-        };
-        for x in specs {
-            assert_eq!(parse(&x.to_args()).over(other), x, "{:?}", x.to_args());
-        }
     }
 
     #[test]

@@ -620,50 +620,6 @@ impl NetworkArgs {
         };
         Ok((!imp.is_perfect()).then_some(imp))
     }
-
-    /// The flags that parse back into `self` (`--name=value`, given flags only, and `--seed`):
-    /// how a node hands its impairment to a child node. Every field is named here (a new one
-    /// does not compile until it is), and a test parses the result back.
-    pub fn to_args(&self) -> Vec<String> {
-        let NetworkArgs {
-            delay,
-            state_delay,
-            torque_delay,
-            jitter,
-            state_jitter,
-            torque_jitter,
-            loss,
-            state_loss,
-            torque_loss,
-            loss_burst,
-            state_loss_burst,
-            torque_loss_burst,
-            seed,
-        } = self;
-        let mut v = Vec::new();
-        let mut flag = |name: &str, value: Option<String>| {
-            if let Some(x) = value {
-                v.push(format!("--{name}={x}"));
-            }
-        };
-        flag("delay", delay.map(|x| x.to_string()));
-        flag("state-delay", state_delay.map(|x| x.to_string()));
-        flag("torque-delay", torque_delay.map(|x| x.to_string()));
-        flag("jitter", jitter.map(|x| x.to_string()));
-        flag("state-jitter", state_jitter.map(|x| x.to_string()));
-        flag("torque-jitter", torque_jitter.map(|x| x.to_string()));
-        flag("loss", loss.map(|x| x.to_string()));
-        flag("state-loss", state_loss.map(|x| x.to_string()));
-        flag("torque-loss", torque_loss.map(|x| x.to_string()));
-        flag("loss-burst", loss_burst.map(|x| x.to_string()));
-        flag("state-loss-burst", state_loss_burst.map(|x| x.to_string()));
-        flag(
-            "torque-loss-burst",
-            torque_loss_burst.map(|x| x.to_string()),
-        );
-        flag("seed", Some(seed.to_string()));
-        v
-    }
 }
 
 #[cfg(test)]
@@ -808,49 +764,5 @@ mod tests {
         assert!(e.contains("--loss-burst"), "{e}");
         assert!("0.1,0".parse::<Burst>().is_err());
         assert_eq!("0.01,0.3".parse::<Burst>(), Ok(Burst { p: 0.01, r: 0.3 }));
-    }
-
-    /// `to_args` is the inverse of the parser: every field set to a value other than its
-    /// default (and with negative, tiny and many-digit numbers) parses back to the same flags.
-    #[cfg(feature = "clap")]
-    #[test]
-    fn network_args_round_trip() {
-        use clap::Parser as _;
-        #[derive(clap::Parser)]
-        struct Cli {
-            #[command(flatten)]
-            net: NetworkArgs,
-        }
-        let parse = |args: Vec<String>| {
-            Cli::try_parse_from(std::iter::once("x".to_owned()).chain(args))
-                .unwrap()
-                .net
-        };
-        let all = NetworkArgs {
-            delay: Some(0.002),
-            state_delay: Some(-1e-300),
-            torque_delay: Some(0.1 + 0.2),
-            jitter: Some(Jitter::Uniform { max: 0.004 }),
-            state_jitter: Some(Jitter::Normal { sigma: 1.0 / 3.0 }),
-            torque_jitter: Some(Jitter::Exp { mean: 5e-4 }),
-            loss: Some(0.05),
-            state_loss: Some(-0.5),
-            torque_loss: Some(0.125),
-            loss_burst: Some(Burst { p: 0.01, r: 0.25 }),
-            state_loss_burst: Some(Burst { p: 0.0, r: 1.0 }),
-            torque_loss_burst: Some(Burst { p: 1e-7, r: 0.7 }),
-            seed: u64::MAX,
-        };
-        assert_eq!(parse(all.to_args()), all);
-        let some = NetworkArgs {
-            torque_jitter: Some(Jitter::Exp { mean: 0.001 }),
-            seed: 9,
-            ..NetworkArgs::default()
-        };
-        assert_eq!(parse(some.to_args()), some);
-        assert_eq!(
-            parse(NetworkArgs::default().to_args()),
-            NetworkArgs::default()
-        );
     }
 }

@@ -2,10 +2,12 @@
 //! or the router of `--secure`), the router itself, and the plant and controller children with
 //! their flags.
 //!
-//! The controller reads the run's robot file (`--robot-file RUN/robot.toml`, [`run_file`]) and
-//! is given only the run's wiring as flags (session, zenoh ids). The plant's flags still come
-//! from the typed arguments of `live` through the `to_args()` of their parsers (`NetworkArgs`,
-//! `ImperfectArgs`): a `--plant-cmd` (the MuJoCo plant, Python) reads flags, not the file.
+//! The controller and the plant read the run's robot file (`--robot-file RUN/robot.toml`,
+//! [`run_file`]): the law, the model, the link and the sensors. The controller is given only
+//! the run's wiring as flags (session, zenoh ids); the plant besides what `live` resolved for
+//! it (rate, duration, age rule, hard torque limit, start). An external plant (`--plant-cmd`,
+//! the MuJoCo plant) takes flags, not the file: the file's keys of the link and the sensors
+//! as their flags ([`PlantArgs::file_flags`]).
 
 use super::summary::Endpoints;
 use super::Job;
@@ -15,8 +17,10 @@ use std::time::{Duration, Instant};
 use tilting_launch as security;
 use tilting_launch::{endpoint, reserve_port, Child, NodeBinaries, PortLease};
 use tilting_net::ZenohArgs;
+use tilting_plant::imperfect::ImperfectArgs;
+use tilting_plant::node::PlantArgs;
 use tilting_plant::robot_file::{self, PARAMS_SECTIONS};
-use tilting_sim::robot::{key_of_flag, value_of_text, RobotFile};
+use tilting_sim::robot::{value_of_text, RobotFile};
 
 /// The router of a `--secure` run.
 pub(super) struct Secure {
@@ -245,7 +249,7 @@ impl Topology {
 
 /// The plant's flags: session, rate, duration, the law's torque limit as its hard limit, the
 /// age rule and the emulated link.
-fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
+fn plant_args(job: &Job, topo: &Topology) -> anyhow::Result<Vec<String>> {
     let args = job.args;
     let mut v: Vec<String> = vec!["--robot".into(), job.keys.robot().into()];
     v.extend(topo.session_flags("plant", topo.plant_port, &[]));
@@ -301,16 +305,30 @@ fn plant_args(job: &Job, topo: &Topology) -> Vec<String> {
             run_file_path(job).display().to_string(),
         ]);
     } else {
-        // An external plant (docs/mujoco.md) still takes them as flags.
-        let imperfect = args.imperfect.to_args();
-        if job.impairment.is_some() || !imperfect.is_empty() {
-            // The link, and the seed of the sensor noise.
-            v.extend(args.network.to_args());
+        // An external plant (docs/mujoco.md) takes them as flags, as it always has: the
+        // run file's keys of the plant's, when the run has a link or imperfections.
+        if job.impairment.is_some() || args.imperfect != ImperfectArgs::default() {
+            v.extend(external_plant_flags(&run_file_path(job))?);
         }
-        v.extend(imperfect);
     }
     v.extend(args.ros2.plant_args());
-    v
+    Ok(v)
+}
+
+/// The flags an external plant (`--plant-cmd`) is given for the emulated link, its seed and
+/// the sensors: the keys of the run file `path` that `tilting-plant` would read from it
+/// ([`PlantArgs::file_flags`]), each as `--flag=text` (the text the flag's parser reads, so
+/// negative numbers pass).
+fn external_plant_flags(path: &std::path::Path) -> anyhow::Result<Vec<String>> {
+    let doc = robot_file::read_doc(path).map_err(anyhow::Error::msg)?;
+    let longs = PlantArgs::file_flags();
+    let defaults = robot_file::flag_defaults(&doc, path, &["network", "sensors"])
+        .map_err(anyhow::Error::msg)?;
+    Ok(defaults
+        .into_iter()
+        .filter(|d| longs.contains(&d.flag))
+        .map(|d| format!("--{}={}", d.flag, d.text))
+        .collect())
 }
 
 /// The run's robot file (`robot.toml` in the run directory), which the controller reads
@@ -352,18 +370,7 @@ pub(super) fn run_file(job: &Job, merged: Option<&RobotFile>) -> Result<RobotFil
         let abs = dir.join(text).display().to_string();
         f.set(section, key, value_of_text(key, &abs));
     }
-    if let Some(law) = f.doc.get_mut("law").and_then(|v| v.as_table_mut()) {
-        law.remove("from_orbit");
-    }
-    for flag in job.reference.to_args() {
-        let (long, text) = flag
-            .trim_start_matches("--")
-            .split_once('=')
-            .ok_or_else(|| format!("the law's flag {flag} has no value"))?;
-        let (section, key) =
-            key_of_flag(long).ok_or_else(|| format!("the robot file has no key for --{long}"))?;
-        f.set(section, &key, value_of_text(&key, text));
-    }
+    f.set_law(&job.reference)?;
     f.path = run_file_path(job);
     Ok(f)
 }
@@ -413,7 +420,7 @@ pub(super) fn spawn_plant(
     topo: &Topology,
     bins: &NodeBinaries,
 ) -> anyhow::Result<Child> {
-    let args = plant_args(job, topo);
+    let args = plant_args(job, topo)?;
     let Some(cmd) = &job.args.plant_cmd else {
         return Child::spawn_with("plant", &bins.plant, &args, &job.dir, job.args.realtime);
     };
@@ -452,7 +459,6 @@ mod tests {
     use crate::LiveArgs;
     use clap::Parser as _;
     use tilting_controller::node::ControllerArgs;
-    use tilting_plant::node::PlantArgs;
 
     #[derive(clap::Parser)]
     struct Cli {
@@ -515,9 +521,10 @@ mod tests {
         let topo = Topology::ports(&job).unwrap();
         let once = |bin: &'static str, v: Vec<String>| std::iter::once(bin.to_owned()).chain(v);
         // The plant reads its network and sensors from the run file, as its binary does.
-        let argv_plant: Vec<std::ffi::OsString> = once("tilting-plant", plant_args(&job, &topo))
-            .map(Into::into)
-            .collect();
+        let argv_plant: Vec<std::ffi::OsString> =
+            once("tilting-plant", plant_args(&job, &topo).unwrap())
+                .map(Into::into)
+                .collect();
         let plant = PlantArgs::from_argv(&argv_plant).unwrap();
         assert_eq!(plant.network, live.network);
         assert_eq!(plant.zenoh.robot, live.robot);

@@ -29,14 +29,6 @@ impl ParamsArgs {
     pub fn params(&self) -> Result<Params, ConfigError> {
         Ok(self.load()?.unwrap_or_default())
     }
-
-    /// The flag for a child process (none for the paper's parameters).
-    pub fn to_args(&self) -> Vec<String> {
-        self.params
-            .iter()
-            .map(|p| format!("--params={}", p.display()))
-            .collect()
-    }
 }
 
 /// The names of the components of `x0`, with their units.
@@ -96,11 +88,9 @@ mod tests {
     fn no_file_is_the_paper() {
         let a = ParamsArgs::default();
         assert_eq!(a.params().unwrap(), Params::default());
-        assert!(a.to_args().is_empty());
         let bad = ParamsArgs {
             params: Some("/nonexistent/params.toml".into()),
         };
         assert!(bad.params().is_err());
-        assert_eq!(bad.to_args(), ["--params=/nonexistent/params.toml"]);
     }
 }

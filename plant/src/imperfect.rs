@@ -551,42 +551,6 @@ impl ImperfectArgs {
         imp.validate()?;
         Ok((!imp.is_perfect()).then_some(imp))
     }
-
-    /// The flags that parse back into `self` (`--name=value`, given flags only): how a node
-    /// hands the imperfections to a child node. Every field is named here (a new one does not
-    /// compile until it is), and a test parses the result back.
-    pub fn to_args(&self) -> Vec<String> {
-        let ImperfectArgs {
-            noise_alpha,
-            noise_beta,
-            noise_alpha_dot,
-            noise_beta_dot,
-            encoder_counts,
-            torque_saturation,
-            torque_lag,
-            mass_error,
-            measure,
-        } = self;
-        let mut v = Vec::new();
-        let mut flag = |name: &str, value: Option<String>| {
-            if let Some(x) = value {
-                v.push(format!("--{name}={x}"));
-            }
-        };
-        flag("noise-alpha", noise_alpha.map(|x| x.to_string()));
-        flag("noise-beta", noise_beta.map(|x| x.to_string()));
-        flag("noise-alpha-dot", noise_alpha_dot.map(|x| x.to_string()));
-        flag("noise-beta-dot", noise_beta_dot.map(|x| x.to_string()));
-        flag("encoder-counts", encoder_counts.map(|x| x.to_string()));
-        flag(
-            "torque-saturation",
-            torque_saturation.map(|x| x.to_string()),
-        );
-        flag("torque-lag", torque_lag.map(|x| x.to_string()));
-        flag("mass-error", mass_error.map(|x| x.to_string()));
-        flag("measure", measure.map(|m| m.name().to_owned()));
-        v
-    }
 }
 
 #[cfg(test)]
@@ -936,43 +900,6 @@ mod tests {
             let e = parse(&args).unwrap_err().to_string();
             assert!(e.contains(want) && e.contains("allowed"), "{e}");
         }
-    }
-
-    /// `to_args` is the inverse of the parser: every field set to a value other than its
-    /// default (negative, tiny and many-digit numbers too) parses back to the same flags.
-    #[cfg(feature = "clap")]
-    #[test]
-    fn imperfect_args_round_trip() {
-        use clap::Parser;
-        #[derive(clap::Parser)]
-        struct Cli {
-            #[command(flatten)]
-            imp: ImperfectArgs,
-        }
-        let parse = |args: Vec<String>| {
-            Cli::try_parse_from(std::iter::once("x".to_owned()).chain(args))
-                .unwrap()
-                .imp
-        };
-        let all = ImperfectArgs {
-            noise_alpha: Some(1e-3),
-            noise_beta: Some(1.0 / 3.0),
-            noise_alpha_dot: Some(-0.25),
-            noise_beta_dot: Some(5e-300),
-            encoder_counts: Some(-4096),
-            torque_saturation: Some(11.5),
-            torque_lag: Some(0.1 + 0.2),
-            mass_error: Some(-0.1),
-            measure: Some(Measure::Angles),
-        };
-        assert_eq!(parse(all.to_args()), all);
-        let some = ImperfectArgs {
-            encoder_counts: Some(1 << 32),
-            ..ImperfectArgs::default()
-        };
-        assert_eq!(parse(some.to_args()), some);
-        assert_eq!(parse(Vec::new()), ImperfectArgs::default());
-        assert!(ImperfectArgs::default().to_args().is_empty());
     }
 
     /// `--measure angles` sends the angles of `--measure full` (same seed, same draws), bit

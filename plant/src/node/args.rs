@@ -300,6 +300,21 @@ impl PlantArgs {
 }
 
 impl PlantArgs {
+    /// The flags (long names) whose keys a plant reads from the `[network]` and `[sensors]`
+    /// sections of its robot file: the emulated link's ([`tilting_link::NetworkArgs`]) and the
+    /// sensors' ([`crate::imperfect::ImperfectArgs`]). `tilting live` hands an external plant
+    /// (`--plant-cmd`) the same keys as these flags.
+    pub fn file_flags() -> Vec<String> {
+        use clap::Args as _;
+        let own = clap::Command::new("plant");
+        let own = crate::imperfect::ImperfectArgs::augment_args(
+            tilting_link::NetworkArgs::augment_args(own),
+        );
+        own.get_arguments()
+            .filter_map(|a| a.get_long().map(str::to_owned))
+            .collect()
+    }
+
     /// Parses a plant's command line `argv` (its first item the program's name), with the keys
     /// of its `--robot-file` as the defaults of its flags: the emulated link's and the sensors'
     /// flags ([`tilting_link::NetworkArgs`], [`crate::imperfect::ImperfectArgs`]) and the
@@ -309,15 +324,7 @@ impl PlantArgs {
     pub fn from_argv(
         argv: &[std::ffi::OsString],
     ) -> Result<Self, crate::robot_file::NodeArgsError> {
-        use clap::Args as _;
-        let own = clap::Command::new("plant");
-        let own = crate::imperfect::ImperfectArgs::augment_args(
-            tilting_link::NetworkArgs::augment_args(own),
-        );
-        let longs: Vec<String> = own
-            .get_arguments()
-            .filter_map(|a| a.get_long().map(str::to_owned))
-            .collect();
+        let longs = Self::file_flags();
         crate::robot_file::parse_node_with(argv, &|defaults| {
             let has_plant = defaults.iter().any(|d| d.key == "[plant]");
             defaults
