@@ -46,7 +46,7 @@
 //! both. The children are started and stopped by [`tilting_launch`].
 //!
 //! The run is a composition of its steps, one module each: `nodes` (spawn the router, the plant
-//! and the controller, with the flags of their own parsers' `to_args()`), `tap` (the planner's
+//! and the controller, which read the run's robot file), `tap` (the planner's
 //! session: record the five topics, publish the reference), `monitor` (status line and health),
 //! `shutdown` (stop the children in order) and `report` (figure, `summary.json`, report).
 
