@@ -14,6 +14,12 @@
 //! sample (the band between the two lines holds the full-rate curve), and each peak is drawn at
 //! its exact value, late by at most one tick. The full-rate channels stay for the 3D panel,
 //! recordings and users who want every sample.
+//!
+//! Each message also carries `header.stamp`, its tick on the viewer's clock ([`WallStamp`]), which
+//! the layout's plots use as their x (`timestampMethod: headerStamp`): Studio 1.48 stamps a
+//! live message with the time the browser reads it (`receiveTime`), and a browser short of CPU
+//! reads them in bursts, so plotted by receive time a second of ticks collapsed onto one
+//! instant and the plot drew straight lines between bursts (seen in a screenshot under load).
 
 use serde_json::{json, Map, Value};
 use std::collections::BTreeMap;
@@ -87,6 +93,19 @@ pub fn schema() -> Value {
             );
         }
     }
+    let int = |what: &str| json!({"type": "integer", "description": what});
+    props.insert(
+        "header".into(),
+        json!({"type": "object", "description":
+            "The tick's centre on the viewer's clock (the wall clock when the server saw the \
+             first tick, plus the plant time since): what plot panels read as the message's \
+             time (Foxglove's `header.stamp`).",
+            "properties": {"stamp": {"type": "object", "properties": {
+                "sec": int("s since the Unix epoch"),
+                "nsec": int("ns within the second, 0 to 999,999,999")},
+                "required": ["sec", "nsec"], "additionalProperties": false}},
+            "required": ["stamp"], "additionalProperties": false}),
+    );
     json!({
         "title": PLOT_SCHEMA,
         "type": "object",
@@ -144,6 +163,38 @@ impl Decimator {
         open.into_iter()
             .filter_map(|(k, r)| message(k, r))
             .collect()
+    }
+}
+
+/// Plant time mapped onto the wall clock (ns since the Unix epoch) by one fixed offset, taken
+/// at the first tick: the wall clock then minus the tick's plant time. Stamps are then exactly
+/// the plant time's spacing (20 ms a tick), however late or bunched the ticks are published or
+/// read; at real time they track the wall clock, as a live viewer's own clock does.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct WallStamp {
+    /// Wall clock minus plant time (ns), once known.
+    offset: Option<i128>,
+}
+
+impl WallStamp {
+    /// The wall-clock time (ns since the Unix epoch, 0 at the earliest) of plant time `t_ns`
+    /// (ns); `now_ns` (the wall clock, ns since the Unix epoch) fixes the offset at the first
+    /// call and is ignored after.
+    pub fn at(&mut self, t_ns: u64, now_ns: u128) -> u128 {
+        let offset = *self.offset.get_or_insert(now_ns as i128 - i128::from(t_ns));
+        (i128::from(t_ns) + offset).max(0) as u128
+    }
+}
+
+/// Adds `header.stamp` (`sec`, `nsec`) for `wall_ns` (ns since the Unix epoch) to a plot
+/// message (a JSON object; anything else is left as it is).
+pub fn stamp(message: &mut Value, wall_ns: u128) {
+    if let Value::Object(m) = message {
+        let (sec, nsec) = (wall_ns / 1_000_000_000, wall_ns % 1_000_000_000);
+        m.insert(
+            "header".into(),
+            json!({"stamp": {"sec": sec as u64, "nsec": nsec as u64}}),
+        );
     }
 }
 
@@ -245,20 +296,53 @@ mod tests {
         assert!(d.flush().is_empty());
     }
 
-    /// The schema names every field the messages carry, each a number, and nothing else.
+    /// The schema names every field the messages carry, each a number but the header (two
+    /// integers), and nothing else.
     #[test]
     fn the_schema_lists_what_the_messages_carry() {
         let s = schema();
         let props = s["properties"].as_object().unwrap();
-        assert_eq!(props.len(), 1 + 2 * FIELDS.len());
+        assert_eq!(props.len(), 2 + 2 * FIELDS.len());
         let mut d = Decimator::default();
         let all: Vec<_> = FIELDS.iter().map(|&(f, _, _)| (f, 1.0)).collect();
         d.add(0, &all);
-        let (_, m) = d.flush().pop().unwrap();
-        for k in m.as_object().unwrap().keys() {
-            assert_eq!(props[k]["type"], "number", "{k}");
+        let (_, mut m) = d.flush().pop().unwrap();
+        stamp(&mut m, 1_700_000_000_123_456_789);
+        for (k, v) in m.as_object().unwrap() {
+            if k == "header" {
+                let st = &props[k]["properties"]["stamp"]["properties"];
+                for f in ["sec", "nsec"] {
+                    assert_eq!(st[f]["type"], "integer");
+                    assert!(v["stamp"][f].is_u64(), "{v}");
+                }
+                assert_eq!(v["stamp"].as_object().unwrap().len(), 2);
+            } else {
+                assert_eq!(props[k]["type"], "number", "{k}");
+            }
         }
         assert_eq!(m.as_object().unwrap().len(), props.len());
+    }
+
+    /// Stamps keep the plant time's spacing whatever the wall clock at publication: ticks
+    /// published in one burst (the same `now`) or late are 20 ms apart on the viewer's clock,
+    /// the first at the wall clock when it was stamped; sec and nsec split the ns exactly.
+    #[test]
+    fn stamps_follow_plant_time_not_publication() {
+        let mut w = WallStamp::default();
+        let start = 1_800_000_000_000_000_000u128;
+        let first = 10_000_000u64;
+        assert_eq!(w.at(first, start), start);
+        // Ten ticks published together a second later, then one published early.
+        let later = start + 1_000_000_000;
+        for k in 1..=10u64 {
+            let t = first + k * TICK_NS;
+            assert_eq!(w.at(t, later), start + u128::from(k * TICK_NS));
+        }
+        assert_eq!(w.at(first + 11 * TICK_NS, start), start + 220_000_000);
+        let mut m = json!({"time": 0.01});
+        stamp(&mut m, start + 220_000_000);
+        assert_eq!(m["header"]["stamp"]["sec"], 1_800_000_000u64);
+        assert_eq!(m["header"]["stamp"]["nsec"], 220_000_000u64);
     }
 
     /// The gain: `kp + k (E_av - E)`, or `kp` without adaptation.

@@ -332,6 +332,8 @@ struct Publisher {
     reported: [bool; 5],
     /// The plot channel's ticks.
     decimator: Decimator,
+    /// The plot ticks' stamps on the viewer's clock.
+    wall: plot::WallStamp,
     /// The latest reference (for the plotted gain).
     reference: Option<Reference>,
 }
@@ -352,6 +354,7 @@ impl Publisher {
             status: None,
             reported: [false; 5],
             decimator: Decimator::default(),
+            wall: plot::WallStamp::default(),
             reference: None,
         }
     }
@@ -418,9 +421,11 @@ impl Publisher {
         }
     }
 
-    /// Publishes closed ticks of the plot channel.
+    /// Publishes closed ticks of the plot channel, each stamped on the viewer's clock.
     fn plot(&mut self, ticks: Vec<(u64, serde_json::Value)>) {
-        for (log_time, json) in ticks {
+        let now = wall_ns();
+        for (log_time, mut json) in ticks {
+            plot::stamp(&mut json, self.wall.at(log_time, now));
             self.ch.plot.log_with_meta(
                 json.to_string().as_bytes(),
                 PartialMetadata::with_log_time(log_time),
@@ -553,10 +558,16 @@ impl Publisher {
 
 /// The wall clock now as a Foxglove timestamp (the Unix epoch if the clock is before it).
 pub fn wall_clock() -> foxglove::messages::Timestamp {
-    let d = std::time::SystemTime::now()
+    let ns = wall_ns();
+    foxglove::messages::Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
+}
+
+/// The wall clock now, ns since the Unix epoch (0 if the clock is before it).
+fn wall_ns() -> u128 {
+    std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    foxglove::messages::Timestamp::new(d.as_secs() as u32, d.subsec_nanos())
+        .unwrap_or_default()
+        .as_nanos()
 }
 
 #[cfg(test)]
@@ -656,6 +667,19 @@ mod tests {
                 "{p}: not the plot channel"
             );
         }
+        // ... drawn at each tick's own time (header.stamp), not when the browser read it
+        // (receive time: a browser short of CPU reads ticks in bursts, drawn as straight lines).
+        for (k, v) in cfg.iter().filter(|(k, _)| k.starts_with("Plot!")) {
+            for p in v["paths"].as_array().unwrap() {
+                if p["value"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with("/tilting/demo/plot.")
+                {
+                    assert_eq!(p["timestampMethod"], "headerStamp", "{k}: {p}");
+                }
+            }
+        }
         for (_, name, _) in plot::FIELDS {
             let (lo, hi) = (format!("plot.{name}_min"), format!("plot.{name}_max"));
             assert!(
@@ -686,6 +710,13 @@ mod tests {
         // The grid below the ground slab's top (z = 0): coplanar, the two flickered.
         let grid = &layout["configById"]["3D!tilting"]["layers"]["grid"]["position"];
         assert!(grid[2].as_f64().unwrap() < 0.0, "{grid}");
+        // No frame labels: `plate` and `arm` share an origin and printed over each other (and
+        // `world` beside them, large) in Studio 1.48's screenshot; the scene's own small
+        // labels name the parts.
+        assert_eq!(
+            layout["configById"]["3D!tilting"]["scene"]["transforms"]["showLabel"],
+            false
+        );
         let (d, fov, phi) = (
             cam["distance"].as_f64().unwrap(),
             cam["fovy"].as_f64().unwrap(),
