@@ -30,6 +30,10 @@
 //!    `--ros2 2` the mirror is the DDS route (`--ros2 dds`) and the subscriber a real rclpy
 //!    node (`tests/python/rclpy_peer.py count` in the ROS 2 venv, `TILTING_ROS_VENV`, default
 //!    `/tmp/rosvenv`), discovery on loopback (`ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`).
+//!    The runs without and with alternate (A B A B ...: each round runs the plain loop, then the
+//!    mirrored one); the summary prints the per-round p99 ratio (with / without) and misses
+//!    ratio ((with + 1) / (without + 1), finite when a run misses none), each with its median
+//!    over the rounds, and the load average before each round.
 //! 3. **Memory**: the plant's resident set (VmRSS) sampled every 5 s of a long real-time run
 //!    (`--long-s`).
 //!
@@ -553,12 +557,20 @@ fn row(name: &str, q: &Pct, rate: &str, note: &str) {
     );
 }
 
+/// Deadline misses of a run with the mirror over the run without, each plus one, so that a
+/// round whose plain run missed none gives a finite ratio (1 when neither missed).
+fn misses_ratio(with: u64, without: u64) -> f64 {
+    (with as f64 + 1.0) / (without as f64 + 1.0)
+}
+
+/// The median (the mean of the two middle values for an even count; NaN for none).
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_unstable_by(f64::total_cmp);
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v[v.len() / 2]
+    let n = v.len();
+    match n {
+        0 => f64::NAN,
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
     }
 }
 
@@ -605,9 +617,14 @@ fn main() -> anyhow::Result<()> {
     let mut rounds = Vec::new();
     for r in 1..=o.rounds {
         eprintln!(
-            "round {r}/{}: raw ping-pong back-to-back {} s and paced at 1 kHz {} s; plant + \
-             controller in real time {} s and in lockstep {} s",
-            o.rounds, o.b2b_s, o.paced_s, o.realtime_s, o.lockstep_s
+            "round {r}/{} (load average {}): raw ping-pong back-to-back {} s and paced at 1 kHz \
+             {} s; plant + controller in real time {} s and in lockstep {} s",
+            o.rounds,
+            load(),
+            o.b2b_s,
+            o.paced_s,
+            o.realtime_s,
+            o.lockstep_s
         );
         let (b2b, b2b_rate) = pp.back_to_back(o.b2b_s)?;
         let (paced, late) = pp.paced(o.paced_s, o.rate);
@@ -678,6 +695,7 @@ fn main() -> anyhow::Result<()> {
         "", "", "", "", "", "", ""
     );
     let (mut rt_ratios, mut ls_ratios, mut ros_ratios) = (Vec::new(), Vec::new(), Vec::new());
+    let mut miss_ratios = Vec::new();
     for (i, r) in rounds.iter().enumerate() {
         let i = i + 1;
         let b2b = pct(last_window(&r.b2b));
@@ -724,6 +742,8 @@ fn main() -> anyhow::Result<()> {
             let q = lat(&ros.summary);
             let x = q.p99 / q0.p99;
             ros_ratios.push(x);
+            let m = misses_ratio(ros.summary.deadline_misses, r.rt.summary.deadline_misses);
+            miss_ratios.push(m);
             row(
                 &format!(
                     "{i}: same, --ros2 {} mirror + joint_states subscriber",
@@ -732,8 +752,8 @@ fn main() -> anyhow::Result<()> {
                 &q,
                 &format!("{}", o.rate),
                 &format!(
-                    "p99 {x:.2}x the run without; misses {} (without: {}), overruns {}; {} \
-                     joint_states received, mirror queue drops {}",
+                    "p99 {x:.2}x the run without; misses {} (without: {}; ratio {m:.2}), \
+                     overruns {}; {} joint_states received, mirror queue drops {}",
                     ros.summary.deadline_misses,
                     r.rt.summary.deadline_misses,
                     ros.summary.overruns,
@@ -796,6 +816,13 @@ fn main() -> anyhow::Result<()> {
             median(ros_ratios.clone()),
             ros_ratios.len(),
             list(&ros_ratios)
+        );
+        println!(
+            "--ros2 real-time loop misses, (with + 1) / (without + 1): median {:.2}x over {} \
+             rounds ({})",
+            median(miss_ratios.clone()),
+            miss_ratios.len(),
+            list(&miss_ratios)
         );
     }
     let r_ls = median(ls_ratios.clone());
