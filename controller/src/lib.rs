@@ -17,6 +17,7 @@ pub mod excite;
 pub mod law;
 #[cfg(feature = "node")]
 pub mod node;
+pub mod plannable;
 pub mod predict;
 pub mod robust;
 pub mod trajectory;
@@ -24,6 +25,7 @@ pub mod wire;
 
 pub use estimate::{Estimation, EstimatorArgs, EstimatorChoice};
 pub use law::{Controller, LawArgs, LawKind, LawSpec};
+pub use plannable::PlannableLaw;
 pub use predict::Predictor;
 pub use trajectory::Trajectory;
 

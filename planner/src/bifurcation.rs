@@ -7,7 +7,7 @@ use crate::orbit::{self, OrbitProblem, OrbitSolution};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
-use tilting_controller::ComputedTorque;
+use tilting_controller::{ComputedTorque, PlannableLaw};
 use tilting_plant::{Mode, Observer, Plant, SimConfig, TiltPeak};
 
 /// What to sweep.
@@ -150,20 +150,27 @@ pub fn classify(peaks: &[f64], tol: f64) -> Option<usize> {
 
 /// Simulates the adapted loop for one `k` and returns its row.
 pub fn run_one(sw: &Sweep, k: f64) -> Row {
+    let control = sw.problem.with_adaptation(k, sw.energy_avg).control;
+    match ComputedTorque::new(control) {
+        Ok(law) => run_with(sw, &law, k),
+        Err(e) => Row {
+            k,
+            peaks: Vec::new(),
+            period: None,
+            fault: Some(e.into()),
+        },
+    }
+}
+
+/// The row of the loop closed by `law` (any [`PlannableLaw`]; `sw`'s model, impact law,
+/// start and counts), labelled with the parameter value `k`.
+pub fn run_with(sw: &Sweep, law: &impl PlannableLaw, k: f64) -> Row {
     let pb = &sw.problem;
-    let control = pb.with_adaptation(k, sw.energy_avg).control;
     let mut row = Row {
         k,
         peaks: Vec::new(),
         period: None,
         fault: None,
-    };
-    let law = match ComputedTorque::new(control) {
-        Ok(l) => l,
-        Err(e) => {
-            row.fault = Some(e.into());
-            return row;
-        }
     };
     let cfg = SimConfig {
         params: pb.params,
@@ -189,7 +196,7 @@ pub fn run_one(sw: &Sweep, k: f64) -> Row {
         // for 10 s has left the orbit (it came to rest).
         let before = obs.count;
         t += 10.0;
-        if let Err(e) = plant.advance_continuous(&law, t, &mut obs) {
+        if let Err(e) = plant.advance_continuous(law, t, &mut obs) {
             row.fault = Some(e.into());
             break;
         }
@@ -251,9 +258,17 @@ impl Observer for LastLeftTilt {
 /// A Newton guess `(beta0, beta_dot0, t_end)` for the orbit that attracts the adapted loop at
 /// gain `k`: the last left tilt of a simulation of `tilts` tilts from the orbit start.
 pub fn attracting_orbit_guess(sw: &Sweep, k: f64, tilts: usize) -> Option<[f64; 3]> {
+    let control = sw.problem.with_adaptation(k, sw.energy_avg).control;
+    attracting_orbit_guess_with(sw, &ComputedTorque::new(control).ok()?, tilts)
+}
+
+/// [`attracting_orbit_guess`] for the loop closed by `law` (any [`PlannableLaw`]).
+pub fn attracting_orbit_guess_with(
+    sw: &Sweep,
+    law: &impl PlannableLaw,
+    tilts: usize,
+) -> Option<[f64; 3]> {
     let pb = &sw.problem;
-    let control = pb.with_adaptation(k, sw.energy_avg).control;
-    let law = ComputedTorque::new(control).ok()?;
     let cfg = SimConfig {
         params: pb.params,
         impact: pb.impact,
@@ -266,7 +281,7 @@ pub fn attracting_orbit_guess(sw: &Sweep, k: f64, tilts: usize) -> Option<[f64; 
     while (plant.tilts() as usize) < tilts {
         let before = plant.tilts();
         t += 10.0;
-        plant.advance_continuous(&law, t, &mut obs).ok()?;
+        plant.advance_continuous(law, t, &mut obs).ok()?;
         if plant.tilts() == before {
             return None;
         }

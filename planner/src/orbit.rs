@@ -16,14 +16,17 @@
 use nalgebra::{Matrix2, Matrix3, Matrix4, SVector, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
-use tilting_controller::{ComputedTorque, ControlConfig, LawSpec};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec, PlannableLaw};
 use tilting_plant::dynamics::rhs;
 use tilting_plant::ode::{Dop853, Tolerance};
 use tilting_plant::{
-    energy, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, Transition,
+    energy, ImpactLaw, Mode, Observer, Params, Plant, SimConfig, State, TiltPeak, TorqueLaw,
+    Transition,
 };
 
-/// The problem: model, impact law and closed loop (the reference must be `Hold`).
+/// The problem: model, impact law and closed loop (the reference must be `Hold`). The loop is
+/// the paper's law of `control` ([`OrbitProblem::law`]); the `*_with` functions take any
+/// [`PlannableLaw`] instead, with this problem's model, impact law and tolerance.
 #[derive(Debug, Clone, Copy)]
 pub struct OrbitProblem {
     /// Physical parameters.
@@ -64,7 +67,8 @@ impl OrbitProblem {
         self
     }
 
-    pub(crate) fn law(&self) -> ComputedTorque {
+    /// The paper's law of `control`.
+    pub fn law(&self) -> ComputedTorque {
         ComputedTorque::new(self.control).expect("validated control settings")
     }
 
@@ -132,7 +136,7 @@ pub(crate) struct Flow {
     pub(crate) energy_integral: f64,
 }
 
-pub(crate) fn closed_loop(p: &Params, law: &ComputedTorque, x: &State) -> State {
+pub(crate) fn closed_loop(p: &Params, law: &impl TorqueLaw, x: &State) -> State {
     rhs(p, Mode::Left, x, law.torque(0.0, Mode::Left, x))
 }
 
@@ -177,7 +181,7 @@ fn integrate<const N: usize>(
 /// tolerance; with `sensitivities`, also `Phi` (at [`SENSITIVITY_TOL`]).
 pub(crate) fn flow(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     x0: &State,
     t: f64,
     sensitivities: bool,
@@ -242,7 +246,7 @@ pub(crate) fn impact_slope(pb: &OrbitProblem, beta: f64) -> f64 {
 /// Shooting residual and its Jacobian with respect to `(beta0, beta_dot0, t_end)`.
 fn residual(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     z: &Vector3<f64>,
 ) -> Result<(Vector3<f64>, Matrix3<f64>, Flow), OrbitError> {
     let x0 = OrbitProblem::start(z[0], z[1]);
@@ -315,7 +319,12 @@ impl Observer for FirstTilt {
 }
 
 /// Runs the hybrid simulator from the left-tilt start until the first landing (or `t_max`).
-fn simulate_first_tilt(pb: &OrbitProblem, x0: &State, t_max: f64) -> Result<FirstTilt, OrbitError> {
+fn simulate_first_tilt(
+    pb: &OrbitProblem,
+    law: &impl PlannableLaw,
+    x0: &State,
+    t_max: f64,
+) -> Result<FirstTilt, OrbitError> {
     let cfg = SimConfig {
         params: pb.params,
         impact: pb.impact,
@@ -324,13 +333,12 @@ fn simulate_first_tilt(pb: &OrbitProblem, x0: &State, t_max: f64) -> Result<Firs
     };
     let mut plant = Plant::new(cfg, 0.0, Mode::Left, *x0)
         .map_err(|e| OrbitError::Integration(e.to_string()))?;
-    let law = pb.law();
     let mut obs = FirstTilt::default();
     let mut t = 0.0;
     while t < t_max && !obs.events.iter().any(|e| e.from == Mode::Left) {
         t = (t + 0.05).min(t_max);
         plant
-            .advance_continuous(&law, t, &mut obs)
+            .advance_continuous(law, t, &mut obs)
             .map_err(|e| OrbitError::Integration(e.to_string()))?;
     }
     Ok(obs)
@@ -339,7 +347,17 @@ fn simulate_first_tilt(pb: &OrbitProblem, x0: &State, t_max: f64) -> Result<Firs
 /// The landing of the first tilt from the left-tilt start `x0` within `t_max` (s): its time and
 /// the post-impact state, when the plate tilts right at once (`None` otherwise).
 pub(crate) fn first_landing(pb: &OrbitProblem, x0: &State, t_max: f64) -> Option<(f64, State)> {
-    let obs = simulate_first_tilt(pb, x0, t_max).ok()?;
+    first_landing_with(pb, &pb.law(), x0, t_max)
+}
+
+/// [`first_landing`] of the loop closed by `law`.
+pub(crate) fn first_landing_with(
+    pb: &OrbitProblem,
+    law: &impl PlannableLaw,
+    x0: &State,
+    t_max: f64,
+) -> Option<(f64, State)> {
+    let obs = simulate_first_tilt(pb, law, x0, t_max).ok()?;
     let land = obs.events.iter().position(|e| e.from == Mode::Left)?;
     let ev = obs.events[land];
     let next = obs.events.get(land + 1)?;
@@ -348,7 +366,7 @@ pub(crate) fn first_landing(pb: &OrbitProblem, x0: &State, t_max: f64) -> Option
 
 /// The tilt extreme `alpha` (rad) of the first tilt from the left-tilt start `x0`.
 pub(crate) fn first_tilt_peak(pb: &OrbitProblem, x0: &State, t_max: f64) -> Option<f64> {
-    simulate_first_tilt(pb, x0, t_max)
+    simulate_first_tilt(pb, &pb.law(), x0, t_max)
         .ok()?
         .peak
         .map(|p| p.alpha)
@@ -356,7 +374,18 @@ pub(crate) fn first_tilt_peak(pb: &OrbitProblem, x0: &State, t_max: f64) -> Opti
 
 /// The first landing time from a left-tilt start, as a guess for `t_end`.
 pub fn landing_time_guess(pb: &OrbitProblem, beta0: f64, beta_dot0: f64) -> Option<f64> {
-    let obs = simulate_first_tilt(pb, &OrbitProblem::start(beta0, beta_dot0), 5.0).ok()?;
+    landing_time_guess_with(pb, &pb.law(), beta0, beta_dot0)
+}
+
+/// [`landing_time_guess`] for the loop closed by `law`.
+pub fn landing_time_guess_with(
+    pb: &OrbitProblem,
+    law: &impl PlannableLaw,
+    beta0: f64,
+    beta_dot0: f64,
+) -> Option<f64> {
+    let x0 = OrbitProblem::start(beta0, beta_dot0);
+    let obs = simulate_first_tilt(pb, law, &x0, 5.0).ok()?;
     obs.events
         .iter()
         .find(|e| e.from == Mode::Left)
@@ -365,9 +394,17 @@ pub fn landing_time_guess(pb: &OrbitProblem, beta0: f64, beta_dot0: f64) -> Opti
 
 /// Newton shooting from the guess `(beta0, beta_dot0, t_end)`.
 pub fn solve(pb: &OrbitProblem, guess: [f64; 3]) -> Result<OrbitSolution, OrbitError> {
-    let law = pb.law();
+    solve_with(pb, &pb.law(), guess)
+}
+
+/// [`solve`] for the loop closed by `law` (with `pb`'s model, impact law and tolerance).
+pub fn solve_with(
+    pb: &OrbitProblem,
+    law: &impl PlannableLaw,
+    guess: [f64; 3],
+) -> Result<OrbitSolution, OrbitError> {
     let mut z = Vector3::from(guess);
-    let (mut r, mut j, mut fl) = residual(pb, &law, &z)?;
+    let (mut r, mut j, mut fl) = residual(pb, law, &z)?;
     let fail = |res: f64| OrbitError::NoConvergence {
         beta0: guess[0],
         beta_dot0: guess[1],
@@ -392,7 +429,7 @@ pub fn solve(pb: &OrbitProblem, guess: [f64; 3]) -> Result<OrbitSolution, OrbitE
         for _ in 0..8 {
             let zt = z + dz * lambda;
             if zt[2] > 1e-3 {
-                if let Ok((rt, jt, ft)) = residual(pb, &law, &zt) {
+                if let Ok((rt, jt, ft)) = residual(pb, law, &zt) {
                     if rt.norm() < r.norm() || rt.norm() < 1e-11 {
                         z = zt;
                         r = rt;
@@ -414,19 +451,20 @@ pub fn solve(pb: &OrbitProblem, guess: [f64; 3]) -> Result<OrbitSolution, OrbitE
     if !converged {
         return Err(fail(r.norm()));
     }
-    finish(pb, &z, r.norm(), &fl)
+    finish(pb, law, &z, r.norm(), &fl)
 }
 
 /// Checks a converged solution with the hybrid simulator and fills in its characteristics.
 fn finish(
     pb: &OrbitProblem,
+    law: &impl PlannableLaw,
     z: &Vector3<f64>,
     res: f64,
     fl: &Flow,
 ) -> Result<OrbitSolution, OrbitError> {
     let (beta0, beta_dot0, t_end) = (z[0], z[1], z[2]);
     let x0 = OrbitProblem::start(beta0, beta_dot0);
-    let obs = simulate_first_tilt(pb, &x0, t_end + 0.01)?;
+    let obs = simulate_first_tilt(pb, law, &x0, t_end + 0.01)?;
     let land = obs
         .events
         .iter()
@@ -480,13 +518,19 @@ pub fn smallest(pb: &OrbitProblem) -> Option<OrbitSolution> {
 /// `[0.05, 3]` rad/s, with `t_end` guessed from the first landing; distinct solutions only,
 /// sorted by maximal tilt.
 pub fn find_all(pb: &OrbitProblem) -> Vec<OrbitSolution> {
+    find_all_with(pb, &pb.law())
+}
+
+/// [`find_all`] for the loop closed by `law` (with `pb`'s model, impact law and tolerance):
+/// the orbits of any [`PlannableLaw`].
+pub fn find_all_with(pb: &OrbitProblem, law: &impl PlannableLaw) -> Vec<OrbitSolution> {
     let mut out: Vec<OrbitSolution> = Vec::new();
     for i in 0..60 {
         let bd0 = 0.05 * (i + 1) as f64;
-        let Some(te) = landing_time_guess(pb, 0.0, bd0) else {
+        let Some(te) = landing_time_guess_with(pb, law, 0.0, bd0) else {
             continue;
         };
-        if let Ok(s) = solve(pb, [0.0, bd0, te]) {
+        if let Ok(s) = solve_with(pb, law, [0.0, bd0, te]) {
             let dup = out.iter().any(|o| {
                 (o.beta0 - s.beta0).abs() < 1e-7
                     && (o.beta_dot0 - s.beta_dot0).abs() < 1e-7

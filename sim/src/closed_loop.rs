@@ -343,6 +343,19 @@ pub fn simulate_with_progress(
     Ok(report)
 }
 
+/// [`simulate`] with the law `law` in place of the scenario's (any [`TorqueLaw`] without
+/// memory or, called once per sample in time order, with it; a planner's
+/// `tilting_controller::PlannableLaw`): the same checks, couplings and report; the scenario's
+/// `law` settings are not used. Fails only on an invalid scenario.
+pub fn simulate_with<L: TorqueLaw>(
+    sc: &Scenario,
+    opts: SimOptions,
+    law: &L,
+) -> Result<SimulationReport, ScenarioError> {
+    sc.validate()?;
+    simulate_law(sc, opts, law, &mut |_| {})
+}
+
 /// [`simulate_with_progress`] with the scenario's controller `ctrl` given (wrapped by
 /// [`crate::recording`] to keep every sample it reads and every torque it answers).
 // long: the run's refusals, its three couplings and the report, as simulate_with_progress had

@@ -39,7 +39,8 @@ pub mod robustness;
 pub mod scenario;
 
 pub use closed_loop::{
-    run_continuous, run_sampled, simulate, simulate_with_progress, SimOptions, SimulationReport,
+    run_continuous, run_sampled, simulate, simulate_with, simulate_with_progress, SimOptions,
+    SimulationReport,
 };
 pub use network::{run_sampled_over, Impairment, LoopOptions, NetStats, Predict};
 #[cfg(feature = "clap")]

@@ -11,7 +11,7 @@
 use crate::orbit::{self, Flow, OrbitProblem};
 use nalgebra::{DMatrix, DVector, Matrix2, Vector4};
 use std::f64::consts::FRAC_PI_2;
-use tilting_controller::ComputedTorque;
+use tilting_controller::PlannableLaw;
 use tilting_plant::{Mode, State};
 
 /// Residual, Jacobian `dR/dz` and the flows of the `n` tilts (with sensitivities).
@@ -60,7 +60,7 @@ fn check(z: &DVector<f64>) -> Result<(), orbit::OrbitError> {
 /// The residual alone (no sensitivities), for the parameter derivative.
 pub(crate) fn residual(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     z: &DVector<f64>,
 ) -> Result<DVector<f64>, orbit::OrbitError> {
     check(z)?;
@@ -77,7 +77,7 @@ pub(crate) fn residual(
 /// Residual and exact Jacobian (from the variational equations) of the period-`n` BVP.
 pub(crate) fn evaluate(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     z: &DVector<f64>,
 ) -> Result<Eval, orbit::OrbitError> {
     check(z)?;

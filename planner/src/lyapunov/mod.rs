@@ -28,7 +28,7 @@ use nalgebra::{Matrix2, Matrix4, SVector, Vector2, Vector4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
-use tilting_controller::ComputedTorque;
+use tilting_controller::PlannableLaw;
 use tilting_plant::dynamics::support_margins;
 use tilting_plant::ode::{Dop853, Tolerance};
 use tilting_plant::{Mode, Params, State};
@@ -65,7 +65,7 @@ type Aug = SVector<f64, 20>;
 
 /// The Jacobian of the closed loop's vector field at `x` by central differences, `h ~
 /// eps^(1/3)` (as `orbit`'s variational equations).
-fn field_jacobian(p: &Params, law: &ComputedTorque, x: &State) -> Matrix4<f64> {
+fn field_jacobian(p: &Params, law: &impl PlannableLaw, x: &State) -> Matrix4<f64> {
     let mut jac = Matrix4::zeros();
     for j in 0..4 {
         let h = 6e-6 * (1.0 + x[j].abs());
@@ -123,7 +123,7 @@ fn land<const N: usize>(
 /// the right support margin is negative and the left one is not).
 fn next_start(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     te: f64,
     x: &State,
 ) -> Result<Vector2<f64>, String> {
@@ -145,7 +145,7 @@ fn next_start(
 /// `orbit`'s monodromy.
 fn through_landing(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     x: State,
     phi: Matrix4<f64>,
 ) -> Matrix2<f64> {
@@ -164,7 +164,7 @@ fn through_landing(
 /// range, or the plate does not tilt back at once after the impact.
 pub fn tilt(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     start: Vector2<f64>,
 ) -> Result<TiltStep, String> {
     let p = pb.params;
@@ -204,7 +204,7 @@ pub fn tilt(
 /// column.
 fn tilt_tangent(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     start: Vector2<f64>,
     v: Vector2<f64>,
 ) -> Result<TiltStep, String> {
@@ -236,7 +236,7 @@ fn tilt_tangent(
 /// One tilt without sensitivities (the transient).
 fn tilt_plain(
     pb: &OrbitProblem,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     start: Vector2<f64>,
 ) -> Result<Vector2<f64>, String> {
     let p = pb.params;
@@ -268,15 +268,26 @@ pub fn largest(
     transient: usize,
     tilts: usize,
 ) -> Result<(f64, f64), String> {
-    let law = pb.law();
+    largest_with(pb, &pb.law(), start, transient, tilts)
+}
+
+/// [`largest`] of the loop closed by `law` (with `pb`'s model and impact law): the exponent
+/// of any [`PlannableLaw`].
+pub fn largest_with(
+    pb: &OrbitProblem,
+    law: &impl PlannableLaw,
+    start: Vector2<f64>,
+    transient: usize,
+    tilts: usize,
+) -> Result<(f64, f64), String> {
     let mut z = start;
     for _ in 0..transient {
-        z = tilt_plain(pb, &law, z)?;
+        z = tilt_plain(pb, law, z)?;
     }
     let mut v = Vector2::new(1.0, 1.0).normalize();
     let (mut sum, mut time) = (0.0, 0.0);
     for _ in 0..tilts {
-        let s = tilt_tangent(pb, &law, z, v)?;
+        let s = tilt_tangent(pb, law, z, v)?;
         v = s.jac.column(0).into_owned();
         let n = v.norm();
         sum += n.ln();

@@ -32,7 +32,7 @@ use crate::orbit::OrbitProblem;
 use nalgebra::{Vector2, Vector4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use tilting_controller::ComputedTorque;
+use tilting_controller::{ComputedTorque, PlannableLaw};
 use tilting_plant::{Mode, Plant, SimConfig, State};
 
 /// The relative step of the forward differences: the map over one period is the same sequence
@@ -40,10 +40,11 @@ use tilting_plant::{Mode, Plant, SimConfig, State};
 /// quotient carries truncation `~1e-7` and rounding `~1e-16 / 1e-7` relative.
 const EPS: f64 = 1e-7;
 
-/// The sampled loop: the plant's configuration, the law and the control period.
-pub struct SampledLoop {
+/// The sampled loop: the plant's configuration, the law (the paper's by default, any
+/// [`PlannableLaw`] by [`SampledLoop::with_law`]) and the control period.
+pub struct SampledLoop<L = ComputedTorque> {
     cfg: SimConfig,
-    law: ComputedTorque,
+    law: L,
     /// Control period `h` (s).
     pub period: f64,
 }
@@ -61,6 +62,14 @@ impl SampledLoop {
     /// The loop of `pb` (model, impact law and controller) sampled every `period` seconds.
     /// Errors name the period's allowed range.
     pub fn new(pb: &OrbitProblem, period: f64) -> Result<Self, String> {
+        Self::with_law(pb, pb.law(), period)
+    }
+}
+
+impl<L: PlannableLaw> SampledLoop<L> {
+    /// The loop of `pb`'s model and impact law closed by `law`, sampled every `period`
+    /// seconds. Errors name the period's allowed range.
+    pub fn with_law(pb: &OrbitProblem, law: L, period: f64) -> Result<Self, String> {
         if !(period.is_finite() && period > 0.0 && period <= 0.05) {
             return Err(format!(
                 "invalid control period {period} s: must be in (0, 0.05]"
@@ -72,7 +81,7 @@ impl SampledLoop {
                 impact: pb.impact,
                 ..SimConfig::default()
             },
-            law: pb.law(),
+            law,
             period,
         })
     }
@@ -147,8 +156,8 @@ pub struct Spectrum {
 /// Runs the loop from `s` at sample `n` until `tilts` tilts have ended, calling `each(n, s,
 /// next)` on every period; returns the sample reached and its index. Errors: a step fails, or no
 /// tilt for 10 s (the loop came to rest).
-fn run(
-    lp: &SampledLoop,
+fn run<L: PlannableLaw>(
+    lp: &SampledLoop<L>,
     mut s: Sample,
     mut n: u64,
     tilts: usize,
@@ -178,8 +187,8 @@ fn run(
 /// Benettin's two largest exponents of the sampled loop `lp` from the tilt start `(beta0,
 /// beta_dot0)` (rad, rad/s; a left tilt at rest): `transient` tilts discarded, then averaged
 /// over the periods of `tilts` tilts.
-pub fn largest(
-    lp: &SampledLoop,
+pub fn largest<L: PlannableLaw>(
+    lp: &SampledLoop<L>,
     start: Vector2<f64>,
     transient: usize,
     tilts: usize,
@@ -225,8 +234,8 @@ pub fn largest(
 /// `renorm` periods, when both are in the same mode, the distance `d` of the neighbour is
 /// measured and the neighbour restarted `delta` from the reference along `d`. Returns the
 /// exponent (1/s).
-pub fn largest_fd(
-    lp: &SampledLoop,
+pub fn largest_fd<L: PlannableLaw>(
+    lp: &SampledLoop<L>,
     start: Vector2<f64>,
     transient: usize,
     tilts: usize,

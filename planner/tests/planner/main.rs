@@ -9,3 +9,4 @@ mod identify;
 mod planning;
 mod robust_goal;
 mod sampled_lyapunov;
+mod toy_law;

@@ -25,11 +25,11 @@ impl Observer for Trace {
     }
 }
 
-/// Simulates `law` from `(mode, x0)` for `duration` seconds with the closed loop of
+/// Simulates `law` (any [`PlannableLaw`]) from `(mode, x0)` for `duration` seconds with the closed loop of
 /// `tilting-sim` (continuous coupling, one piece); the trace and the fault, if any.
 pub(super) fn simulate(
     ctx: &Ctx,
-    law: &ComputedTorque,
+    law: &impl PlannableLaw,
     mode: Mode,
     x0: State,
     duration: f64,

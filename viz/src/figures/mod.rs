@@ -48,7 +48,7 @@ use style::{
     clip, legend, star_points, style_mesh, symmetric, tick3, Area, BLUE, FONT, GREEN, GREY,
     PALETTE, RED,
 };
-use tilting_controller::{ComputedTorque, ControlConfig, LawSpec, Trajectory};
+use tilting_controller::{ComputedTorque, ControlConfig, LawSpec, PlannableLaw, Trajectory};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::gains;
 use tilting_planner::orbit::{self, OrbitProblem, OrbitSolution};
