@@ -32,6 +32,7 @@ use crate::orbit::{self, OrbitError, OrbitProblem, OrbitSolution};
 use arclength::Continuation;
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
+use tilting_controller::PlannableLaw;
 
 /// Feigenbaum's constant `delta` for period-doubling cascades of one-humped maps.
 pub const FEIGENBAUM_DELTA: f64 = 4.669_201_609_102_99;
@@ -304,6 +305,39 @@ pub fn one_branch(
 ) -> Result<Branch, OrbitError> {
     let (c, first, dir) = begin(base, param, p0, guess, down)?;
     Ok(branch::follow(&c, first, dir, set, false, &|_, _| {}))
+}
+
+/// The period-1 orbit of any [`PlannableLaw`] followed in one of its named parameters
+/// (natural-parameter continuation): solved by Newton shooting ([`orbit::solve_with`], with
+/// `pb`'s model, impact law and tolerance) at each of `values` in turn, from `guess` `(beta0,
+/// beta_dot0, t_end)` (rad, rad/s, s) and then from the previous orbit. Returns the orbits
+/// found, each with its parameter value, and why it stopped early: the law refused the value
+/// (the error names the parameter and its range, or `parameters` for a name the law lacks) or
+/// the shooting failed. It does not pass folds: the paper's law has the pseudo-arclength
+/// continuation ([`diagram`], [`one_branch`]).
+pub fn follow_with<L: PlannableLaw>(
+    pb: &OrbitProblem,
+    law: &L,
+    name: &str,
+    values: &[f64],
+    guess: [f64; 3],
+) -> (Vec<(f64, OrbitSolution)>, Option<String>) {
+    let mut out: Vec<(f64, OrbitSolution)> = Vec::with_capacity(values.len());
+    let mut z = guess;
+    for &v in values {
+        let step = law
+            .with_parameter(name, v)
+            .map_err(|e| e.to_string())
+            .and_then(|l| orbit::solve_with(pb, &l, z).map_err(|e| format!("{name} = {v}: {e}")));
+        match step {
+            Ok(o) => {
+                z = [o.beta0, o.beta_dot0, o.t_end];
+                out.push((v, o));
+            }
+            Err(e) => return (out, Some(e)),
+        }
+    }
+    (out, None)
 }
 
 /// The flip sequence's ratios and accumulation estimates.

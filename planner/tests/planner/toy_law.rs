@@ -1,6 +1,7 @@
 //! A law the planner can plan (issue 30, item 3): a toy law written here, in a test, with no
 //! line of library code for it, runs in `simulate`'s loop ([`tilting_sim::simulate_with`]) and
 //! is planned by the planner's entry points ([`orbit::find_all_with`], [`orbit::solve_with`],
+//! [`tilting_planner::continuation::follow_with`],
 //! [`lyapunov::largest_with`], [`bifurcation::run_with`]) through
 //! [`tilting_controller::PlannableLaw`]. Non-test files touched to add it: none (the wire
 //! still carries the paper's law's parameter list only, so it does not cross the wire).
@@ -195,4 +196,50 @@ fn the_toy_is_set_through_its_named_parameters_and_refuses_bad_ones_by_name() {
         .to_string();
     assert!(e.contains("parameters"), "{e}");
     assert_eq!(stiffer.stiffness(Mode::Flat, &State::zeros()), None);
+}
+
+#[test]
+fn continued_in_a_named_parameter_any_law_follows_the_problems_own_orbits() {
+    use tilting_planner::continuation::follow_with;
+    use tilting_plant::paper;
+    let params = Params::default();
+    let pb = OrbitProblem::new(params, ImpactLaw::Paper, paper::ORBIT_KP, paper::ORBIT_KD);
+    let guess = [
+        paper::ORBIT_BETA0,
+        paper::ORBIT_BETA_DOT0,
+        paper::ORBIT_HALF_PERIOD,
+    ];
+    // The paper's law, stepped through the trait's named parameter, against the orbit problem
+    // built with each K_D directly (another path to the law): the same orbits, bit for bit.
+    let kds = [14.14, 14.6, 15.2];
+    let (found, stop) = follow_with(&pb, &pb.law(), "kd", &kds, guess);
+    assert!(stop.is_none(), "{stop:?}");
+    assert_eq!(found.len(), kds.len());
+    let mut z = guess;
+    for (kd, o) in &found {
+        let direct = orbit::solve(
+            &OrbitProblem::new(params, ImpactLaw::Paper, paper::ORBIT_KP, *kd),
+            z,
+        )
+        .unwrap();
+        assert_eq!(
+            (o.beta0, o.beta_dot0, o.t_end, &o.multipliers),
+            (
+                direct.beta0,
+                direct.beta_dot0,
+                direct.t_end,
+                &direct.multipliers
+            )
+        );
+        z = [o.beta0, o.beta_dot0, o.t_end];
+    }
+    // The toy from the paper's orbit start: no orbit there, and its parameters are checked by
+    // name.
+    let law = toy();
+    let (found, stop) = follow_with(&pb, &law, "kp", &[law.kp], guess);
+    assert!(found.is_empty() && stop.is_some());
+    let (_, stop) = follow_with(&pb, &law, "kp", &[-1.0], guess);
+    assert!(stop.unwrap().contains("kp"));
+    let (_, stop) = follow_with(&pb, &law, "k", &[1.0], guess);
+    assert!(stop.unwrap().contains("parameters"));
 }
