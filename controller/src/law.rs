@@ -21,7 +21,8 @@
 //! is a variant of each (with its implementation and its [`LawKind::wire_tag`]), the range of
 //! the `kind` byte in `tilting_proto::Reference::validate`, and its line in
 //! `docs/protocol.md`; the flags (`--law`), the scenario key (`law`), the wire conversion and
-//! the summaries follow from the spec.
+//! the summaries follow from the spec. To be planned too (orbits, continuation, Lyapunov
+//! exponents, figures), its implementation is a [`crate::PlannableLaw`] ([`crate::plannable`]).
 
 use crate::excite::{GovernedExcitation, GovernorStatus};
 use crate::robust::{RobustLaw, RobustStatus};
