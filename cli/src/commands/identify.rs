@@ -354,10 +354,19 @@ fn landing_summary(s: &mut String, l: &identify::landing::LandingFit) {
         let _ = writeln!(
             s,
             "  the contact reports the plate flat for {:.2} ms on average (longest {:.2} ms) \
-             at {} landings that pass on into the other tilt",
+             at {} landings that pass on into the other tilt{}",
             d.mean * 1e3,
             d.longest * 1e3,
-            d.spells
+            d.spells,
+            if d.outliers > 0 {
+                format!(
+                    " ({} longer than {} x the median left out: the plate at rest a moment)",
+                    d.outliers,
+                    identify::landing::DWELL_OUTLIER
+                )
+            } else {
+                String::new()
+            }
         );
     }
     for f in &l.laws {
