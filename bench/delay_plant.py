@@ -9,7 +9,7 @@ of them (`--delay`, `--state-delay`, `--torque-delay` and `--seed`; any other li
 refused, naming it), moves the plant's `--listen tcp/127.0.0.1:PORT` to a free port, and listens
 on PORT itself: a TCP proxy that writes every chunk read from one side to the other side the
 given delay later, in order, each direction on its own (as `tests/src/proxy.rs`, the delaying
-proxy of `tests/tests/proxy.rs`). The controller connects to PORT as usual, so the states reach it
+proxy of `tests/tests/loop/proxy.rs`). The controller connects to PORT as usual, so the states reach it
 `state delay` late and its torques reach the plant `torque delay` late: the round trip of a real
 network, on top of the loopback's. The plant runs unchanged as a child; its stdout (the summary)
 and stderr pass through, its exit status is this command's, SIGINT/SIGTERM are forwarded.

@@ -95,11 +95,42 @@ pub fn bin(name: &str) -> PathBuf {
     path
 }
 
-/// Real-time runs take turns within one test binary: two 1 kHz loops at once on a 2-core
-/// machine would measure each other. Hold the guard for the whole run.
-pub fn realtime_turn() -> MutexGuard<'static, ()> {
+/// Runs on the wall clock take turns within one test binary: two 1 kHz loops at once on a
+/// 2-core machine would measure each other, and a test binary holds many modules (issue 30:
+/// `tests/tests/loop/`, `peers/`, `front/`, `records/`) whose tests run side by side on
+/// threads. Every test that runs a real-time loop, or asserts misses, latencies or deadlines,
+/// takes a turn first and holds it for the whole run; a test that panicked while holding it
+/// (a poisoned lock) does not stop the others.
+///
+/// Panics if the calling thread holds a turn already (the lock is not re-entrant: a second
+/// call would wait for itself forever).
+pub fn realtime_turn() -> Turn {
     static REALTIME: Mutex<()> = Mutex::new(());
-    REALTIME.lock().unwrap_or_else(|e| e.into_inner())
+    assert!(
+        !HOLDS_TURN.get(),
+        "realtime_turn taken twice on one thread: the test would wait for itself"
+    );
+    let guard = REALTIME.lock().unwrap_or_else(|e| e.into_inner());
+    HOLDS_TURN.set(true);
+    Turn { _guard: guard }
+}
+
+thread_local! {
+    /// Does this thread hold a [`Turn`]?
+    static HOLDS_TURN: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// A turn of [`realtime_turn`], given back when dropped. An async test may hold it across its
+/// awaits: it takes the turn before its first await, on the thread that blocks on the test's
+/// own runtime, and no other task of that runtime takes it, so it cannot deadlock.
+pub struct Turn {
+    _guard: MutexGuard<'static, ()>,
+}
+
+impl Drop for Turn {
+    fn drop(&mut self) {
+        HOLDS_TURN.set(false);
+    }
 }
 
 /// The headline's sensors (issue 17) as flags, beside `Imperfections::measured_as_hardware`.
@@ -517,6 +548,30 @@ pub fn python_runs(code: &str) -> bool {
         .stderr(std::process::Stdio::null())
         .status()
         .is_ok_and(|s| s.success())
+}
+
+/// Runs `python SCRIPT --self-test` (a Python peer's own checks, which need no zenoh) and
+/// asserts that it exits 0, with its output on failure; [`skip`]s `test` without a Python.
+pub fn python_self_test(test: &str, script: &Path) {
+    if !python_runs("import struct") {
+        let why = format!("`{}` not found", python());
+        skip(test, Missing::Package, &why);
+        return;
+    }
+    let out = Command::new(python())
+        .arg(script)
+        .arg("--self-test")
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap_or_else(|e| panic!("run {} --self-test: {e}", script.display()));
+    assert!(
+        out.status.success(),
+        "{} --self-test: {}\n{}\n{}",
+        script.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// The arm angle (rad) that marks a rogue's forged states in the front-door and recorder tests.

@@ -102,3 +102,26 @@ pub fn offline_with_events(duration: f64, period: f64) -> (Vec<Row>, Vec<Transit
     }
     (rows, events.0)
 }
+
+/// The largest differences of a recorded run `got` from the offline loop `want`, sample by
+/// sample: `(state, torque)`, the largest `|x_i - x_i'|` (rad, rad/s) and `|tau - tau'|`
+/// (N m). Asserts what must agree exactly: the number of samples, and each sample's `seq`, mode,
+/// time (`k h`, the plant's own product in both) and whether it carries a torque (all but the
+/// last).
+pub fn largest_differences(got: &[Row], want: &[Row]) -> (f64, f64) {
+    assert_eq!(got.len(), want.len(), "number of samples");
+    let (mut worst_x, mut worst_tau) = (0.0f64, 0.0f64);
+    for (g, w) in got.iter().zip(want) {
+        assert_eq!((g.seq, g.mode), (w.seq, w.mode), "seq/mode at {w:?}");
+        assert_eq!(g.t, w.t, "sample time of seq {}", w.seq);
+        for i in 0..4 {
+            worst_x = worst_x.max((g.x[i] - w.x[i]).abs());
+        }
+        match (g.tau, w.tau) {
+            (Some(a), Some(b)) => worst_tau = worst_tau.max((a - b).abs()),
+            (None, None) => {}
+            other => panic!("tau presence differs at seq {}: {other:?}", w.seq),
+        }
+    }
+    (worst_x, worst_tau)
+}

@@ -201,6 +201,7 @@ fn live_runs_the_orbit_for_5_s_and_records_it() {
 
 #[test]
 fn a_late_controller_gets_the_published_reference() {
+    let _turn = realtime_turn();
     let dir = Scratch::new("publish");
     let (pub_port, ctl_port) = (free_port(), free_port());
     let robot = robot("publish");

@@ -10,6 +10,7 @@ const DURATION: f64 = 2.0;
 
 #[test]
 fn lockstep_run_equals_offline_simulation() {
+    let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("lockstep");
@@ -99,6 +100,7 @@ fn lockstep_run_equals_offline_simulation() {
 /// the same tilted mode.
 #[test]
 fn plant_summary_reports_the_peak_of_the_unfinished_last_tilt() {
+    let _turn = realtime_turn();
     let dir = Scratch::new("lockstep-peak");
     let port = free_port();
     let robot = robot("lockstep_peak");
@@ -169,6 +171,7 @@ fn plant_summary_reports_the_peak_of_the_unfinished_last_tilt() {
 /// code.
 #[test]
 fn lockstep_over_an_emulated_link_equals_simulate_with_the_same_flags() {
+    let _turn = realtime_turn();
     let net = [
         "--state-delay",
         "0.0005",
@@ -192,6 +195,7 @@ fn lockstep_over_an_emulated_link_equals_simulate_with_the_same_flags() {
 /// torques that never act; offline, a lost state is never answered.)
 #[test]
 fn a_predicting_controller_in_lockstep_equals_simulate_with_the_same_flags() {
+    let _turn = realtime_turn();
     let net = ["--torque-delay", "0.008"];
     lockstep_equals_simulate("lockpred", &net, &["--predict", "0.008"]);
 }
@@ -256,6 +260,7 @@ fn sampling_on_events_run(name: &str, clock_args: &[&str]) -> (PlantSummary, Con
 /// link does the same offline, so the two runs agree bit for bit.
 #[test]
 fn lockstep_sampling_on_events_equals_simulate() {
+    let _turn = realtime_turn();
     let (summary, c) = sampling_on_events_run("lockevent", &["--clock", "lockstep"]);
     let (want_x, samples) = simulate_sampling_on_events("2");
     // The controller answered the 200 periodic states and one extra state per stop, as many
@@ -280,6 +285,7 @@ fn lockstep_sampling_on_events_equals_simulate() {
 /// differ, and the test then checks the counts only.
 #[test]
 fn realtime_sampling_on_events_answers_each_transition() {
+    let _turn = realtime_turn();
     let (summary, c) = sampling_on_events_run("rtevent", &["--clock", "realtime"]);
     eprintln!("{summary:?}");
     assert_eq!(summary.result, RunResult::Completed, "{summary:?}");
@@ -321,6 +327,7 @@ fn realtime_sampling_on_events_answers_each_transition() {
 /// predictions.
 #[test]
 fn a_controller_from_a_robot_file_equals_one_from_flags() {
+    let _turn = realtime_turn();
     let dir = Scratch::new("lockfile");
     let params = dir.path().join("model.toml");
     std::fs::write(&params, "m_f = 1.0\n").unwrap();

@@ -30,6 +30,7 @@ fn nominal() -> f64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn after_a_controller_restart_the_robot_gets_back_onto_the_orbit() {
+    let _turn = realtime_turn();
     let nominal = nominal();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");

@@ -76,6 +76,7 @@ fn skip_reason() -> Option<String> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn three_namespaces_through_a_secure_router() {
+    let _turn = realtime_turn();
     if let Some(why) = skip_reason() {
         skip(
             "three_namespaces_through_a_secure_router",

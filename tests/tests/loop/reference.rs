@@ -39,6 +39,7 @@ fn law(r: &Reference) -> ComputedTorque {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn controller_started_after_the_planner_receives_the_reference() {
+    let _turn = realtime_turn();
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("reference");
     let port = free_port();
@@ -215,6 +216,7 @@ async fn controller_started_after_the_planner_receives_the_reference() {
 /// (`k = 1e12`) is refused by the bounds even with a planner present.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn references_need_a_planner_and_plausible_gains() {
+    let _turn = realtime_turn();
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("rogue-reference");
     let port = free_port();

@@ -16,6 +16,7 @@ const MARGIN: Duration = Duration::from_millis(400);
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn controller_loss_trips_safe_mode_and_its_return_resumes_the_loop() {
+    let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("watchdog");
@@ -126,6 +127,7 @@ async fn controller_loss_trips_safe_mode_and_its_return_resumes_the_loop() {
 /// controller stopped (6x the plant time, for a loaded 2-core machine).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
+    let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
     for (case, sig) in [("killed", libc::SIGKILL), ("frozen", libc::SIGSTOP)] {
@@ -200,6 +202,7 @@ async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
 /// plant runs with a grace (`--max-age`) and a `--watchdog` of [`RECONNECT_GRACE`] periods.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_cut_link_that_reconnects_is_not_a_controller_gone() {
+    let _turn = realtime_turn();
     let dir = Scratch::new("renegotiated");
     let port = free_port();
     let robot = robot("renegotiated");

@@ -8,6 +8,7 @@ use tilting_tests::*;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn realtime_run_stays_on_the_orbit_for_10_s() {
+    let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("realtime");

@@ -92,6 +92,7 @@ async fn run(max_age: u64, delay: Duration) -> (PlantSummary, Option<tilting_pro
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_controller_2_ms_late_keeps_the_plant_running() {
+    let _turn = realtime_turn();
     let delay = Duration::from_millis(2);
     let (s, st) = run(10, delay).await;
     eprintln!("max-age 10: {s:?}");
