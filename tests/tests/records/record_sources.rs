@@ -215,7 +215,7 @@ fn record_keeps_a_rogue_out_even_one_that_talks_before_the_plant() {
     assert_eq!(marked, 0, "rogue messages in B's recording");
     assert!(states >= plant_summary.steps, "{states} states in B");
     // The nodes were told each other's ids and ran the loop (the rogue's messages, if gossip
-    // linked it to them, are theirs to refuse: tests/tests/front_door.rs).
+    // linked it to them, are theirs to refuse: tests/tests/front/front_door.rs).
     assert_eq!(
         plant_summary.result,
         RunResult::Completed,

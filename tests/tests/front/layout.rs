@@ -23,7 +23,7 @@ use serde_json::Value;
 use tilting_tests::workspace_root;
 
 const BEGIN: &str =
-    "<!-- BEGIN GENERATED: crates (tests/tests/layout.rs; TILTING_BLESS=1 to rewrite) -->";
+    "<!-- BEGIN GENERATED: crates (tests/tests/front/layout.rs; TILTING_BLESS=1 to rewrite) -->";
 const END: &str = "<!-- END GENERATED: crates -->";
 
 fn cargo(args: &[&str]) -> String {
@@ -884,7 +884,7 @@ fn every_file_and_link_a_doc_names_exists() {
                 }
             }
         }
-        // Repository paths named in code spans (`tests/tests/layout.rs`, `bench/soak.sh`); not
+        // Repository paths named in code spans (`tests/tests/front/layout.rs`, `bench/soak.sh`); not
         // in the dated records under bench/, which name the files of their day.
         let dated = path.starts_with(root.join("bench"));
         for (start, end, span) in code_spans_at(&prose).into_iter().filter(|_| !dated) {
@@ -914,6 +914,57 @@ fn every_file_and_link_a_doc_names_exists() {
         }
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Every `--test NAME` that a doc (but the dated records under bench/), `.ci/run` or a bench
+/// script gives is a test target of the workspace: the test files merge into a few binaries
+/// (issue 30), and a doc naming a target that went would have its reader run nothing.
+#[test]
+fn every_test_target_a_doc_names_exists() {
+    let root = workspace_root();
+    let targets: BTreeSet<String> = packages()
+        .iter()
+        .flat_map(|p| p["targets"].as_array().expect("targets").clone())
+        .filter(|t| {
+            t["kind"]
+                .as_array()
+                .is_some_and(|k| k.iter().any(|k| k == "test"))
+        })
+        .map(|t| t["name"].as_str().expect("a target's name").to_owned())
+        .collect();
+    let mut files: Vec<PathBuf> = doc_files()
+        .into_iter()
+        .filter(|p| !p.starts_with(root.join("bench")))
+        .collect();
+    files.push(root.join(".ci/run"));
+    for e in std::fs::read_dir(root.join("bench"))
+        .expect("bench/")
+        .flatten()
+    {
+        if e.path().extension().is_some_and(|x| x == "sh") {
+            files.push(e.path());
+        }
+    }
+    let (mut named, mut bad) = (0, Vec::new());
+    for path in files {
+        let text = read_doc(&path);
+        for (at, flag) in text.match_indices("--test ") {
+            let name: String = text[at + flag.len()..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || "_-".contains(*c))
+                .collect();
+            if name.is_empty() {
+                continue;
+            }
+            named += 1;
+            if !targets.contains(&name) {
+                bad.push(format!("{}: `--test {name}` is no test target", rel(&path)));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+    // docs/ros2.md names the binary of its tests: the scan sees what the docs write.
+    assert!(named > 0, "no `--test NAME` found in the docs");
 }
 
 /// `a/b/../c` as `a/c` (the linked file may not exist, so no canonicalize).

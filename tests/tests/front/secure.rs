@@ -35,6 +35,7 @@ async fn counting_subscriber(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_wrong_identity_cannot_move_the_robot() {
+    let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("secure");
@@ -211,6 +212,7 @@ async fn attack(c: &Client) {
 /// through the router, whose copies of plant topics the controller refuses (0 delivered).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_wrong_identity_cannot_move_the_robot_over_the_direct_loop() {
+    let _turn = realtime_turn();
     let dir = Scratch::new("secure-direct");
     let robot = robot("secure_direct");
     let keys = Keys::new(&robot).unwrap();

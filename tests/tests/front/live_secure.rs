@@ -9,6 +9,7 @@ use tilting_tests::*;
 
 #[test]
 fn live_secure_runs_the_loop_through_the_router() {
+    let _turn = realtime_turn();
     let tilting = bin("tilting");
     bin("tilting-router");
     let dir = Scratch::new("live-secure");
