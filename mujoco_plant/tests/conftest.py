@@ -1,4 +1,4 @@
-# The package from this source tree, not an installed copy (as tests/tests/mujoco_plant.rs does).
+# The package from this source tree, not an installed copy (as tests/tests/peers/mujoco_plant.rs does).
 import pathlib
 import sys
 

@@ -1,6 +1,6 @@
 """The wire protocol 2 of docs/protocol.md, plant side: payloads, the session, whose messages.
 Copied from examples/python/plant.py and examples/python/tilting_source.py (the reference
-Python plant, tested against the Rust nodes by tests/tests/python_plant.rs), trimmed to what a
+Python plant, tested against the Rust nodes by tests/tests/peers/python_plant.rs), trimmed to what a
 plant needs."""
 
 import argparse

@@ -1,7 +1,7 @@
 """The Python examples name their session on every put (docs/protocol.md, *Whose messages*):
 the attachment `TSRC` + the 16-byte ZenohId, little-endian, as the Rust nodes attach and parse
 it (`tilting_proto::source`). The Rust side's acceptance of a Python node's messages is tested
-in tests/tests/python_plant.rs and python_peer.rs (the Rust node is told the Python node's id
+in tests/tests/peers/python_plant.rs and python_peer.rs (the Rust node is told the Python node's id
 and refuses every message that does not carry it)."""
 
 import json

@@ -2,7 +2,7 @@
 //! encapsulation header `00 01 00 00`), and their RIHS01 type hashes.
 //!
 //! The hashes are the ones of ROS 2 Jazzy, Kilted and Rolling (the types have not changed
-//! since Iron); `tests/tests/ros2.rs` checks every one against rosbags' `hash_rihs01`.
+//! since Iron); `tests/tests/peers/ros2.rs` checks every one against rosbags' `hash_rihs01`.
 
 use crate::names::RosType;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};

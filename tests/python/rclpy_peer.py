@@ -1,5 +1,5 @@
 """A real ROS 2 (Jazzy's rclpy over rmw_fastrtps_cpp, from PyPI wheels) against a plant run with
-`--ros2 dds` (tests/tests/ros2_clients.rs, tests/examples/loop_bench.rs, docs/ros2.md). Nothing
+`--ros2 dds` (tests/tests/peers/ros2_clients.rs, tests/examples/loop_bench.rs, docs/ros2.md). Nothing
 here imports our crates.
 
     rclpy_peer.py listen ROBOT SECONDS   joint_states, contact_mode, /rosout for SECONDS after the

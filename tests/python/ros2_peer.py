@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""An independent ROS 2 peer for tests/tests/ros2.rs, written from rmw_zenoh's conventions
+"""An independent ROS 2 peer for tests/tests/peers/ros2.rs, written from rmw_zenoh's conventions
 (docs/ros2.md) with PyPI's `rosbags` (CDR, RIHS01 type hashes) and `eclipse-zenoh`, `xxhash`,
 and none of our crates.
 

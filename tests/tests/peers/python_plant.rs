@@ -11,11 +11,10 @@
 //! tests print a SKIP line and pass.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_proto::{ModeEvent, PlantState, Status};
-use tilting_tests::recording::{offline, offline_with_events, parse_csv, Row};
+use tilting_tests::recording::{largest_differences, offline, offline_with_events, parse_csv, Row};
 use tilting_tests::*;
 
 const PERIOD: f64 = 0.001;
@@ -61,26 +60,9 @@ const CONTROLLER_ID: &str = "c0417201000000000000000000000b2";
 
 #[test]
 fn python_plant_self_test() {
-    if !python_runs("import struct") {
-        let why = format!("`{}` not found", python());
-        skip("python_plant_self_test", Missing::Package, &why);
-        return;
-    }
     // Encodings against the worked examples, the model against the checks of docs/model.md
     // (energy, mirror symmetry, angular momentum at the impact, ZMP at rest); needs no zenoh.
-    let out = Command::new(python())
-        .arg(script())
-        .arg("--self-test")
-        .stdin(Stdio::null())
-        .output()
-        .expect("run plant.py --self-test");
-    assert!(
-        out.status.success(),
-        "plant.py --self-test: {}\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    python_self_test("python_plant_self_test", &script());
 }
 
 /// Starts plant.py for [`DURATION`] s recording to `csv`, with `extra` flags.
@@ -130,6 +112,7 @@ async fn start_controller(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
+    let _turn = realtime_turn();
     if !python_runs("import zenoh") {
         let why = format!(
             "`{} -c \"import zenoh\"` failed; install it with `python3 -m pip install \
@@ -207,23 +190,10 @@ async fn rust_controller_drives_the_python_plant_like_the_rust_one() {
     // Sample by sample against the offline Rust loop.
     let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());
     let (want, transitions) = offline_with_events(DURATION, PERIOD);
-    assert_eq!(got.len(), want.len(), "number of samples");
     // The documented default start is the Rust one, bit for bit.
     assert_eq!(got[0].x, want[0].x, "initial state");
-    let (mut worst_x, mut worst_tau) = (0.0f64, 0.0f64);
-    for (g, w) in got.iter().zip(&want) {
-        assert_eq!((g.seq, g.mode), (w.seq, w.mode), "seq/mode at {w:?}");
-        // Sample times are k h, a product in both: exact.
-        assert_eq!(g.t, w.t, "sample time of seq {}", w.seq);
-        for i in 0..4 {
-            worst_x = worst_x.max((g.x[i] - w.x[i]).abs());
-        }
-        match (g.tau, w.tau) {
-            (Some(a), Some(b)) => worst_tau = worst_tau.max((a - b).abs()),
-            (None, None) => {}
-            other => panic!("tau presence differs at seq {}: {other:?}", w.seq),
-        }
-    }
+    // Sample times are k h, a product in both: exact.
+    let (mut worst_x, worst_tau) = largest_differences(&got, &want);
 
     // The mode transitions, as published on the event topic.
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -355,6 +325,7 @@ fn offline_measuring_angles(duration: f64, period: f64) -> Vec<Row> {
 /// than 1e-3 (the observer starts from zero rates, the orbit's arm rate is 0.5 rad/s).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn python_plant_measuring_angles_drives_the_rust_observer() {
+    let _turn = realtime_turn();
     if !python_runs("import zenoh") {
         skip(
             "python_plant_measuring_angles_drives_the_rust_observer",

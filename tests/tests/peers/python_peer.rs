@@ -9,9 +9,8 @@
 //! tests print a SKIP line and pass.
 
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
 use std::time::Duration;
-use tilting_tests::recording::{offline, parse_csv};
+use tilting_tests::recording::{largest_differences, offline, parse_csv};
 use tilting_tests::*;
 
 const PERIOD: f64 = 0.001;
@@ -43,30 +42,14 @@ const CONTROLLER_ID: &str = "7e417201000000000000000000000d4";
 
 #[test]
 fn python_controller_self_test() {
-    if !python_runs("import struct") {
-        let why = format!("`{}` not found", python());
-        skip("python_controller_self_test", Missing::Package, &why);
-        return;
-    }
     // Encodings against the worked examples of docs/protocol.md and the law against the
     // equations of motion; needs no zenoh.
-    let out = Command::new(python())
-        .arg(script())
-        .arg("--self-test")
-        .stdin(Stdio::null())
-        .output()
-        .expect("run controller.py --self-test");
-    assert!(
-        out.status.success(),
-        "controller.py --self-test: {}\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    python_self_test("python_controller_self_test", &script());
 }
 
 #[test]
 fn python_controller_drives_the_plant_like_the_rust_one() {
+    let _turn = realtime_turn();
     if !python_runs("import zenoh") {
         let why = format!(
             "`{} -c \"import zenoh\"` failed; install it with `python3 -m pip install \
@@ -160,21 +143,8 @@ fn python_controller_drives_the_plant_like_the_rust_one() {
 
     let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());
     let want = offline(DURATION, PERIOD);
-    assert_eq!(got.len(), want.len(), "number of samples");
-    let (mut worst_x, mut worst_tau) = (0.0f64, 0.0f64);
-    for (g, w) in got.iter().zip(&want) {
-        assert_eq!((g.seq, g.mode), (w.seq, w.mode), "seq/mode at {w:?}");
-        // Sample times are the plant's own `k h`: the controller has no part in them.
-        assert_eq!(g.t, w.t, "sample time of seq {}", w.seq);
-        for i in 0..4 {
-            worst_x = worst_x.max((g.x[i] - w.x[i]).abs());
-        }
-        match (g.tau, w.tau) {
-            (Some(a), Some(b)) => worst_tau = worst_tau.max((a - b).abs()),
-            (None, None) => {}
-            other => panic!("tau presence differs at seq {}: {other:?}", w.seq),
-        }
-    }
+    // Sample times are the plant's own `k h`: the controller has no part in them.
+    let (worst_x, worst_tau) = largest_differences(&got, &want);
     eprintln!(
         "python controller vs offline Rust loop: {} samples, largest difference: state {worst_x:e}, \
          torque {worst_tau:e} N m",

@@ -16,7 +16,7 @@ use tilting_plant::kinematics::point_masses;
 use tilting_plant::{Mode, Params, State};
 use tilting_proto::PlantState;
 use tilting_ros2::msgs::{self, Float64MultiArray, JointState, Log, UInt8, ALL_TYPES};
-use tilting_tests::recording::{offline, parse_csv};
+use tilting_tests::recording::{largest_differences, offline, parse_csv};
 use tilting_tests::*;
 
 fn script() -> std::path::PathBuf {
@@ -482,6 +482,7 @@ const TOLERANCE: f64 = 1e-9;
 
 #[test]
 fn a_ros2_controller_in_python_keeps_the_orbit_through_effort_command() {
+    let _turn = realtime_turn();
     let test = "a_ros2_controller_in_python_keeps_the_orbit";
     if !have_python(test, NEEDS) {
         return;
@@ -548,17 +549,7 @@ fn a_ros2_controller_in_python_keeps_the_orbit_through_effort_command() {
     // The closed loop over ROS 2 is the offline sampled loop.
     let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());
     let want = offline(DURATION, PERIOD);
-    assert_eq!(got.len(), want.len(), "number of samples");
-    let (mut worst_x, mut worst_tau) = (0.0f64, 0.0f64);
-    for (g, w) in got.iter().zip(&want) {
-        assert_eq!((g.seq, g.mode), (w.seq, w.mode), "seq/mode at {w:?}");
-        for i in 0..4 {
-            worst_x = worst_x.max((g.x[i] - w.x[i]).abs());
-        }
-        if let (Some(a), Some(b)) = (g.tau, w.tau) {
-            worst_tau = worst_tau.max((a - b).abs());
-        }
-    }
+    let (worst_x, worst_tau) = largest_differences(&got, &want);
     eprintln!("over ROS 2 vs offline: state {worst_x:e}, torque {worst_tau:e}");
     assert!(worst_x <= TOLERANCE && worst_tau <= TOLERANCE);
 }

@@ -50,6 +50,7 @@ fn garbage(rng: &mut Rng, size: usize, valid: &[u8], float_at: usize) -> Vec<Vec
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn invalid_payloads_are_dropped_and_counted_and_nothing_crashes() {
+    let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
     let dir = Scratch::new("garbage");

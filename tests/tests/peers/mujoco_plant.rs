@@ -17,10 +17,6 @@ use tilting_tests::*;
 
 const PERIOD: f64 = 0.001;
 
-/// The tests of this file run one at a time: each runs MuJoCo at full speed or in real time on
-/// a 2-core machine, and the live run's deadline misses went from 3 % to 13 % beside the others.
-static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
-
 /// `env PYTHONPATH=<repo>/mujoco_plant python3 -m tilting_mujoco`, as words.
 fn plant_cmd() -> Vec<String> {
     let path = workspace_root().join("mujoco_plant");
@@ -63,7 +59,9 @@ fn spawn_plant(dir: &Path, args: &[String]) -> Proc {
 /// state ending in a fault that names mjWARN_BADQACC.
 #[test]
 fn mujoco_plant_self_test() {
-    let _serial = SERIAL.blocking_lock();
+    // One at a time (`realtime_turn`): each runs MuJoCo at full speed or in real time on a
+    // 2-core machine, and the live run's deadline misses went from 3 % to 13 % beside others.
+    let _turn = realtime_turn();
     if !can_run("mujoco_plant_self_test", "mujoco") {
         return;
     }
@@ -142,7 +140,7 @@ fn live_run(dir: &Path, attempt: u32) -> (tilting_live::summary::LiveSummary, St
 /// orbit) is run once more; the orbit is checked on the one that kept up.
 #[test]
 fn live_runs_the_mujoco_plant() {
-    let _serial = SERIAL.blocking_lock();
+    let _turn = realtime_turn();
     if !can_run("live_runs_the_mujoco_plant", "mujoco, zenoh") {
         return;
     }
@@ -191,7 +189,7 @@ fn live_runs_the_mujoco_plant() {
 /// (exit code 3) with the plant's fault in `summary.json` and its report.
 #[test]
 fn a_mujoco_fault_ends_the_live_run_as_a_fault() {
-    let _serial = SERIAL.blocking_lock();
+    let _turn = realtime_turn();
     if !can_run(
         "a_mujoco_fault_ends_the_live_run_as_a_fault",
         "mujoco, zenoh",
@@ -345,7 +343,7 @@ const PEAK_TOLERANCE: (f64, f64) = (2e-3, 0.01);
 ///   paper's.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn lockstep_mujoco_against_our_model() {
-    let _serial = SERIAL.lock().await;
+    let _turn = realtime_turn();
     if !can_run("lockstep_mujoco_against_our_model", "mujoco, zenoh") {
         return;
     }

@@ -18,7 +18,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 use tilting_proto::{Mode, PlantState};
 use tilting_record::Topic;
-use tilting_tests::recording::{offline, parse_csv};
+use tilting_tests::recording::{largest_differences, offline, parse_csv};
 use tilting_tests::*;
 
 /// The ROS 2 venv: `TILTING_ROS_VENV`, default `/tmp/rosvenv`.
@@ -349,6 +349,7 @@ const TOLERANCE: f64 = 1e-9;
 
 #[test]
 fn an_rclpy_controller_keeps_the_orbit_through_effort_command_over_dds() {
+    let _turn = realtime_turn();
     if !can_run("an_rclpy_controller_keeps_the_orbit_through_effort_command_over_dds") {
         return;
     }
@@ -430,17 +431,7 @@ fn an_rclpy_controller_keeps_the_orbit_through_effort_command_over_dds() {
     // The closed loop over DDS is the offline sampled loop.
     let got = parse_csv(&std::fs::read_to_string(&csv).unwrap());
     let want = offline(DURATION, PERIOD);
-    assert_eq!(got.len(), want.len(), "number of samples");
-    let (mut worst_x, mut worst_tau) = (0.0f64, 0.0f64);
-    for (g, w) in got.iter().zip(&want) {
-        assert_eq!((g.seq, g.mode), (w.seq, w.mode), "seq/mode at {w:?}");
-        for i in 0..4 {
-            worst_x = worst_x.max((g.x[i] - w.x[i]).abs());
-        }
-        if let (Some(a), Some(b)) = (g.tau, w.tau) {
-            worst_tau = worst_tau.max((a - b).abs());
-        }
-    }
+    let (worst_x, worst_tau) = largest_differences(&got, &want);
     eprintln!("over DDS vs offline: state {worst_x:e}, torque {worst_tau:e}");
     assert!(worst_x <= TOLERANCE && worst_tau <= TOLERANCE);
 }

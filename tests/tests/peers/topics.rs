@@ -11,6 +11,7 @@ use tilting_tests::*;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn echo_and_hz_look_at_a_running_loop() {
+    let _turn = realtime_turn();
     let tilting = bin("tilting");
     let dir = Scratch::new("topics");
     let port = free_port();
