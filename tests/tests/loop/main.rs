@@ -21,5 +21,6 @@ mod proxy;
 mod realtime;
 mod reentry;
 mod reference;
+mod run_file;
 mod sched_fifo;
 mod watchdog;
