@@ -66,7 +66,8 @@ pub struct PlannerLawArgs {
 }
 
 impl PlannerLawArgs {
-    /// The law the flags describe, checked like the controller checks a reference. With
+    /// The law the flags describe, checked like the controller checks a reference and with
+    /// [`LawSpec::validate`] (the robust option, the orbit's start and steepness). With
     /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
     pub fn resolve(&self) -> Result<LawSpec, NodeError> {
         let base = match &self.plan {
@@ -78,6 +79,10 @@ impl PlannerLawArgs {
             law.energy_avg = orbit_energy_avg(law.kp, law.kd)?;
         }
         check_reference(&law.to_wire()).map_err(NodeError::Invalid)?;
+        // The wire carries neither the robust option nor the orbit's start and steepness:
+        // checked here too, so that `live` refuses them before any node starts.
+        law.validate()
+            .map_err(|e| NodeError::Invalid(anyhow!("invalid law: {e}")))?;
         Ok(law)
     }
 }
@@ -349,6 +354,25 @@ mod tests {
     struct Cli {
         #[command(flatten)]
         args: PublishArgs,
+    }
+
+    /// What the wire does not carry (the robust option, the orbit's steepness) is checked
+    /// before any node starts: refused naming the field and its range.
+    #[test]
+    fn the_robust_options_are_refused_naming_the_field() {
+        for (argv, field, range) in [
+            (&["x", "--orbit-peak", "-1"][..], "orbit_peak", "(0, 0.5]"),
+            (&["x", "--orbit-peak", "0.6"][..], "orbit_peak", "(0, 0.5]"),
+            (&["x", "--orbit-peak", "0.02", "--k", "0"][..], "orbit_peak", "k > 0"),
+            (&["x", "--orbit-steepness", "0"][..], "orbit_steepness", "[0.1, 10000]"),
+        ] {
+            let a = Cli::try_parse_from(argv).unwrap().args;
+            let e = a.law.resolve().unwrap_err().to_string();
+            assert!(e.contains(field) && e.contains(range), "{argv:?}: {e}");
+        }
+        let ok = Cli::try_parse_from(["x", "--orbit-peak", "0.02", "--orbit-steepness", "-24"]);
+        let law = ok.unwrap().args.law.resolve().unwrap();
+        assert_eq!((law.orbit_peak, law.orbit_steepness), (Some(0.02), Some(-24.0)));
     }
 
     #[test]
