@@ -363,8 +363,16 @@ mod tests {
         for (argv, field, range) in [
             (&["x", "--orbit-peak", "-1"][..], "orbit_peak", "(0, 0.5]"),
             (&["x", "--orbit-peak", "0.6"][..], "orbit_peak", "(0, 0.5]"),
-            (&["x", "--orbit-peak", "0.02", "--k", "0"][..], "orbit_peak", "k > 0"),
-            (&["x", "--orbit-steepness", "0"][..], "orbit_steepness", "[0.1, 10000]"),
+            (
+                &["x", "--orbit-peak", "0.02", "--k", "0"][..],
+                "orbit_peak",
+                "k > 0",
+            ),
+            (
+                &["x", "--orbit-steepness", "0"][..],
+                "orbit_steepness",
+                "[0.1, 10000]",
+            ),
         ] {
             let a = Cli::try_parse_from(argv).unwrap().args;
             let e = a.law.resolve().unwrap_err().to_string();
@@ -372,7 +380,10 @@ mod tests {
         }
         let ok = Cli::try_parse_from(["x", "--orbit-peak", "0.02", "--orbit-steepness", "-24"]);
         let law = ok.unwrap().args.law.resolve().unwrap();
-        assert_eq!((law.orbit_peak, law.orbit_steepness), (Some(0.02), Some(-24.0)));
+        assert_eq!(
+            (law.orbit_peak, law.orbit_steepness),
+            (Some(0.02), Some(-24.0))
+        );
     }
 
     #[test]
