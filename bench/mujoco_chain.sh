@@ -25,8 +25,8 @@
 #
 # Env: TILTING (./target/release/tilting), OUT (runs/mujoco-chain-<UTC time>), ROBOTS ("a b"),
 # OPPOINT (1; 0 skips step 3b), OP_S (60), LINK (real: step 4 over a delaying TCP proxy in real
-# time; lockstep: the MuJoCo plant in lockstep emulates the same link, deterministic, and step
-# 3b's run is in lockstep too),
+# time; lockstep: the MuJoCo plant in lockstep emulates the same link, deterministic, and the
+# recordings of steps 1 and 3b are made in lockstep too),
 # CONTACTS ("stiff mid moderate"), EXC_S (60), TILT_S (30), RUN_S (60), JOBS (1: chains one
 # after another; 2 runs two chains side by side, which adds load and misses), RUNS (the live
 # runs of step 4: LAW-plain|trim[-planstart], LAW physical or paper; -planstart: `live --plan
@@ -108,16 +108,20 @@ chain() {
     # The law a physical robot lands by: identify keeps it and estimates its restitution.
     printf 'impact = "physical"\n' >>"$d/prior.toml"
     local plant="python3 -m tilting_mujoco $cf"
+    # LINK=lockstep: every run of the chain in lockstep (recordings included), so that no
+    # figure depends on the machine's load.
+    local rec_plant="$plant"
+    [ "${LINK:-real}" = lockstep ] && rec_plant="$plant --clock lockstep"
 
     if [ $reuse = 1 ]; then
         say "1. the recordings of $d kept (REUSE=1)"
     else
     say "1a. excitation run, ${EXC_S} s (live --reference excitation, paper's model in the controller)"
-    "$T" live --plant-cmd "$plant" --plant-params "$d/true.toml" --duration "$EXC_S" \
+    "$T" live --plant-cmd "$rec_plant" --plant-params "$d/true.toml" --duration "$EXC_S" \
         --reference excitation --seed 0 --out "$d/exc" >"$d/exc.out" 2>&1 ||
         { fail "1a excitation run" "$d/exc.out"; return 1; }
     say "1b. tilting run, ${TILT_S} s (live --orbit-peak 0.04, paper's model)"
-    "$T" live --plant-cmd "$plant" --plant-params "$d/true.toml" --duration "$TILT_S" \
+    "$T" live --plant-cmd "$rec_plant" --plant-params "$d/true.toml" --duration "$TILT_S" \
         --orbit-peak 0.04 --seed 0 --out "$d/tilt" >"$d/tilt.out" 2>&1
     [ -s "$d/tilt/run.mcap" ] && grep -q '"tilts": *[1-9]' "$d/tilt/summary.json" ||
         { fail "1b tilting run (no recording or no tilt)" "$d/tilt.out"; return 1; }
@@ -205,9 +209,7 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
             say "3b. the operating point's recording kept (REUSE=1)"
         else
             say "3b. tilting run on the plan, ${OP_S} s (live --plan plan.json --orbit-peak $peak)"
-            local op_plant="$plant"
-            [ "${LINK:-real}" = lockstep ] && op_plant="$plant --clock lockstep"
-            "$T" live --plant-cmd "$op_plant" --plant-params "$d/true.toml" --params "$d/robot.toml" \
+            "$T" live --plant-cmd "$rec_plant" --plant-params "$d/true.toml" --params "$d/robot.toml" \
                 --plan "$d/plan.json" --orbit-peak "$peak" --duration "$OP_S" --seed 0 \
                 --out "$d/op" >"$d/op.out" 2>&1
         fi
