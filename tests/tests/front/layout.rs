@@ -26,7 +26,12 @@ const BEGIN: &str =
     "<!-- BEGIN GENERATED: crates (tests/tests/front/layout.rs; TILTING_BLESS=1 to rewrite) -->";
 const END: &str = "<!-- END GENERATED: crates -->";
 
+/// Runs `cargo ARGS` in the workspace (`metadata`, `tree`: offline, compiling nothing) and
+/// returns its stdout. It takes a `realtime_turn`: `cargo tree` over the workspace's subsets
+/// fills a core for seconds, and the loops of this binary's other modules would miss deadlines
+/// beside it (in a binary of its own, before issue 30's merge, it never ran beside them).
 fn cargo(args: &[&str]) -> String {
+    let _turn = tilting_tests::realtime_turn();
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(cargo)
         .args(args)
