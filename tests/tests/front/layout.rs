@@ -661,6 +661,13 @@ fn command_lines() -> Vec<(String, String, Vec<String>)> {
         }
         lines.extend(code_spans(&prose));
         for line in lines {
+            // A quoted argument is one word of the shell, another program's command line
+            // (`--plant-cmd "python3 -m tilting_mujoco --clock lockstep"`): not this one's flags.
+            let line: String = line
+                .split('"')
+                .enumerate()
+                .map(|(i, s)| if i % 2 == 0 { s } else { "QUOTED" })
+                .collect();
             for part in line.split(['|', ';', '>', '<']).flat_map(|p| p.split("&&")) {
                 let words: Vec<&str> = part.split_whitespace().collect();
                 if words.contains(&"cargo") {
