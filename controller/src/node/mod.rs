@@ -51,6 +51,9 @@ pub struct ControllerArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    /// Host mode: several robots from this one process, one zenoh session.
+    #[command(flatten)]
+    pub host: tilting_net::HostArgs,
     /// The law, until a planner's reference replaces it (its model stays `--params`).
     #[command(flatten)]
     pub law: LawArgs,
@@ -228,11 +231,13 @@ impl Node {
         }
     }
 
-    /// A reference from the topic (`live`) or from a query answer.
+    /// A reference from the topic (`live`) or from a query answer: the paper law's
+    /// `Reference` or any law's `LawReference`, built through the registry ([`REGISTRY`]).
     fn on_reference(&self, bytes: &[u8], live: bool) {
-        let Some(r) = self.references.decode::<tilting_proto::Reference>(bytes) else {
+        let Some(any) = self.references.decode::<tilting_proto::AnyReference>(bytes) else {
             return;
         };
+        let r = any.law();
         if self.ignore_planner {
             tracing::debug!("--ignore-planner: reference ignored");
             return;
@@ -253,28 +258,26 @@ impl Node {
             }
             return;
         }
-        let cfg = ControlConfig::from_wire(self.params, &r).map(|mut c| {
-            c.law.orbit_peak = self.orbit_peak;
-            c.law.orbit_start = self.orbit_start;
-            c.law.orbit_steepness = self.orbit_steepness;
-            c
-        });
-        match cfg.and_then(Controller::new) {
+        // The controller's own settings, not on the wire (the paper's law reads them).
+        let local = LawSpec {
+            orbit_peak: self.orbit_peak,
+            orbit_start: self.orbit_start,
+            orbit_steepness: self.orbit_steepness,
+            ..LawSpec::default()
+        };
+        match REGISTRY.build(&self.params, &local, &r) {
             Ok(c) => {
                 if live {
                     self.live_reference.store(true, Ordering::Release);
                 }
                 let mut law = self.law.lock().unwrap_or_else(|e| e.into_inner());
-                if *law.config() != *c.config() {
+                if !law.same_law(&c) {
                     tracing::info!(
-                        kind = r.kind,
+                        law = r.law,
+                        trajectory = r.trajectory,
                         amplitude = r.amplitude,
                         omega = r.omega,
-                        kp = r.kp,
-                        kd = r.kd,
-                        k = r.k,
-                        energy_avg = r.energy_avg,
-                        torque_limit = r.torque_limit,
+                        parameters = ?r.parameters,
                         source = if live { "topic" } else { "query" },
                         "planner reference applied"
                     );
@@ -336,9 +339,10 @@ impl Node {
     }
 
     fn summary(&self) -> ControllerSummary {
-        let (law, robust) = {
+        let (law, robust, registered) = {
             let l = self.law.lock().unwrap_or_else(|e| e.into_inner());
-            (l.config().law, l.robust_status())
+            let registered = l.registered().map(crate::RegisteredLaw::summary);
+            (l.config().law, l.robust_status(), registered)
         };
         let prediction = self.predict.as_ref().map(|m| {
             let pr = m.lock().unwrap_or_else(|e| e.into_inner());
@@ -377,10 +381,15 @@ impl Node {
             references_rejected: self.references_rejected.load(Ordering::Relaxed),
             references_applied: self.references_applied.load(Ordering::Relaxed),
             law,
+            registered,
             robust,
         }
     }
 }
+
+/// The laws a controller builds from the planner's messages ([`crate::registry`]).
+static REGISTRY: std::sync::LazyLock<crate::LawRegistry> =
+    std::sync::LazyLock::new(crate::LawRegistry::builtin);
 
 /// The controller node's summary, one JSON object on stdout at Ctrl-C or SIGTERM; shared by
 /// the node, `tilting live` and the tests.
@@ -413,8 +422,13 @@ pub struct ControllerSummary {
     pub references_rejected: u64,
     /// References applied.
     pub references_applied: u64,
-    /// The law in force at the end.
+    /// The law in force at the end (for a registered law other than the paper's, its
+    /// trajectory and zero gains: see `registered`).
     pub law: LawSpec,
+    /// A law of the registry other than the paper's, if one is in force at the end: its name
+    /// and parameters (left out of the JSON for the paper's law).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub registered: Option<crate::registry::RegisteredSummary>,
     /// With `--orbit-peak`: what the robust option did (the energy target in force, tilts,
     /// re-entries).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -463,28 +477,54 @@ impl ControllerSummary {
     }
 }
 
-/// Runs the controller node until Ctrl-C or SIGTERM.
+/// Runs the controller node until Ctrl-C or SIGTERM. With `--robots` (host mode) one process
+/// serves every robot named over one zenoh session, each with its own law, estimator,
+/// predictor, pins and counters, and prints one summary line per robot
+/// ([`tilting_net::HostedSummary`]).
 pub fn run(args: ControllerArgs) -> anyhow::Result<ExitCode> {
     let cfg = args.control_config()?;
-    let law = Controller::new(cfg)?;
-    let keys = args.zenoh.keys()?;
+    let hosted = args.host.hosting();
+    let all_keys = if hosted {
+        args.host.keys()?
+    } else {
+        vec![args.zenoh.keys()?]
+    };
+    let robots = all_keys
+        .into_iter()
+        .map(|k| Ok((k, Controller::new(cfg)?)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let rt = tilting_net::runtime()?;
-    rt.block_on(run_async(args, keys, law))
+    rt.block_on(run_async(args, robots, hosted))
 }
 
-async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow::Result<ExitCode> {
-    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+/// One robot being served: its node and the zenoh declarations that live as long as it runs.
+struct Served {
+    keys: Keys,
+    node: Arc<Node>,
+    querier: tokio::task::JoinHandle<()>,
+    token: zenoh::liveliness::LivelinessToken,
+    _subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
+    _presence: [Arc<tilting_net::Presence>; 2],
+}
+
+/// Declares robot `keys`' subscribers, publisher, querier and token on `session`.
+async fn serve(
+    session: &zenoh::Session,
+    args: &ControllerArgs,
+    keys: Keys,
+    law: Controller,
+) -> anyhow::Result<Served> {
     // Ask the planner's queryable for the current reference now and whenever a planner appears.
     let (query_tx, mut query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
     let _ = query_tx.send(());
-    let (_planner, _planner_sub) =
-        tilting_net::watch_presence(&session, keys.alive_planner(), move |alive| {
+    let (planner, planner_sub) =
+        tilting_net::watch_presence(session, keys.alive_planner(), move |alive| {
             if alive {
                 let _ = query_tx.send(());
             }
         })
         .await?;
-    let torque = TypedPublisher::declare(&session, keys.controller_torque(), Qos::Control).await?;
+    let torque = TypedPublisher::declare(session, keys.controller_torque(), Qos::Control).await?;
     let params = law.config().params;
     // The model lands by the robot's law (its parameter file's `impact`): the estimator and
     // the predictor apply it at the landings they see coming.
@@ -524,7 +564,7 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         references_rejected: AtomicU64::new(0),
         live_reference: AtomicBool::new(false),
         ignore_planner: args.ignore_planner,
-        planner: _planner.clone(),
+        planner: planner.clone(),
         torque,
         predict: args.predict.predict.map(|p| {
             let (delay, estimate) = match p {
@@ -547,15 +587,14 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
     });
 
     let n = node.clone();
-    let _state_sub =
-        tilting_net::subscribe_sourced(&session, keys.plant_state(), move |b, from| {
-            n.on_state(b, from)
-        })
-        .await?;
+    let state_sub = tilting_net::subscribe_sourced(session, keys.plant_state(), move |b, from| {
+        n.on_state(b, from)
+    })
+    .await?;
     let n = node.clone();
-    let _status_sub = match node.predict {
+    let status_sub = match node.predict {
         Some(_) => Some(
-            tilting_net::subscribe_sourced(&session, keys.plant_status(), move |b, from| {
+            tilting_net::subscribe_sourced(session, keys.plant_status(), move |b, from| {
                 n.on_status(b, from)
             })
             .await?,
@@ -563,14 +602,13 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
         None => None,
     };
     let n = node.clone();
-    let _reference_sub =
-        tilting_net::subscribe_bytes(&session, keys.planner_reference(), move |b| {
-            n.on_reference(b, true)
-        })
-        .await?;
+    let reference_sub = tilting_net::subscribe_bytes(session, keys.planner_reference(), move |b| {
+        n.on_reference(b, true)
+    })
+    .await?;
 
-    let (_plant, _plant_sub) =
-        tilting_net::watch_presence(&session, keys.alive_plant(), |_| {}).await?;
+    let (plant, plant_sub) =
+        tilting_net::watch_presence(session, keys.alive_plant(), |_| {}).await?;
     let querier = {
         let session = session.clone();
         let node = node.clone();
@@ -598,18 +636,52 @@ async fn run_async(args: ControllerArgs, keys: Keys, law: Controller) -> anyhow:
             }
         })
     };
-    let _token = tilting_net::declare_token(&session, keys.alive_controller()).await?;
+    let token = tilting_net::declare_token(session, keys.alive_controller()).await?;
     tracing::info!(robot = keys.robot(), "controller ready");
+    let mut subscribers = vec![state_sub, reference_sub, planner_sub, plant_sub];
+    subscribers.extend(status_sub);
+    Ok(Served {
+        keys,
+        node,
+        querier,
+        token,
+        _subscribers: subscribers,
+        _presence: [planner, plant],
+    })
+}
+
+async fn run_async(
+    args: ControllerArgs,
+    robots: Vec<(Keys, Controller)>,
+    hosted: bool,
+) -> anyhow::Result<ExitCode> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+    let mut served = Vec::with_capacity(robots.len());
+    for (keys, law) in robots {
+        served.push(serve(&session, &args, keys, law).await?);
+    }
 
     tilting_net::shutdown_signal().await;
     tracing::info!("stopping");
-    querier.abort();
-    drop(_token);
+    let mut lines = Vec::with_capacity(served.len());
+    for s in served {
+        s.querier.abort();
+        drop(s.token);
+        let summary = s.node.summary();
+        lines.push(
+            if hosted {
+                serde_json::to_string(&tilting_net::HostedSummary {
+                    robot: s.keys.robot().to_owned(),
+                    summary,
+                })
+            } else {
+                serde_json::to_string(&summary)
+            }
+            .context("cannot serialise the summary")?,
+        );
+    }
     // On a full disk or a closed pipe, to a fallback file, said on stderr.
-    let _ = tilting_net::say_summary(
-        "tilting-controller",
-        &serde_json::to_string(&node.summary()).context("cannot serialise the summary")?,
-    );
+    let _ = tilting_net::say_summary("tilting-controller", &lines.join("\n"));
     let _ = session.close().await;
     Ok(ExitCode::SUCCESS)
 }

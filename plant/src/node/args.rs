@@ -29,6 +29,9 @@ pub struct PlantArgs {
     /// Zenoh and naming flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    /// Host mode: several robots from this one process ([`super::host`]).
+    #[command(flatten)]
+    pub host: tilting_net::HostArgs,
     /// Network impairments emulated by the plant: states and torques cross links with these
     /// delays and losses, drawn from --seed as in `tilting simulate`. In lockstep the run is
     /// the same as `simulate` with the same flags, bit for bit; in real time the plant delays

@@ -72,6 +72,7 @@ mod control_loop;
 /// CSV files written by whole rows (the recordings' [`tilting_record::csv`]).
 pub use tilting_record::csv;
 mod emulation;
+pub mod host;
 mod inbox;
 mod recording;
 mod ros2;
@@ -113,19 +114,35 @@ pub const STATE_COLUMNS: &str = tilting_record::trace::STATE_HEADER;
 /// Exit code of a run that ended with a fault of the model.
 pub const EXIT_FAULT: u8 = 3;
 
-/// Runs the plant node until the end of the run; returns the process exit code.
+/// Runs the plant node until the end of the run; returns the process exit code. With
+/// `--robots` (host mode, [`host`]) one process serves every robot named, one pacing thread
+/// each, over one zenoh session; the exit code is [`EXIT_FAULT`] if any robot faulted.
 pub fn run(args: PlantArgs) -> anyhow::Result<ExitCode> {
     args.validate()?;
-    let keys = args.zenoh.keys()?;
+    let hosted = args.host.hosting();
+    let all_keys = if hosted {
+        host::check(&args)?;
+        args.host.keys()?
+    } else {
+        vec![args.zenoh.keys()?]
+    };
     let cfg = args.sim_config()?;
     let x0 = State::from(args.x0.unwrap_or_else(paper::orbit_x0));
-    let plant = Plant::new(cfg, 0.0, args.mode, x0).context("initial state")?;
-    let record = match &args.record {
-        Some(path) => Some(recording::Recording::create(path, &keys)?),
-        None => None,
-    };
+    let mut robots = Vec::with_capacity(all_keys.len());
+    for keys in all_keys {
+        let plant = Plant::new(cfg, 0.0, args.mode, x0).context("initial state")?;
+        let record = match &args.record {
+            Some(path) if hosted => Some(Recording::create(
+                &host::record_path(path, keys.robot()),
+                &keys,
+            )?),
+            Some(path) => Some(Recording::create(path, &keys)?),
+            None => None,
+        };
+        robots.push((keys, plant, record));
+    }
     let rt = tilting_net::runtime()?;
-    rt.block_on(run_async(args, keys, plant, record))
+    rt.block_on(run_async(args, robots, hosted))
 }
 
 /// The state the pacing thread shares with the zenoh callbacks, empty at the start.
@@ -151,22 +168,36 @@ fn shared_state(args: &PlantArgs, keys: &Keys) -> Arc<Shared> {
     })
 }
 
-async fn run_async(
-    args: PlantArgs,
+/// One robot being served: what its pacing thread shares, its thread, and the zenoh
+/// declarations that live as long as it runs.
+struct Served {
     keys: Keys,
-    plant: Plant,
-    record: Option<Recording>,
-) -> anyhow::Result<ExitCode> {
-    let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
-    let shared = shared_state(&args, &keys);
+    shared: Arc<Shared>,
+    pacing: std::thread::JoinHandle<(Outcome, PlantSummary)>,
+    link: Option<Arc<emulation::Emulator>>,
+    ros2: Option<ros2::Ros2>,
+    _token: zenoh::liveliness::LivelinessToken,
+    _subscribers: [zenoh::pubsub::Subscriber<()>; 2],
+    _presence: Arc<tilting_net::Presence>,
+}
+
+/// Declares robot `keys`' publishers, subscribers and token on `session` and starts its pacing
+/// thread, which says on `done` when its run ends.
+async fn serve(
+    session: &zenoh::Session,
+    args: &PlantArgs,
+    (keys, plant, record): (Keys, Plant, Option<Recording>),
+    done: tokio::sync::mpsc::UnboundedSender<()>,
+) -> anyhow::Result<Served> {
+    let shared = shared_state(args, &keys);
     let ros2 = match args.ros2 {
-        Some(_) => Some(ros2::Ros2::start(&session, &args, shared.clone()).await?),
+        Some(_) => Some(ros2::Ros2::start(session, args, shared.clone()).await?),
         None => None,
     };
     let pubs = Arc::new(Publishers {
-        state: TypedPublisher::declare(&session, keys.plant_state(), Qos::Control).await?,
-        event: TypedPublisher::declare(&session, keys.plant_event(), Qos::Telemetry).await?,
-        status: TypedPublisher::declare(&session, keys.plant_status(), Qos::Telemetry).await?,
+        state: TypedPublisher::declare(session, keys.plant_state(), Qos::Control).await?,
+        event: TypedPublisher::declare(session, keys.plant_event(), Qos::Telemetry).await?,
+        status: TypedPublisher::declare(session, keys.plant_status(), Qos::Telemetry).await?,
         ros2: ros2.as_ref().map(|r| r.mirror.clone()),
     });
     // Real time over emulated links: states and torques cross them on the wall clock.
@@ -183,8 +214,8 @@ async fn run_async(
     };
     let sh = shared.clone();
     let l = link.clone();
-    let _torque_sub = tilting_net::subscribe_sourced(
-        &session,
+    let torque_sub = tilting_net::subscribe_sourced(
+        session,
         keys.controller_torque(),
         move |b, from| match &l {
             Some(l) => l.send_torque(b, from),
@@ -193,13 +224,14 @@ async fn run_async(
     )
     .await?;
     let sh = shared.clone();
-    let (_presence, _presence_sub) =
-        tilting_net::watch_presence(&session, keys.alive_controller(), move |alive| {
+    let (presence, presence_sub) =
+        tilting_net::watch_presence(session, keys.alive_controller(), move |alive| {
             sh.on_controller_token(alive)
         })
         .await?;
-    let _token = tilting_net::declare_token(&session, keys.alive_plant()).await?;
+    let token = tilting_net::declare_token(session, keys.alive_plant()).await?;
 
+    let args = args.clone();
     let h = args.period();
     let safe = args.safe.settings()?;
     let hold = impairment
@@ -249,45 +281,96 @@ async fn run_async(
         period_t0: 0,
         event_answer: None,
     };
-    let (done_tx, done_rx) = tokio::sync::oneshot::channel();
     let pacing = std::thread::Builder::new()
         .name("plant-pacing".into())
         .spawn(move || {
             let outcome = lp.run();
             let summary = lp.summary(&outcome);
-            let _ = done_tx.send(());
+            let _ = done.send(());
             (outcome, summary)
         })
         .context("cannot start the pacing thread")?;
+    Ok(Served {
+        keys,
+        shared,
+        pacing,
+        link,
+        ros2,
+        _token: token,
+        _subscribers: [torque_sub, presence_sub],
+        _presence: presence,
+    })
+}
 
+async fn run_async(
+    args: PlantArgs,
+    robots: Vec<(Keys, Plant, Option<Recording>)>,
+    hosted: bool,
+) -> anyhow::Result<ExitCode> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
+    let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
+    let mut served = Vec::with_capacity(robots.len());
+    for robot in robots {
+        served.push(serve(&session, &args, robot, done_tx.clone()).await?);
+    }
+    drop(done_tx);
+    let all_done = async {
+        // `None` once every pacing thread has ended (each drops its sender).
+        while done_rx.recv().await.is_some() {}
+    };
     tokio::select! {
         _ = tilting_net::shutdown_signal() => {
             tracing::info!("stopping");
-            shared.stop.store(true, Ordering::Release);
-            shared.wake();
+            for s in &served {
+                s.shared.stop.store(true, Ordering::Release);
+                s.shared.wake();
+            }
         }
-        _ = done_rx => {}
+        _ = all_done => {}
     }
-    let (outcome, mut summary) = tokio::task::spawn_blocking(move || pacing.join())
-        .await
-        .context("pacing thread join")?
-        .map_err(|_| anyhow::anyhow!("the pacing thread panicked"))?;
-    summary.ros2 = ros2.as_ref().map(|r| r.summary());
-    if let Some(l) = &link {
-        l.stop();
+    let mut faulted = false;
+    let mut lines = Vec::with_capacity(served.len());
+    let mut sessions_kept = Vec::with_capacity(served.len());
+    for s in served {
+        let Served {
+            keys,
+            pacing,
+            link,
+            ros2,
+            _token,
+            ..
+        } = s;
+        let (outcome, mut summary) = tokio::task::spawn_blocking(move || pacing.join())
+            .await
+            .context("pacing thread join")?
+            .map_err(|_| anyhow::anyhow!("the pacing thread of robot {} panicked", keys.robot()))?;
+        summary.ros2 = ros2.as_ref().map(|r| r.summary());
+        if let Some(l) = &link {
+            l.stop();
+        }
+        faulted |= matches!(outcome, Outcome::Faulted(_));
+        lines.push(
+            if hosted {
+                serde_json::to_string(&tilting_net::HostedSummary {
+                    robot: keys.robot().to_owned(),
+                    summary,
+                })
+            } else {
+                serde_json::to_string(&summary)
+            }
+            .context("cannot serialise the summary")?,
+        );
+        sessions_kept.push((_token, ros2));
     }
     // On a full disk or a closed pipe, to a fallback file, said on stderr.
-    let _ = tilting_net::say_summary(
-        "tilting-plant",
-        &serde_json::to_string(&summary).context("cannot serialise the summary")?,
-    );
+    let _ = tilting_net::say_summary("tilting-plant", &lines.join("\n"));
     // Let the last status and event leave before the session closes.
     tokio::time::sleep(Duration::from_millis(100)).await;
-    drop(_token);
-    drop(ros2);
+    drop(sessions_kept);
     let _ = session.close().await;
-    Ok(match outcome {
-        Outcome::Faulted(_) => ExitCode::from(EXIT_FAULT),
-        _ => ExitCode::SUCCESS,
+    Ok(if faulted {
+        ExitCode::from(EXIT_FAULT)
+    } else {
+        ExitCode::SUCCESS
     })
 }
