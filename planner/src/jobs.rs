@@ -473,6 +473,11 @@ pub struct OrbitReport {
     /// continuous loop with plastic landings). `None` (left out of the JSON) otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub settled: Option<crate::peak::SettledPeak>,
+    /// With `--calibrate`: the robot's runs, the model's loop at their `E_av`, and the bias by
+    /// which `settled` aims below (or above) the wanted peak ([`crate::calibrate`]). `None`
+    /// (left out of the JSON) otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<crate::calibrate::Calibration>,
 }
 
 /// The periodic orbits of the loop with gains `kp` (1/s^2), `kd` (1/s) and adaptation gain `k`
@@ -527,6 +532,7 @@ pub fn orbits(
         solutions,
         peak_per_arm_mass: None,
         settled: None,
+        calibration: None,
     })
 }
 
@@ -538,13 +544,16 @@ pub fn orbits(
 /// The shooting plans the continuous loop with plastic landings. With `control_period` (s, 0
 /// for continuous; the robot's sampling) or a robot whose `restitution` is not 0, `E_av` is
 /// then refined by simulating the loop as the robot runs it
-/// ([`crate::peak::settle_energy_for_peak`], in [`OrbitReport::settled`]).
+/// ([`crate::peak::settle_energy_for_peak`], in [`OrbitReport::settled`]); with `calibrate`
+/// (runs of the plain law on the robot, [`crate::calibrate::recorded_orbit`]) at the wanted peak
+/// less the robot's bias against the model ([`crate::calibrate::calibrate`]).
 pub fn orbit_for_peak(
     params: Params,
     impact: ImpactLaw,
     [kp, kd, k]: [f64; 3],
     peak: f64,
     control_period: Option<f64>,
+    calibrate: &[crate::calibrate::RecordedOrbit],
     tick: &dyn Fn(&str),
 ) -> Result<OrbitReport, JobError> {
     check("kp", kp, kp > 0.0, "finite and > 0")?;
@@ -571,21 +580,57 @@ pub fn orbit_for_peak(
             crate::peak::PeakError::NoOrbit { .. } => JobError::Failed(e.to_string()),
             _ => JobError::Invalid(e.to_string()),
         })?;
-    let settled = if control_period.is_some() || params.restitution != 0.0 {
+    let mut calibration = None;
+    let settled = if control_period.is_some() || params.restitution != 0.0 || !calibrate.is_empty()
+    {
         let robot = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
         let x0 = OrbitProblem::start(found.orbit.beta0, found.orbit.beta_dot0);
-        Some(
-            crate::peak::settle_energy_for_peak(
+        let dt = control_period.unwrap_or(0.0);
+        let mut target = peak;
+        if !calibrate.is_empty() {
+            let c = crate::calibrate::calibrate(
                 &robot,
                 &x0,
-                found.energy_avg_adaptation,
+                calibrate,
                 peak,
-                control_period.unwrap_or(0.0),
+                dt,
                 found.orbit.period,
                 tick,
             )
-            .map_err(JobError::Failed)?,
-        )
+            .map_err(|e| match e {
+                crate::calibrate::CalibrateError::Model(m) => JobError::Failed(m),
+                e => JobError::Invalid(e.to_string()),
+            })?;
+            target = peak - c.bias_at(found.energy_avg_adaptation);
+            calibration = Some(c);
+        }
+        let settle = |from: f64, target: f64| {
+            crate::peak::settle_energy_for_peak(
+                &robot,
+                &x0,
+                from,
+                target,
+                dt,
+                found.orbit.period,
+                tick,
+            )
+            .map_err(JobError::Failed)
+        };
+        let mut s = settle(found.energy_avg_adaptation, target)?;
+        // A bias that moves with E_av: settle again at the bias where the last one ended, until
+        // the target stays (a few rounds: the bias's slope is small against the model's).
+        if let Some(c) = calibration.as_mut() {
+            for _ in 0..6 {
+                let next = peak - c.bias_at(s.energy_avg);
+                if (next - target).abs() <= 1e-4 * peak {
+                    break;
+                }
+                target = next;
+                s = settle(s.energy_avg, target)?;
+            }
+            c.model_peak = target;
+        }
+        Some(s)
     } else {
         None
     };
@@ -604,6 +649,7 @@ pub fn orbit_for_peak(
         ),
         solutions: vec![found.orbit],
         settled,
+        calibration,
     })
 }
 

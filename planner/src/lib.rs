@@ -22,6 +22,7 @@
 #![warn(missing_docs)]
 
 pub mod bifurcation;
+pub mod calibrate;
 pub mod continuation;
 pub mod gains;
 pub mod identify;

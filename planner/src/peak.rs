@@ -550,6 +550,33 @@ fn settled(
     dt: f64,
     t_run: f64,
 ) -> Result<(f64, f64, f64, f64), String> {
+    settled_over(pb, x0, energy_avg, dt, t_run, AVERAGE_TILTS)
+}
+
+/// The mean |peak| (rad) of `tilts` tilts of the loop `pb` at `E_av = energy_avg` (J) after
+/// the first [`SETTLE_TILTS`], run as [`settle_energy_for_peak`] runs it (from `x0`, sampled
+/// every `dt` s or continuous at 0; `orbit_period` (s) sizes the run); 0 when it stops tilting.
+pub fn settled_mean(
+    pb: &OrbitProblem,
+    x0: &tilting_plant::State,
+    energy_avg: f64,
+    dt: f64,
+    orbit_period: f64,
+    tilts: usize,
+) -> Result<f64, String> {
+    let t_run = 1.5 * orbit_period * (SETTLE_TILTS + tilts) as f64 / 2.0 + 2.0;
+    Ok(settled_over(pb, x0, energy_avg, dt, t_run, tilts)?.0)
+}
+
+/// [`settled`] averaging `average` tilts.
+fn settled_over(
+    pb: &OrbitProblem,
+    x0: &tilting_plant::State,
+    energy_avg: f64,
+    dt: f64,
+    t_run: f64,
+    average: usize,
+) -> Result<(f64, f64, f64, f64), String> {
     use tilting_plant::{Mode, Plant, SimConfig};
     let law = pb.with_adaptation(pb.control.law.k, energy_avg).law();
     let cfg = SimConfig {
@@ -565,7 +592,7 @@ fn settled(
         plant.advance_continuous(&law, t_run, &mut obs)
     }
     .map_err(|e| format!("{e} (E_av = {energy_avg} J)"))?;
-    let want = SETTLE_TILTS + AVERAGE_TILTS;
+    let want = SETTLE_TILTS + average;
     if obs.0.len() < want {
         // The tilting died out: no settled peak, below any wanted one (near the end of an
         // orbit family a step of the search can land there; the search then steps back up).

@@ -363,6 +363,16 @@ impl RobotFile {
             .map_err(|e| e.to_string())
     }
 
+    /// The `[law]` keys over the paper's law ([`LawSpec::default`]); `None` without a `[law]`
+    /// table. A live run's directory holds the law it ran this way ([`Self::set_law`]).
+    pub fn law(&self) -> Result<Option<LawSpec>, String> {
+        let Some(m) = self.section_matches("law")? else {
+            return Ok(None);
+        };
+        let s = LawSection::from_arg_matches(&m).map_err(|e| e.to_string())?;
+        Ok(Some(s.law.over(LawSpec::default())))
+    }
+
     /// The flag defaults of every section ([`rf::flag_defaults`]).
     pub fn defaults(&self) -> Result<Vec<FlagDefault>, String> {
         rf::flag_defaults(&self.doc, &self.path, &SECTIONS)

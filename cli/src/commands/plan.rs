@@ -49,6 +49,12 @@ pub struct OrbitArgs {
     /// than 0 is refined at 0 s when this is not given) [default: off]
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub control_period: Option<f64>,
+    /// With --peak: calibrate E_av on the robot from runs of the plain adapted law at or near
+    /// this plan (`tilting live --plan plan.json --out RUN_DIR`, without --orbit-peak): each
+    /// run's mean peak against the model's at its E_av gives the robot's bias, and the model's
+    /// loop is settled that much below the peak (docs/guide/planning.md) [default: none]
+    #[arg(long, value_name = "RUN_DIR", num_args = 1.., requires = "peak")]
+    pub calibrate: Vec<std::path::PathBuf>,
 }
 
 impl OrbitArgs {
@@ -80,6 +86,25 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
                 ));
             }
             let k = if law.k > 0.0 { law.k } else { ORBIT_K };
+            let runs = args
+                .calibrate
+                .iter()
+                .map(|d| {
+                    let file = d.join("robot.toml");
+                    let law = tilting_sim::robot::RobotFile::load(&file)
+                        .and_then(|f| f.law())
+                        .map_err(|e| usage(format!("`--calibrate`: {e}")))?
+                        .ok_or_else(|| {
+                            usage(format!(
+                                "`--calibrate`: {} has no [law] table (a `tilting live --out \
+                                 DIR` run writes it)",
+                                file.display()
+                            ))
+                        })?;
+                    tilting_planner::calibrate::recorded_orbit(d, &law)
+                        .map_err(|e| usage(format!("`--calibrate`: {e}")))
+                })
+                .collect::<Result<Vec<_>, _>>()?;
             let b = spinner(args.model.json);
             let tick = |what: &str| b.set_message(what.to_owned());
             let r = jobs::orbit_for_peak(
@@ -88,6 +113,7 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
                 [law.kp, law.kd, k],
                 peak,
                 args.control_period,
+                &runs,
                 &tick,
             );
             b.finish_and_clear();
@@ -132,6 +158,25 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
                 st.runs
             );
         }
+        if let Some(c) = &report.calibration {
+            for r in &c.runs {
+                s += &format!(
+                    "  calibration: {} at E_av {:.9} J: the robot's mean peak {:.6} rad ({} \
+                     tilts), the model's {:.6} rad, bias {:+.2} %\n",
+                    r.recorded.source.display(),
+                    r.recorded.energy_avg,
+                    r.recorded.peak_mean,
+                    r.recorded.tilts,
+                    r.model_peak_mean,
+                    100.0 * r.bias / report_peak(args)
+                );
+            }
+            s += &format!(
+                "  calibrated: the model's loop settled at {:.6} rad for the robot's {} rad\n",
+                c.model_peak,
+                report_peak(args)
+            );
+        }
         for o in &report.solutions {
             let mult: Vec<String> = o
                 .multipliers
@@ -167,6 +212,11 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
         }
         s
     })
+}
+
+/// The wanted peak of `--peak` (rad; 0 without it).
+fn report_peak(args: &OrbitArgs) -> f64 {
+    args.peak.unwrap_or(0.0)
 }
 
 /// `reach`: which gains reach a wanted tilt peak.

@@ -2,6 +2,7 @@
 //! so one per crate keeps `cargo test` cheap). Each module was a test file of its own; the
 //! modules share no state.
 
+mod calibrate;
 mod continuation;
 #[cfg(feature = "node")] // runs the `tilting-planner` binary, built with the node only
 mod exit_codes;
