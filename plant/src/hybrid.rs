@@ -12,8 +12,8 @@ use crate::{ConfigError, ImpactLaw, Landing, Mode, Params, State};
 
 mod events;
 
-use events::fires_in;
 pub use events::locate;
+use events::{fires_in, Ev};
 
 /// A torque law `tau(t, q, x)` (N m) evaluated inside the right-hand side. It must be a pure
 /// function of its arguments (the integrator evaluates it at trial states).
@@ -862,48 +862,17 @@ impl Plant {
                 {
                     let tr = *trig_here.get_or_insert_with(|| Trig::new(&self.x));
                     base.set((self.x, tr));
-                    let s = self.short.step(&mut f5, self.t, &self.x, &f0, t_target)?;
-                    let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig, || {
-                        tau_of.torque_t(s.t1, mode, &s.y1, &p, &s.aux1)
-                    });
-                    if !(0..NG).any(|i| fires_in(mode != Mode::Flat, i, &g0, &g1)) {
-                        self.t = s.t1;
-                        self.x = s.y1;
-                        self.terms = Some((mode, s.y1.map(f64::to_bits).into(), s.aux1));
-                        trig_here = Some(s.aux1.trig);
-                        f0 = s.f1;
-                        g0 = g1;
-                        obs.sample(self.t, mode, &self.x);
-                        continue;
+                    let here = (&mut trig_here, &mut f0, &mut g0);
+                    match self.short_step(&mut f5, tau_of, obs, &p, t_target, here)? {
+                        None => continue,
+                        Some(t1) => step_end = t1,
                     }
-                    step_end = s.t1;
                 }
-                let step = self.stepper.step(&mut f, self.t, &self.x, &f0, step_end)?;
-                let tr1 = Trig::new(&step.y1);
-                let g1 = self.events_t(&step.y1, step.f1(), &tr1, || {
-                    tau_of.torque(step.t1, mode, &step.y1)
-                });
-                let first = if (0..NG).any(|i| fires_in(mode != Mode::Flat, i, &g0, &g1)) {
-                    let dense = self.stepper.dense(&mut f, &step);
-                    let first =
-                        self.first_event(&f, tau_of, &dense, (step.t0, &g0), (step.t1, &g1));
-                    first.map(|(tr, e)| (tr, e, dense.eval(tr)))
-                } else {
-                    None
-                };
-                if let Some((tr, e, x)) = first {
-                    self.t = tr;
-                    self.x = x;
-                    obs.sample(self.t, mode, &self.x);
+                let here = (&mut trig_here, &mut f0, &mut g0);
+                if let Some(e) = self.long_step(&mut f, tau_of, obs, step_end, here)? {
                     terminal = Some(e);
                     break;
                 }
-                self.t = step.t1;
-                self.x = step.y1;
-                trig_here = Some(tr1);
-                f0 = *step.f1();
-                g0 = g1;
-                obs.sample(self.t, mode, &self.x);
             }
             let Some(e) = terminal else {
                 continue;
@@ -917,7 +886,95 @@ impl Plant {
         }
         Ok(())
     }
+
+    /// Under a held torque, one [`Dopri5`] step from the current state to at most `t_target`
+    /// (`f5` the 5th-order stepper's right-hand side, with `p` the plant's parameters): kept
+    /// when no event function changes sign in it (the state, `here`'s sines and cosines,
+    /// derivative and event values move to its end; `None`), else its end time, for
+    /// [`Plant::long_step`] to take the same interval again.
+    #[inline(always)]
+    fn short_step<F5, T, O>(
+        &mut self,
+        f5: &mut F5,
+        tau_of: &T,
+        obs: &mut O,
+        p: &Params,
+        t_target: f64,
+        (trig_here, f0, g0): Here<'_>,
+    ) -> Result<Option<f64>, Fault>
+    where
+        F5: FnMut(f64, &State, bool) -> (State, Terms),
+        T: TorqueLaw + ?Sized,
+        O: Observer,
+    {
+        let mode = self.mode;
+        let s = self.short.step(f5, self.t, &self.x, f0, t_target)?;
+        let g1 = self.events_t(&s.y1, &s.f1, &s.aux1.trig, || {
+            tau_of.torque_t(s.t1, mode, &s.y1, p, &s.aux1)
+        });
+        if (0..NG).any(|i| fires_in(mode != Mode::Flat, i, g0, &g1)) {
+            return Ok(Some(s.t1));
+        }
+        self.t = s.t1;
+        self.x = s.y1;
+        self.terms = Some((mode, s.y1.map(f64::to_bits).into(), s.aux1));
+        *trig_here = Some(s.aux1.trig);
+        *f0 = s.f1;
+        *g0 = g1;
+        obs.sample(self.t, mode, &self.x);
+        Ok(None)
+    }
+
+    /// One [`Dop853`] step from the current state to at most `step_end` (`f` its right-hand
+    /// side): the state moves to the first terminal event inside it (returned, located on the
+    /// step's dense output), or else to its end (`here`'s sines and cosines, derivative and
+    /// event values with it; `None`).
+    #[inline(always)]
+    fn long_step<F, T, O>(
+        &mut self,
+        f: &mut F,
+        tau_of: &T,
+        obs: &mut O,
+        step_end: f64,
+        (trig_here, f0, g0): Here<'_>,
+    ) -> Result<Option<Ev>, Fault>
+    where
+        F: Fn(f64, &State) -> State,
+        T: TorqueLaw + ?Sized,
+        O: Observer,
+    {
+        let mode = self.mode;
+        let step = self.stepper.step(f, self.t, &self.x, f0, step_end)?;
+        let tr1 = Trig::new(&step.y1);
+        let g1 = self.events_t(&step.y1, step.f1(), &tr1, || {
+            tau_of.torque(step.t1, mode, &step.y1)
+        });
+        let first = if (0..NG).any(|i| fires_in(mode != Mode::Flat, i, g0, &g1)) {
+            let dense = self.stepper.dense(f, &step);
+            let first = self.first_event(&*f, tau_of, &dense, (step.t0, g0), (step.t1, &g1));
+            first.map(|(tr, e)| (tr, e, dense.eval(tr)))
+        } else {
+            None
+        };
+        if let Some((tr, e, x)) = first {
+            self.t = tr;
+            self.x = x;
+            obs.sample(self.t, mode, &self.x);
+            return Ok(Some(e));
+        }
+        self.t = step.t1;
+        self.x = step.y1;
+        *trig_here = Some(tr1);
+        *f0 = *step.f1();
+        *g0 = g1;
+        obs.sample(self.t, mode, &self.x);
+        Ok(None)
+    }
 }
+
+/// The flow's state at the current time besides `(t, x)`, as [`Plant::integrate_inner`] keeps
+/// it between steps: the sines and cosines when known, the derivative and the event values.
+type Here<'a> = (&'a mut Option<Trig>, &'a mut State, &'a mut [f64; NG]);
 
 /// `f` itself: lets a closure carry `#[inline(always)]` (an attribute on a closure in a `let` is
 /// not stable Rust, one on a call argument is).
