@@ -83,6 +83,10 @@ pub struct Calibration {
     /// The peak the model's loop is settled at (rad): the wanted one minus the bias at the
     /// settled `E_av` ([`Self::bias_at`]).
     pub model_peak: f64,
+    /// The period (s) of the model's loop settled at the wanted peak itself, without the bias:
+    /// the period the robot should show on the calibrated plan (the report's `settled` is the
+    /// model's loop at [`Self::model_peak`], a smaller orbit with a shorter period).
+    pub period: f64,
 }
 
 impl Calibration {
@@ -302,6 +306,7 @@ pub fn calibrate(
         energy_avg,
         slope,
         model_peak: peak - bias,
+        period: f64::NAN,
     })
 }
 

@@ -616,6 +616,9 @@ pub fn orbit_for_peak(
             )
             .map_err(JobError::Failed)
         };
+        if let Some(c) = calibration.as_mut() {
+            c.period = settle(found.energy_avg_adaptation, peak)?.period;
+        }
         let mut s = settle(found.energy_avg_adaptation, target)?;
         // A bias that moves with E_av: settle again at the bias where the last one ended, until
         // the target stays (a few rounds: the bias's slope is small against the model's).

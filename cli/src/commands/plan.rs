@@ -172,9 +172,11 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
                 );
             }
             s += &format!(
-                "  calibrated: the model's loop settled at {:.6} rad for the robot's {} rad\n",
+                "  calibrated: the model's loop settled at {:.6} rad for the robot's {} rad, \
+                 whose period is {:.6} s (the model's loop at that peak)\n",
                 c.model_peak,
-                report_peak(args)
+                report_peak(args),
+                c.period
             );
         }
         for o in &report.solutions {

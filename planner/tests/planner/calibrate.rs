@@ -93,6 +93,9 @@ fn a_robot_with_a_lighter_arm_is_brought_to_the_peak_by_one_calibration_run() {
         (c.runs[0].bias - (before - peak)).abs() < 0.006 * peak,
         "{c:?}"
     );
+    // The robot runs the orbit of the wanted peak, longer than the model's smaller one.
+    let settled = cal.settled.as_ref().unwrap();
+    assert!(c.period > settled.period, "{c:?} {settled:?}");
     let e1 = cal.energy_avg_adaptation.unwrap();
     let after = robot_mean(model, robot, e1, x0);
     // The bias is not the same at every energy (the robot's peak is less steep in E_av than
