@@ -113,7 +113,6 @@ pub fn run<T: Transport + ?Sized>(
 ) -> (Result<End, Fault>, u64) {
     let every = ((grid.t_end / grid.period) / 1000.0).ceil().max(1.0) as u64;
     let mut next_update = every;
-    let events = transport.samples_events();
     let mut sent = 0u64;
     let mut k: u64 = 0;
     loop {
@@ -122,26 +121,40 @@ pub fn run<T: Transport + ?Sized>(
             return (Ok(End::Stopped), sent);
         };
         sent += 1;
-        let (t_next, last) = grid.end_of(k);
-        let result = if events {
-            segments(transport, k, tau, t_next, &mut sent)
-        } else {
-            let (plant, actuator, obs) = transport.parts();
-            actuator.advance(plant, tau, t_next, obs)
-        };
-        transport.period_end(k, last, &result);
-        if let Err(f) = result {
-            return (Err(f), sent);
+        match period(transport, grid, k, tau, &mut sent) {
+            Err(f) => return (Err(f), sent),
+            Ok(true) => return (Ok(End::Completed), sent),
+            Ok(false) => {}
         }
-        if last {
-            return (Ok(End::Completed), sent);
-        }
+        let (t_next, _) = grid.end_of(k);
         k += 1;
         if k >= next_update {
             next_update += every;
             progress(t_next);
         }
     }
+}
+
+/// Period `k` of [`run`] once its sample returned `tau` (N m): integrates it (in segments
+/// when the transport samples on events, counting the extra states in `sent`) and reports its
+/// end ([`Transport::period_end`]). `Ok(true)`: it was the last period of `grid`. For a
+/// driver that paces several plants itself (the plant node's host mode, one thread for all).
+pub fn period<T: Transport + ?Sized>(
+    transport: &mut T,
+    grid: Grid,
+    k: u64,
+    tau: f64,
+    sent: &mut u64,
+) -> Result<bool, Fault> {
+    let (t_next, last) = grid.end_of(k);
+    let result = if transport.samples_events() {
+        segments(transport, k, tau, t_next, sent)
+    } else {
+        let (plant, actuator, obs) = transport.parts();
+        actuator.advance(plant, tau, t_next, obs)
+    };
+    transport.period_end(k, last, &result);
+    result.map(|()| last)
 }
 
 /// Period `k` sampled on events: segments up to `t_next` (s) starting with `tau` (N m).

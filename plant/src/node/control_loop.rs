@@ -113,6 +113,10 @@ pub(super) struct Loop {
     pub(super) period_t0: u64,
     /// `--sample-on-event`: the answer to the last extra state, until it takes effect.
     pub(super) event_answer: Option<f64>,
+    /// Host mode with a pacing thread per robot, robot `i` of `N`: `i / N`, the share of a
+    /// period its real-time grid is shifted by from the clock's multiples of the period, so
+    /// the robots' states spread over the period ([`Loop::run_all_realtime`] shifts them so).
+    pub(super) stagger: Option<f64>,
 }
 
 /// Interval of the timing line in the log.
@@ -632,6 +636,21 @@ impl Loop {
     /// Real time: at each deadline `start + (k + 1) h` the period that just ended is integrated
     /// with the answer to `seq = k`, or the newest valid torque ([`Realtime`]).
     pub(super) fn run_realtime(&mut self) -> Outcome {
+        self.prepare_pacing_thread();
+        let grid = self.grid();
+        let mut rt = Realtime {
+            h_ns: self.h * 1e9,
+            spin: self.args.spin_ns(),
+            start: self.realtime_start(),
+            lp: self,
+            paced: true,
+        };
+        outcome(sampled::run(&mut rt, grid, &mut |_| {}).0)
+    }
+
+    /// The calling thread as a pacing thread: the smallest timer slack, and `--rt-priority`'s
+    /// SCHED_FIFO if it was asked for (said in the log either way).
+    fn prepare_pacing_thread(&self) {
         clock::set_min_timer_slack();
         if let Some(p) = self.args.rt_priority {
             match clock::set_fifo_priority(p) {
@@ -639,14 +658,17 @@ impl Loop {
                 Err(e) => tracing::warn!("--rt-priority {p}: {e}; staying SCHED_OTHER"),
             }
         }
-        let grid = self.grid();
-        let mut rt = Realtime {
-            h_ns: self.h * 1e9,
-            spin: self.args.spin_us * 1000,
-            start: clock::now_ns(),
-            lp: self,
+    }
+
+    /// The wall-clock start of a real-time run (ns): now, or in host mode
+    /// ([`Loop::stagger`]) the next instant on robot `i`'s shifted grid.
+    fn realtime_start(&self) -> u64 {
+        let now = clock::now_ns();
+        let Some(f) = self.stagger else {
+            return now;
         };
-        outcome(sampled::run(&mut rt, grid, &mut |_| {}).0)
+        let h = self.h * 1e9;
+        ((now as f64 / h).ceil() * h + f * h).round() as u64
     }
 
     /// Lockstep: one period per answer. Without a controller (its token gone, or no answer
@@ -660,11 +682,25 @@ impl Loop {
     }
 
     pub(super) fn run(&mut self) -> Outcome {
+        if !self.start() {
+            return Outcome::Stopped;
+        }
+        let outcome = match self.args.clock {
+            ClockMode::Realtime => self.run_realtime(),
+            ClockMode::Lockstep => self.run_lockstep(),
+        };
+        self.finish(&outcome);
+        outcome
+    }
+
+    /// The start of a run: state 0 out once the controller is there (or at once with
+    /// `--no-wait`), status `running`. `false`: stopped before it started.
+    fn start(&mut self) -> bool {
         if self.args.no_wait {
             self.publish_state();
         } else {
             if !self.wait_for_controller() {
-                return Outcome::Stopped;
+                return false;
             }
             // The controller may have subscribed after the last publication of state 0.
             let answered = self
@@ -680,19 +716,27 @@ impl Loop {
         tracing::info!(
             clock = ?self.args.clock,
             period = self.h,
+            robot = self.robot(),
             "plant running"
         );
         // Running until the first answer says otherwise; a missing one counts from now.
         self.set_state(Status::RUNNING);
-        let outcome = match self.args.clock {
-            ClockMode::Realtime => self.run_realtime(),
-            ClockMode::Lockstep => self.run_lockstep(),
-        };
-        match &outcome {
+        true
+    }
+
+    /// The robot's name (its keys `tilting/{robot}/...`).
+    fn robot(&self) -> &str {
+        self.pubs.state.key().split('/').nth(1).unwrap_or_default()
+    }
+
+    /// The end of a run: the fault or the last record row, the final status, the recording
+    /// closed.
+    fn finish(&mut self, outcome: &Outcome) {
+        match outcome {
             Outcome::Faulted(f) => {
                 let msg = f.to_string();
                 self.fault = msg.clone();
-                tracing::error!("fault: {msg}");
+                tracing::error!(robot = self.robot(), "fault: {msg}");
                 self.set_state(Status::FAULTED);
             }
             _ => {
@@ -705,7 +749,67 @@ impl Loop {
                 tracing::warn!("--record: cannot finish the file: {e:#}");
             }
         }
-        outcome
+    }
+
+    /// Host mode with `--host-pacing one`: one thread paces every robot of `loops` (all in
+    /// real time, one period `h`), robot `i` of `N` on its own grid shifted by `i h / N`: at
+    /// its deadline `start + (k + 1) h + i h / N` the thread steps it as
+    /// [`Loop::run_realtime`] steps one (the same torque rule, so a run whose answers all
+    /// arrive in time is the same computation). The shift spreads the robots' states over the
+    /// period, so the controller host answers them one at a time instead of in a burst. Each
+    /// robot ends on its own (fault, Ctrl-C); returns the outcomes in the order of `loops`.
+    pub(super) fn run_all_realtime(loops: &mut [Loop]) -> Vec<Outcome> {
+        let mut outcomes: Vec<Option<Outcome>> = loops
+            .iter_mut()
+            .map(|lp| (!lp.start()).then_some(Outcome::Stopped))
+            .collect();
+        let Some(first) = loops.first() else {
+            return Vec::new();
+        };
+        first.prepare_pacing_thread();
+        let grid = first.grid();
+        let (h_ns, spin) = (first.h * 1e9, first.args.spin_ns());
+        let n = loops.len() as f64;
+        let t0 = clock::now_ns();
+        let mut k = 0u64;
+        while outcomes.iter().any(Option::is_none) {
+            for (i, (lp, outcome)) in loops.iter_mut().zip(&mut outcomes).enumerate() {
+                if outcome.is_some() {
+                    continue;
+                }
+                // Robot i's grid is shifted by i/N of a period.
+                let start = t0 + (i as f64 / n * h_ns).round() as u64;
+                let deadline = start + ((k + 1) as f64 * h_ns).round() as u64;
+                clock::sleep_until(deadline, spin);
+                let mut rt = Realtime {
+                    h_ns,
+                    spin,
+                    start,
+                    lp,
+                    paced: false,
+                };
+                let Some(tau) = rt.sample(k) else {
+                    *outcome = Some(Outcome::Stopped);
+                    continue;
+                };
+                let mut sent = 0;
+                match sampled::period(&mut rt, grid, k, tau, &mut sent) {
+                    Err(f) => *outcome = Some(Outcome::Faulted(f)),
+                    Ok(true) => *outcome = Some(Outcome::Completed),
+                    Ok(false) => {}
+                }
+            }
+            k += 1;
+        }
+        loops
+            .iter_mut()
+            .zip(outcomes)
+            .map(|(lp, outcome)| {
+                let outcome = outcome.unwrap_or(Outcome::Stopped);
+                lp.finish(&outcome);
+                outcome
+            })
+            .collect()
     }
 
     pub(super) fn summary(&mut self, outcome: &Outcome) -> PlantSummary {
@@ -879,6 +983,9 @@ struct Realtime<'a> {
     spin: u64,
     /// Wall-clock start (ns).
     start: u64,
+    /// Whether [`Transport::sample`] sleeps to the deadline (else the caller has: host mode's
+    /// one pacing thread, [`Loop::run_all_realtime`]).
+    paced: bool,
 }
 
 impl Transport for Realtime<'_> {
@@ -894,7 +1001,11 @@ impl Transport for Realtime<'_> {
             return None;
         }
         let deadline = self.start + ((k + 1) as f64 * self.h_ns).round() as u64;
-        let woke = clock::sleep_until(deadline, self.spin);
+        let woke = if self.paced {
+            clock::sleep_until(deadline, self.spin)
+        } else {
+            clock::now_ns()
+        };
         self.lp.jitter.push((woke - deadline) as f64 * 1e-3);
         let newest = self.lp.take_newest();
         let tau = self.lp.choose_torque(newest, false);

@@ -3,15 +3,23 @@
 //! its own [`super::control_loop`] on a pacing thread of its own, its own faults and its own
 //! summary line ([`tilting_net::HostedSummary`]). A robot that faults ends its own run only.
 //!
-//! Pacing: one thread per robot, each sleeping to its own deadlines, so a robot's period is
-//! never delayed by another's integration (a single thread stepping all robots at each
-//! deadline would serialise their periods' costs).
+//! Pacing in real time (`--host-pacing`): `each`, one thread per robot, each sleeping to its
+//! own deadlines, so a robot's period never waits for another's step; or `one`, one thread
+//! that wakes at each deadline and steps every robot in turn
+//! (`control_loop::Loop::run_all_realtime`): one wake-up and one spin per period for all, the
+//! robots' steps (about a microsecond each on the orbit) in series. Lockstep always runs a
+//! thread per robot.
 
 use super::PlantArgs;
 use std::path::{Path, PathBuf};
 
 /// The host mode's flags that cannot be served per robot: an error naming the flag.
 pub fn check(args: &PlantArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !(args.host_pacing == super::HostPacing::One && args.clock == super::ClockMode::Lockstep),
+        "--host-pacing one paces by the wall clock: --clock realtime only (in lockstep each \
+         robot waits for its own answers, on a thread of its own)"
+    );
     anyhow::ensure!(
         args.ros2.is_none(),
         "--robots (host mode) does not take --ros2: one ROS 2 robot per tilting-plant"

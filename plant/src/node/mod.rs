@@ -95,8 +95,8 @@ use crate::{
     Transition,
 };
 pub use args::{
-    ClockMode, PlantArgs, DEFAULT_MAX_AGE, DEFAULT_MAX_TORQUE, MAX_PERIODS, MAX_SPIN_US,
-    PERIOD_RANGE,
+    ClockMode, HostPacing, PlantArgs, DEFAULT_MAX_AGE, DEFAULT_MAX_TORQUE, MAX_PERIODS,
+    MAX_SPIN_US, PERIOD_RANGE,
 };
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
@@ -168,12 +168,11 @@ fn shared_state(args: &PlantArgs, keys: &Keys) -> Arc<Shared> {
     })
 }
 
-/// One robot being served: what its pacing thread shares, its thread, and the zenoh
+/// One robot being served: what its pacing thread shares and the zenoh
 /// declarations that live as long as it runs.
 struct Served {
     keys: Keys,
     shared: Arc<Shared>,
-    pacing: std::thread::JoinHandle<(Outcome, PlantSummary)>,
     link: Option<Arc<emulation::Emulator>>,
     ros2: Option<ros2::Ros2>,
     _token: zenoh::liveliness::LivelinessToken,
@@ -181,14 +180,12 @@ struct Served {
     _presence: Arc<tilting_net::Presence>,
 }
 
-/// Declares robot `keys`' publishers, subscribers and token on `session` and starts its pacing
-/// thread, which says on `done` when its run ends.
+/// Declares robot `keys`' publishers, subscribers and token on `session`, and its pacing loop.
 async fn serve(
     session: &zenoh::Session,
     args: &PlantArgs,
     (keys, plant, record): (Keys, Plant, Option<Recording>),
-    done: tokio::sync::mpsc::UnboundedSender<()>,
-) -> anyhow::Result<Served> {
+) -> anyhow::Result<(Served, Loop)> {
     let shared = shared_state(args, &keys);
     let ros2 = match args.ros2 {
         Some(_) => Some(ros2::Ros2::start(session, args, shared.clone()).await?),
@@ -205,7 +202,7 @@ async fn serve(
     let link = match (impairment, args.clock) {
         (Some(imp), ClockMode::Realtime) => Some(emulation::Emulator::start(
             imp,
-            args.spin_us * 1000,
+            args.spin_ns(),
             args.rt_priority,
             pubs.clone(),
             shared.clone(),
@@ -238,7 +235,7 @@ async fn serve(
         .filter(|_| args.clock == ClockMode::Lockstep)
         .map(|imp| imp.hold(args.period()));
     let hw = args.imperfections()?.hardware();
-    let mut lp = Loop {
+    let lp = Loop {
         args,
         h,
         plant,
@@ -280,26 +277,18 @@ async fn serve(
         lateness: (stats::Lateness::new(10), false),
         period_t0: 0,
         event_answer: None,
+        stagger: None,
     };
-    let pacing = std::thread::Builder::new()
-        .name("plant-pacing".into())
-        .spawn(move || {
-            let outcome = lp.run();
-            let summary = lp.summary(&outcome);
-            let _ = done.send(());
-            (outcome, summary)
-        })
-        .context("cannot start the pacing thread")?;
-    Ok(Served {
+    let served = Served {
         keys,
         shared,
-        pacing,
         link,
         ros2,
         _token: token,
         _subscribers: [torque_sub, presence_sub],
         _presence: presence,
-    })
+    };
+    Ok((served, lp))
 }
 
 async fn run_async(
@@ -308,16 +297,54 @@ async fn run_async(
     hosted: bool,
 ) -> anyhow::Result<ExitCode> {
     let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
-    let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
     let mut served = Vec::with_capacity(robots.len());
+    let mut loops = Vec::with_capacity(robots.len());
     for robot in robots {
-        served.push(serve(&session, &args, robot, done_tx.clone()).await?);
+        let (s, lp) = serve(&session, &args, robot).await?;
+        served.push(s);
+        loops.push(lp);
+    }
+    // Each pacing thread says on `done` when its runs end; `None` once all have.
+    let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
+    let one = hosted && args.host_pacing == HostPacing::One;
+    let mut groups: Vec<Vec<Loop>> = if one {
+        vec![loops]
+    } else {
+        loops.into_iter().map(|lp| vec![lp]).collect()
+    };
+    let mut pacing = Vec::with_capacity(groups.len());
+    if hosted && !one {
+        let n = groups.len() as f64;
+        for (i, g) in groups.iter_mut().enumerate() {
+            g[0].stagger = Some(i as f64 / n);
+        }
+    }
+    for mut group in groups {
+        let done = done_tx.clone();
+        pacing.push(
+            std::thread::Builder::new()
+                .name("plant-pacing".into())
+                .spawn(move || {
+                    let outcomes = if one {
+                        Loop::run_all_realtime(&mut group)
+                    } else {
+                        group.iter_mut().map(Loop::run).collect()
+                    };
+                    let _ = done.send(());
+                    group
+                        .iter_mut()
+                        .zip(outcomes)
+                        .map(|(lp, o)| {
+                            let summary = lp.summary(&o);
+                            (o, summary)
+                        })
+                        .collect::<Vec<_>>()
+                })
+                .context("cannot start the pacing thread")?,
+        );
     }
     drop(done_tx);
-    let all_done = async {
-        // `None` once every pacing thread has ended (each drops its sender).
-        while done_rx.recv().await.is_some() {}
-    };
+    let all_done = async { while done_rx.recv().await.is_some() {} };
     tokio::select! {
         _ = tilting_net::shutdown_signal() => {
             tracing::info!("stopping");
@@ -328,22 +355,25 @@ async fn run_async(
         }
         _ = all_done => {}
     }
+    let mut results = Vec::with_capacity(served.len());
+    for thread in pacing {
+        let r = tokio::task::spawn_blocking(move || thread.join())
+            .await
+            .context("pacing thread join")?
+            .map_err(|_| anyhow::anyhow!("a pacing thread panicked"))?;
+        results.extend(r);
+    }
     let mut faulted = false;
     let mut lines = Vec::with_capacity(served.len());
     let mut sessions_kept = Vec::with_capacity(served.len());
-    for s in served {
+    for (s, (outcome, mut summary)) in served.into_iter().zip(results) {
         let Served {
             keys,
-            pacing,
             link,
             ros2,
             _token,
             ..
         } = s;
-        let (outcome, mut summary) = tokio::task::spawn_blocking(move || pacing.join())
-            .await
-            .context("pacing thread join")?
-            .map_err(|_| anyhow::anyhow!("the pacing thread of robot {} panicked", keys.robot()))?;
         summary.ros2 = ros2.as_ref().map(|r| r.summary());
         if let Some(l) = &link {
             l.stop();

@@ -12,6 +12,7 @@
 
 mod emulated_link;
 mod faults;
+mod host_mode;
 mod hosts;
 mod late;
 mod live;
