@@ -16,13 +16,14 @@
 //!
 //! A torque limit of 0 means none, in the flags, the files and on the wire.
 //!
-//! **Adding a law.** [`LawKind`] names the laws and [`Controller`] runs the one a spec names
-//! (a [`TorqueLaw`] that every loop takes: `simulate`, the controller node, `live`). A new law
-//! is a variant of each (with its implementation and its [`LawKind::wire_tag`]), the range of
-//! the `kind` byte in `tilting_proto::Reference::validate`, and its line in
-//! `docs/protocol.md`; the flags (`--law`), the scenario key (`law`), the wire conversion and
-//! the summaries follow from the spec. To be planned too (orbits, continuation, Lyapunov
-//! exponents, figures), its implementation is a [`crate::PlannableLaw`] ([`crate::plannable`]).
+//! **Adding a law.** A new law is a [`crate::PlannableLaw`] in its own module, registered in
+//! [`crate::registry`] (two non-test files): the planner plans it (orbits, continuation,
+//! Lyapunov exponents, figures) through the trait, it crosses the wire as a
+//! `tilting_proto::LawReference` by its name and parameters, and the controller node builds
+//! it by name and runs it as [`Controller::Registered`]. [`LawKind`] and the other variants of
+//! [`Controller`] are the paper's law, which the flags (`--law`), the scenario key (`law`) and
+//! the protocol-2 `Reference` name; a law that needs those too (`simulate` from a scenario
+//! file, the summaries' [`LawSpec`]) becomes a variant of each as well.
 
 use crate::excite::{GovernedExcitation, GovernorStatus};
 use crate::robust::{RobustLaw, RobustStatus};
@@ -44,27 +45,14 @@ pub enum LawKind {
 }
 
 impl LawKind {
-    /// Every law, in the order of their wire tags.
+    /// Every law.
     pub const ALL: [LawKind; 1] = [LawKind::ComputedTorque];
-
-    /// The law's tag on the wire: the `kind` byte of [`tilting_proto::Reference`] is
-    /// `4 * tag + trajectory` (0 for the paper's law, so its messages are those of before).
-    pub fn wire_tag(self) -> u8 {
-        match self {
-            LawKind::ComputedTorque => 0,
-        }
-    }
 
     /// The law's name in the flags, the files and the JSON (`computed-torque`).
     pub fn name(self) -> &'static str {
         match self {
             LawKind::ComputedTorque => "computed-torque",
         }
-    }
-
-    /// The law of a wire tag, if any.
-    pub fn from_wire_tag(tag: u8) -> Option<Self> {
-        Self::ALL.into_iter().find(|l| l.wire_tag() == tag)
     }
 
     fn is_default(&self) -> bool {
@@ -87,6 +75,9 @@ pub enum Controller {
     /// torque ([`crate::excite`]); it keeps a memory of the states it answered, so it must be
     /// called once per sample, in time order.
     Excitation(Box<GovernedExcitation>),
+    /// Any other law, built by name from a planner's message through the controller's
+    /// [`crate::LawRegistry`] (a [`crate::PlannableLaw`]: no memory).
+    Registered(crate::RegisteredLaw),
 }
 
 impl Controller {
@@ -116,6 +107,24 @@ impl Controller {
             Controller::ComputedTorque(c) => c.config(),
             Controller::Robust(c) => c.law().config(),
             Controller::Excitation(c) => c.law().config(),
+            Controller::Registered(c) => c.config(),
+        }
+    }
+
+    /// The registered law, if this is one (its name and parameters).
+    pub fn registered(&self) -> Option<&crate::RegisteredLaw> {
+        match self {
+            Controller::Registered(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// Whether `other` runs the same law with the same settings (its memory aside: a node
+    /// keeps the law it has when a message repeats it).
+    pub fn same_law(&self, other: &Controller) -> bool {
+        match (self.registered(), other.registered()) {
+            (None, None) => self.config() == other.config(),
+            (a, b) => a == b,
         }
     }
 
@@ -131,7 +140,9 @@ impl Controller {
     /// What the robust option has done so far (`None` without it).
     pub fn robust_status(&self) -> Option<RobustStatus> {
         match self {
-            Controller::ComputedTorque(_) | Controller::Excitation(_) => None,
+            Controller::ComputedTorque(_)
+            | Controller::Excitation(_)
+            | Controller::Registered(_) => None,
             Controller::Robust(c) => Some(c.status()),
         }
     }
@@ -150,6 +161,7 @@ impl TorqueLaw for Controller {
             Controller::ComputedTorque(c) => c.torque(t, mode, x),
             Controller::Robust(c) => c.torque(t, mode, x),
             Controller::Excitation(c) => c.torque(t, mode, x),
+            Controller::Registered(c) => c.torque(t, mode, x),
         }
     }
 
@@ -159,6 +171,7 @@ impl TorqueLaw for Controller {
             Controller::ComputedTorque(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
             Controller::Robust(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
             Controller::Excitation(c) => c.torque(t, mode, x),
+            Controller::Registered(c) => TorqueLaw::torque_t(c, t, mode, x, params, terms),
         }
     }
 }
@@ -648,8 +661,12 @@ mod tests {
             assert_eq!(serde_json::to_value(l).unwrap(), l.name());
             let argv = ["x".to_owned(), format!("--law={}", l.name())];
             assert_eq!(Cli::try_parse_from(argv).unwrap().law.law, Some(l));
-            assert_eq!(LawKind::from_wire_tag(l.wire_tag()), Some(l));
         }
+        // The name the wire's generic form gives the paper's law (protocol 3).
+        assert_eq!(
+            LawKind::ComputedTorque.name(),
+            tilting_proto::LawReference::PAPER_LAW
+        );
     }
 
     #[test]

@@ -19,6 +19,7 @@ pub mod law;
 pub mod node;
 pub mod plannable;
 pub mod predict;
+pub mod registry;
 pub mod robust;
 pub mod trajectory;
 pub mod wire;
@@ -27,6 +28,7 @@ pub use estimate::{Estimation, EstimatorArgs, EstimatorChoice};
 pub use law::{Controller, LawArgs, LawKind, LawSpec};
 pub use plannable::PlannableLaw;
 pub use predict::Predictor;
+pub use registry::{LawRegistry, RegisteredLaw};
 pub use trajectory::Trajectory;
 
 use serde::{Deserialize, Serialize};

@@ -19,7 +19,7 @@
 //! assert!(law.with_parameter("kd", -1.0).unwrap_err().to_string().contains("kd"));
 //! ```
 
-use crate::{ComputedTorque, ControlConfig};
+use crate::{ComputedTorque, ControlConfig, Trajectory};
 use tilting_plant::{ConfigError, Mode, Params, State, TorqueLaw};
 
 /// A control law the planner can plan: its torque for a state and a time ([`TorqueLaw`], a
@@ -44,6 +44,20 @@ pub trait PlannableLaw: TorqueLaw + Clone + Send + Sync {
 
     /// The model the law computes with (inverse dynamics, energy).
     fn model(&self) -> &Params;
+
+    /// The same law tracking `trajectory` (a message's `trajectory`, the controller's
+    /// registry). The default is a law that tracks only upright: it takes the hold and refuses
+    /// the others naming `trajectory`.
+    fn with_trajectory(&self, trajectory: Trajectory) -> Result<Self, ConfigError> {
+        match trajectory {
+            Trajectory::Hold => Ok(self.clone()),
+            other => Err(ConfigError::OutOfRange {
+                field: "trajectory",
+                value: format!("{other} (law {})", self.name()),
+                allowed: "hold: this law tracks upright only",
+            }),
+        }
+    }
 
     /// The adapted stiffness (1/s^2) at `x` in `mode`, for a law that adapts one (the
     /// figures draw it); `None` for a law without.
@@ -99,7 +113,8 @@ pub fn check_count(names: &[&str], values: &[f64]) -> Result<(), ConfigError> {
 /// The paper's law's parameter names, in the order of its [`PlannableLaw::parameters`]:
 /// `K_P0` (1/s^2), `K_D` (1/s), `k` (1/(J s^2)), `E_av` (J) and the torque limit (N m, 0 for
 /// none). The reference trajectory is kept by [`PlannableLaw::with_parameters`].
-pub const COMPUTED_TORQUE_PARAMETERS: [&str; 5] = ["kp", "kd", "k", "energy_avg", "torque_limit"];
+/// They are the floats of the protocol-2 `Reference` (its generic form's parameters).
+pub const COMPUTED_TORQUE_PARAMETERS: [&str; 5] = tilting_proto::LawReference::PAPER_PARAMETERS;
 
 impl PlannableLaw for ComputedTorque {
     fn name(&self) -> &'static str {
@@ -126,6 +141,12 @@ impl PlannableLaw for ComputedTorque {
 
     fn model(&self) -> &Params {
         &self.config().params
+    }
+
+    fn with_trajectory(&self, trajectory: Trajectory) -> Result<Self, ConfigError> {
+        let mut cfg: ControlConfig = *self.config();
+        cfg.law.reference = trajectory;
+        ComputedTorque::new(cfg)
     }
 
     fn stiffness(&self, mode: Mode, x: &State) -> Option<f64> {

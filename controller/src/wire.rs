@@ -3,7 +3,9 @@
 //!
 //! The message carries everything of the law but the model parameters (each node keeps its own
 //! `--params`); a torque limit of 0 on the wire means none. Its `kind` byte names the
-//! trajectory ([`Reference::HOLD`], [`Reference::SINUSOID`]).
+//! trajectory ([`Reference::HOLD`], [`Reference::SINUSOID`], [`Reference::EXCITATION`]); the
+//! message is the paper's law's ([`LawKind::ComputedTorque`]). Any other law travels as a
+//! `tilting_proto::LawReference` and is built by [`crate::registry`].
 
 use crate::law::LawKind;
 use crate::{ControlConfig, LawSpec, Trajectory};
@@ -11,16 +13,22 @@ use tilting_plant::{ConfigError, Params};
 use tilting_proto::Reference;
 
 impl From<&Reference> for Trajectory {
-    /// The trajectory of a message: bits 0-1 of `kind` give the sinusoid
-    /// ([`Reference::SINUSOID`]) or the excitation ([`Reference::EXCITATION`]), else the arm
-    /// holds upright (the other bits name the law, [`LawKind::wire_tag`]).
+    /// The trajectory of a message: `kind` gives the sinusoid ([`Reference::SINUSOID`]) or
+    /// the excitation ([`Reference::EXCITATION`]), else the arm holds upright.
     fn from(r: &Reference) -> Self {
-        let (amplitude, omega) = (r.amplitude, r.omega);
-        match r.kind & 3 {
-            Reference::SINUSOID => Trajectory::Sinusoid { amplitude, omega },
-            Reference::EXCITATION => Trajectory::Excitation { amplitude, omega },
-            _ => Trajectory::Hold,
-        }
+        trajectory_of(r.kind, r.amplitude, r.omega)
+    }
+}
+
+/// The trajectory of a message's trajectory byte (`Reference.kind`,
+/// `LawReference.trajectory`), amplitude (rad) and frequency (rad/s): hold for any byte but
+/// [`Reference::SINUSOID`] and [`Reference::EXCITATION`] (the messages' `validate` refuses
+/// them).
+pub fn trajectory_of(kind: u8, amplitude: f64, omega: f64) -> Trajectory {
+    match kind {
+        Reference::SINUSOID => Trajectory::Sinusoid { amplitude, omega },
+        Reference::EXCITATION => Trajectory::Excitation { amplitude, omega },
+        _ => Trajectory::Hold,
     }
 }
 
@@ -87,11 +95,10 @@ pub fn check_bounds(law: &LawSpec) -> Result<(), ConfigError> {
 }
 
 impl From<&Reference> for LawSpec {
-    /// The law a message carries, as it is (not checked: see [`LawSpec::from_wire`]; an
-    /// unknown law tag reads as the paper's law).
+    /// The law a message carries, as it is (not checked: see [`LawSpec::from_wire`]).
     fn from(r: &Reference) -> Self {
         LawSpec {
-            law: LawKind::from_wire_tag(r.kind >> 2).unwrap_or_default(),
+            law: LawKind::ComputedTorque,
             kp: r.kp,
             kd: r.kd,
             k: r.k,
@@ -110,11 +117,11 @@ impl LawSpec {
     /// The law of a planner's message, checked by [`LawSpec::validate`] and [`check_bounds`]
     /// (the error names the field and its range).
     pub fn from_wire(r: &Reference) -> Result<Self, ConfigError> {
-        if LawKind::from_wire_tag(r.kind >> 2).is_none() {
+        if r.kind > Reference::EXCITATION {
             return Err(ConfigError::OutOfRange {
                 field: "kind",
                 value: r.kind.to_string(),
-                allowed: "4 * law + trajectory, with a law this controller knows",
+                allowed: "0..=2, the trajectory (another law travels as a LawReference)",
             });
         }
         let law = LawSpec::from(r);
@@ -123,14 +130,14 @@ impl LawSpec {
         Ok(law)
     }
 
-    /// The message that carries this law.
+    /// The message that carries this law (the paper's: [`LawKind`] has no other).
     pub fn to_wire(&self) -> Reference {
-        let trajectory = match self.reference {
+        let LawKind::ComputedTorque = self.law;
+        let kind = match self.reference {
             Trajectory::Hold => Reference::HOLD,
             Trajectory::Sinusoid { .. } => Reference::SINUSOID,
             Trajectory::Excitation { .. } => Reference::EXCITATION,
         };
-        let kind = 4 * self.law.wire_tag() + trajectory;
         let (amplitude, omega) = self.reference.sinusoid();
         Reference {
             kind,

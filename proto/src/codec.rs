@@ -11,6 +11,7 @@
 //! passes the message's `validate()`. Receivers should drop anything else (see
 //! `docs/protocol.md`).
 
+use crate::law::{AnyReference, LawReference};
 use crate::msg::{ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError};
 use bincode::config::{Configuration, Fixint, Limit, LittleEndian};
 use serde::de::DeserializeOwned;
@@ -33,12 +34,13 @@ mod sealed {
 
 /// A message of this crate that has a wire format.
 ///
-/// Sealed: implemented for [`PlantState`], [`TorqueCommand`], [`ModeEvent`], [`Status`] and
-/// [`Reference`] only.
+/// Sealed: implemented for [`PlantState`], [`TorqueCommand`], [`ModeEvent`], [`Status`],
+/// [`Reference`], [`LawReference`] and [`AnyReference`] (either of the last two layouts) only.
 pub trait Message: Serialize + DeserializeOwned + sealed::Sealed {
     /// Type name used in error messages, e.g. `"PlantState"`.
     const NAME: &'static str;
-    /// Exact wire size in bytes for fixed-size messages, `None` for [`Status`].
+    /// Exact wire size in bytes for fixed-size messages, `None` for [`Status`] and
+    /// [`AnyReference`].
     const WIRE_SIZE: Option<usize>;
     /// Largest wire size of a valid message, bytes (a receive buffer of this size suffices).
     const MAX_WIRE_SIZE: usize;
@@ -97,6 +99,15 @@ message!(
     Some(Reference::SIZE),
     Reference::SIZE
 );
+message!(
+    LawReference,
+    "LawReference",
+    Some(LawReference::SIZE),
+    LawReference::SIZE
+);
+// Either layout, told apart by byte 0: a payload of another size is refused as trailing bytes
+// or as ending early.
+message!(AnyReference, "Reference", None, LawReference::SIZE);
 
 /// Why a payload was rejected. Every variant names the message type.
 #[derive(Debug, Clone, PartialEq, Error)]

@@ -32,6 +32,7 @@
 pub mod bounded;
 pub mod codec;
 pub mod keys;
+pub mod law;
 pub mod mode;
 pub mod msg;
 pub mod plausible;
@@ -40,12 +41,15 @@ pub mod topic;
 
 /// The protocol version this crate speaks. Protocol 2 added the `measured` byte to
 /// [`PlantState`] (50 bytes; the rates may be absent); protocol 1's 49-byte states are refused
-/// with [`DecodeError::OldVersion`]. No message carries the version: the layouts' sizes tell
-/// the versions apart (`docs/protocol.md`, *Versions*).
-pub const PROTOCOL_VERSION: u32 = 2;
+/// with [`DecodeError::OldVersion`]. Protocol 3 added [`LawReference`] (107 bytes, byte 0 the
+/// marker 3): any law by name with its parameters, beside the paper law's 57-byte
+/// [`Reference`], which is unchanged; a protocol-2 peer refuses it by its size. The layouts'
+/// sizes tell the versions apart (`docs/protocol.md`, *Versions*).
+pub const PROTOCOL_VERSION: u32 = 3;
 
 pub use codec::{decode, encode, encode_into, DecodeError, Message};
 pub use keys::{KeyError, Keys};
+pub use law::{AnyReference, LawReference};
 pub use mode::{Mode, ModeError};
 pub use msg::{ModeEvent, PlantState, Reference, Status, TorqueCommand, ValidationError};
 pub use plausible::Implausible;

@@ -43,6 +43,18 @@ pub enum ValidationError {
         /// Human-readable allowed range, e.g. `"0..=2 (0 flat, 1 left, 2 right)"`.
         allowed: &'static str,
     },
+    /// A name field (a law's name) is empty or has a character outside its alphabet.
+    #[error("{message}.{field} = {value:?} is not a valid name; allowed: {allowed}")]
+    BadName {
+        /// Message type name.
+        message: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// The rejected name (bytes that are not UTF-8 replaced).
+        value: String,
+        /// Human-readable alphabet and length.
+        allowed: &'static str,
+    },
     /// A string field is longer than its cap.
     #[error("{message}.{field} is {len} bytes long; allowed: at most {max} bytes of UTF-8")]
     TooLong {
@@ -57,7 +69,11 @@ pub enum ValidationError {
     },
 }
 
-fn finite(message: &'static str, field: &'static str, value: f64) -> Result<(), ValidationError> {
+pub(crate) fn finite(
+    message: &'static str,
+    field: &'static str,
+    value: f64,
+) -> Result<(), ValidationError> {
     if value.is_finite() {
         Ok(())
     } else {
@@ -69,7 +85,7 @@ fn finite(message: &'static str, field: &'static str, value: f64) -> Result<(), 
     }
 }
 
-fn at_most(
+pub(crate) fn at_most(
     message: &'static str,
     field: &'static str,
     value: u8,
@@ -89,7 +105,7 @@ fn at_most(
 }
 
 /// Checks `ok(value)` for an already finite float.
-fn range(
+pub(crate) fn range(
     message: &'static str,
     field: &'static str,
     value: f64,

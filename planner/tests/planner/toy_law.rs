@@ -3,8 +3,18 @@
 //! is planned by the planner's entry points ([`orbit::find_all_with`], [`orbit::solve_with`],
 //! [`tilting_planner::continuation::follow_with`],
 //! [`lyapunov::largest_with`], [`bifurcation::run_with`]) through
-//! [`tilting_controller::PlannableLaw`]. Non-test files touched to add it: none (the wire
-//! still carries the paper's law's parameter list only, so it does not cross the wire).
+//! [`tilting_controller::PlannableLaw`], and crosses the wire: the planner's side encodes it as
+//! a `tilting_proto::LawReference` (its name and parameters), the controller's side decodes
+//! what the reference key carries and builds it by name through
+//! [`tilting_controller::LawRegistry`], to the bit
+//! ([`the_toy_crosses_the_wire_and_the_controller_builds_it_to_the_bit`]).
+//!
+//! Non-test files a new law touches (issue 30: at most 3): none to run, plan and encode it;
+//! to be built by the controller node from a planner's message, 2: its module,
+//! `controller/src/registry/plain_pd.rs` (the `PlainPd` below, moved there), and
+//! `controller/src/registry.rs`, its `mod plain_pd;` and its `.register(PlainPd { .. })` line
+//! in `LawRegistry::builtin` (the `register` call of the wire test here). The protocol, the
+//! codec, the node and the planner are untouched.
 //!
 //! The toy is plain PD about upright, no feed-forward and no model:
 //! `tau = K_p (pi/2 - beta) - K_d beta_dot` (N m). Upright is an equilibrium of the flat plate
@@ -14,11 +24,12 @@
 //! equation with `cos(pi/2 + e) = -e`): the closed form the tests check the loops against.
 
 use std::f64::consts::FRAC_PI_2;
-use tilting_controller::PlannableLaw;
+use tilting_controller::{LawRegistry, LawSpec, PlannableLaw, Trajectory};
 use tilting_planner::bifurcation::{self, Sweep};
 use tilting_planner::lyapunov;
 use tilting_planner::orbit::{self, OrbitProblem};
 use tilting_plant::{ConfigError, ImpactLaw, Mode, Params, State, TorqueLaw};
+use tilting_proto::{codec, AnyReference, DecodeError, LawReference, Reference};
 use tilting_sim::{simulate_with, Scenario, SimOptions};
 
 /// Plain PD about upright: `tau = kp (pi/2 - beta) - kd beta_dot` (N m), `kp` in N m/rad and
@@ -242,4 +253,138 @@ fn continued_in_a_named_parameter_any_law_follows_the_problems_own_orbits() {
     assert!(stop.unwrap().contains("kp"));
     let (_, stop) = follow_with(&pb, &law, "k", &[1.0], guess);
     assert!(stop.unwrap().contains("parameters"));
+}
+
+/// The toy's message, as a planner would publish it: its name and its parameters in the order
+/// of its list, holding upright.
+fn toy_message(law: &PlainPd) -> LawReference {
+    LawReference {
+        trajectory: Reference::HOLD,
+        amplitude: 0.0,
+        omega: 0.0,
+        law: law.name().to_owned(),
+        parameters: law.parameters().into_iter().map(|(_, v)| v).collect(),
+    }
+}
+
+#[test]
+fn the_toy_crosses_the_wire_and_the_controller_builds_it_to_the_bit() {
+    let law = toy();
+    let msg = toy_message(&law);
+    msg.validate().unwrap();
+    let bytes = codec::encode(&msg);
+    assert_eq!(bytes.len(), LawReference::SIZE);
+    // A protocol-2 peer (the unchanged `Reference` decoding) refuses it by its size.
+    assert_eq!(
+        codec::decode::<Reference>(&bytes),
+        Err(DecodeError::WrongSize {
+            message: "Reference",
+            expected: 57,
+            got: 107
+        })
+    );
+    // The controller node's path: decode the key's payload as either layout, then build the
+    // law by name from its generic form. The toy's registry line:
+    let registry = LawRegistry::builtin().register(toy());
+    let received = codec::decode::<AnyReference>(&bytes).unwrap().law();
+    assert_eq!(received, msg);
+    let built = registry
+        .build(&law.model, &LawSpec::default(), &received)
+        .unwrap();
+    let registered = built.registered().expect("a registered law");
+    assert_eq!(registered.name(), "plain-pd");
+    assert_eq!(registered.parameters(), &law.parameters()[..]);
+    // Its torque is the direct law's, bit for bit, across modes, times and states.
+    let mut n = 0;
+    for mode in [Mode::Flat, Mode::Left, Mode::Right] {
+        for (i, t) in [0.0, 0.37, 12.5].into_iter().enumerate() {
+            for b in [-0.4, 0.0, 1.1, FRAC_PI_2, 2.9] {
+                let x = State::new(0.01 * i as f64, b, -0.3 + b, 1.7 - b);
+                let (got, want) = (built.torque(t, mode, &x), law.torque(t, mode, &x));
+                assert_eq!(got.to_bits(), want.to_bits(), "{mode:?} t = {t} x = {x:?}");
+                n += 1;
+            }
+        }
+    }
+    assert_eq!(n, 45);
+    // And in `simulate`'s sampled loop (the node's rate): the same run to the last bit.
+    let x0 = OrbitProblem::start(0.0, 0.5);
+    let sc = scenario(Mode::Left, x0, 2.0, 0.001);
+    let direct = simulate_with(&sc, recorded(), &law).unwrap();
+    let over_wire = simulate_with(&sc, recorded(), &built).unwrap();
+    assert!(!direct.events.is_empty(), "the run lands at least once");
+    assert_eq!(direct.samples.len(), over_wire.samples.len());
+    for (a, b) in direct.samples.iter().zip(&over_wire.samples) {
+        assert_eq!((a.t.to_bits(), a.mode), (b.t.to_bits(), b.mode));
+        for k in 0..4 {
+            assert_eq!(a.x[k].to_bits(), b.x[k].to_bits(), "t = {}", a.t);
+        }
+    }
+}
+
+#[test]
+fn the_controller_refuses_a_toy_it_cannot_build_naming_the_field() {
+    let law = toy();
+    let msg = toy_message(&law);
+    let build = |registry: &LawRegistry, m: &LawReference| {
+        registry
+            .build(&law.model, &LawSpec::default(), m)
+            .unwrap_err()
+            .to_string()
+    };
+    // A controller without the toy's registry line names the law and the laws it has.
+    let e = build(&LawRegistry::builtin(), &msg);
+    assert!(
+        e.contains("`law` = plain-pd") && e.contains("computed-torque"),
+        "{e}"
+    );
+    let registry = LawRegistry::builtin().register(toy());
+    assert_eq!(registry.names(), ["computed-torque", "plain-pd"]);
+    // A bad value, named by the law; a list of another length; a trajectory it does not track.
+    let bad = LawReference {
+        parameters: vec![law.kp, -1.0],
+        ..msg.clone()
+    };
+    assert!(build(&registry, &bad).contains("`kd` = -1"));
+    let short = LawReference {
+        parameters: vec![law.kp],
+        ..msg.clone()
+    };
+    assert!(build(&registry, &short).contains("`parameters`"));
+    let sine = LawReference {
+        trajectory: Reference::SINUSOID,
+        amplitude: 0.3,
+        omega: 2.0,
+        ..msg.clone()
+    };
+    assert!(build(&registry, &sine).contains("`trajectory` = sinusoid:0.3,2"));
+    // The paper's law through the same registry is the controller's law of before: the
+    // protocol-2 message's own conversion, from the 57-byte layout or the generic one.
+    let paper = Reference {
+        kind: Reference::SINUSOID,
+        amplitude: 0.33,
+        omega: 1.8,
+        kp: 100.0,
+        kd: 14.14,
+        k: 500.0,
+        energy_avg: 19.9,
+        torque_limit: 40.0,
+    };
+    let want = tilting_controller::ControlConfig::from_wire(law.model, &paper).unwrap();
+    for bytes in [
+        codec::encode(&paper),
+        codec::encode(&LawReference::from(&paper)),
+    ] {
+        let r = codec::decode::<AnyReference>(&bytes).unwrap().law();
+        let c = registry.build(&law.model, &LawSpec::default(), &r).unwrap();
+        assert!(c.registered().is_none());
+        assert_eq!(*c.config(), want);
+        assert_eq!(
+            c.config().law.reference,
+            Trajectory::Sinusoid {
+                amplitude: 0.33,
+                omega: 1.8
+            }
+        );
+    }
 }

@@ -4,4 +4,5 @@
 //! per thread, so the other module's tests on other threads do not disturb its measurements.
 
 mod alloc;
+mod law;
 mod wire;
