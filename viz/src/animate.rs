@@ -571,7 +571,22 @@ impl<'a> Scene<'a> {
             ))?;
         }
 
-        // Readouts.
+        self.draw_readouts(root, t, mode, alpha, beta)?;
+        self.draw_timeline(root, t)?;
+        Ok(flash.is_some())
+    }
+
+    /// The frame's readouts at plant time `t`: the time, the mode, the angles `alpha` and
+    /// `beta` (rad), an early stop, the tilt's exaggeration and the playback speed.
+    fn draw_readouts(
+        &self,
+        root: &DrawingArea<BitMapBackend, Shift>,
+        t: f64,
+        mode: Mode,
+        alpha: f64,
+        beta: f64,
+    ) -> Result<()> {
+        let w = self.size.0 as i32;
         let font = ("sans-serif", 20).into_font();
         let small = ("sans-serif", 16).into_font();
         // Enough decimals to tell consecutive frames apart.
@@ -617,7 +632,13 @@ impl<'a> Scene<'a> {
             ))?;
         }
 
-        // The timeline: the window, the landings as ticks, the current time as a bar.
+        Ok(())
+    }
+
+    /// The timeline under the frame: the window, the landings as ticks, plant time `t` (s) as
+    /// a bar.
+    fn draw_timeline(&self, root: &DrawingArea<BitMapBackend, Shift>, t: f64) -> Result<()> {
+        let (w, h) = (self.size.0 as i32, self.size.1 as i32);
         let (x0, x1) = (10, w - 10);
         let y = h - BOTTOM / 2;
         let span = (self.tl.t1 - self.tl.t0).max(1e-9);
@@ -642,7 +663,7 @@ impl<'a> Scene<'a> {
             [(tx(t) - 2, y - 9), (tx(t) + 2, y + 9)],
             BLACK.filled(),
         ))?;
-        Ok(flash.is_some())
+        Ok(())
     }
 }
 

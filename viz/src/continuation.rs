@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use std::path::Path;
 use tilting_planner::bifurcation::{self, Row, Sweep};
 use tilting_planner::continuation::twopar::Region;
-use tilting_planner::continuation::{Diagram, EventKind};
+use tilting_planner::continuation::{Branch, Diagram, EventKind};
 use tilting_planner::lyapunov::sampled::SampledExponent;
 use tilting_planner::lyapunov::Exponent;
 
@@ -136,78 +136,20 @@ pub fn draw_cascade(
         .x_label_area_size(50)
         .y_label_area_size(90)
         .build_cartesian_2d(k0..k1, lo..hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("adaptation gain k [1/(J s²)]")
-        .y_desc("tilt peak |α|max [rad]")
-        .axis_desc_style((FONT, 20))
-        .label_style((FONT, 16))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
-        .draw()?;
+    crate::plot::mesh(
+        &mut chart,
+        "adaptation gain k [1/(J s²)]",
+        "tilt peak |α|max [rad]",
+        (20, 16),
+    )
+    .draw()?;
     chart.draw_series(rows.iter().filter(|r| inside(r.k)).flat_map(|r| {
         r.peaks
             .iter()
             .map(move |&p| Circle::new((r.k, p), 1, BLACK.mix(0.35).filled()))
     }))?;
     for br in &d.branches {
-        let c = colour(br.tilts);
-        // One curve per tilt of the cycle, split where the stability changes.
-        for i in 0..br.tilts {
-            let mut run: Vec<(f64, f64)> = Vec::new();
-            let mut stable = None;
-            let flush = |run: &mut Vec<(f64, f64)>,
-                         stable: Option<bool>,
-                         chart: &mut ChartContext<_, _>|
-             -> Result<()> {
-                if run.len() >= 2 {
-                    if stable == Some(true) {
-                        chart.draw_series(LineSeries::new(run.clone(), c.stroke_width(3)))?;
-                    } else {
-                        chart.draw_series(DashedLineSeries::new(
-                            run.clone(),
-                            6,
-                            5,
-                            c.stroke_width(2),
-                        ))?;
-                    }
-                }
-                run.clear();
-                Ok(())
-            };
-            for p in br.points.iter().filter(|p| inside(p.p)) {
-                if stable.is_some_and(|s| s != p.stable) {
-                    let last = run.last().copied();
-                    flush(&mut run, stable, &mut chart)?;
-                    run.extend(last);
-                }
-                stable = Some(p.stable);
-                run.push((p.p, p.peaks.get(i).copied().unwrap_or(f64::NAN)));
-            }
-            flush(&mut run, stable, &mut chart)?;
-        }
-        let label = format!("period {}", br.tilts);
-        chart
-            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
-        for ev in br
-            .events
-            .iter()
-            .filter(|e| e.kind == EventKind::Flip && inside(e.p))
-        {
-            chart.draw_series(ev.point.peaks.iter().map(|&a| {
-                Polygon::new(
-                    vec![
-                        (ev.p - 3.0, a),
-                        (ev.p, a * 1.004),
-                        (ev.p + 3.0, a),
-                        (ev.p, a * 0.996),
-                    ],
-                    BLACK.filled(),
-                )
-            }))?;
-        }
+        draw_branch(&mut chart, br, (k0, k1))?;
     }
     chart
         .configure_series_labels()
@@ -218,6 +160,78 @@ pub fn draw_cascade(
         .draw()?;
     draw_lyapunov(&bottom, (k0, k1), d, lyap, sampled)?;
     root.present()?;
+    Ok(())
+}
+
+/// One branch of Fig. 8b over `k` in `[k0, k1]`: a curve per tilt of its cycle (solid where
+/// the orbit is stable, dashed where not), its legend entry and its flips (black diamonds).
+fn draw_branch<'a>(
+    chart: &mut ChartContext<
+        'a,
+        BitMapBackend<'a>,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    br: &Branch,
+    (k0, k1): (f64, f64),
+) -> Result<()> {
+    let inside = |k: f64| k >= k0 && k <= k1;
+    let c = colour(br.tilts);
+    // One curve per tilt of the cycle, split where the stability changes.
+    for i in 0..br.tilts {
+        let mut run: Vec<(f64, f64)> = Vec::new();
+        let mut stable = None;
+        let flush = |run: &mut Vec<(f64, f64)>,
+                     stable: Option<bool>,
+                     chart: &mut ChartContext<_, _>|
+         -> Result<()> {
+            if run.len() >= 2 {
+                if stable == Some(true) {
+                    chart.draw_series(LineSeries::new(run.clone(), c.stroke_width(3)))?;
+                } else {
+                    chart.draw_series(DashedLineSeries::new(
+                        run.clone(),
+                        6,
+                        5,
+                        c.stroke_width(2),
+                    ))?;
+                }
+            }
+            run.clear();
+            Ok(())
+        };
+        for p in br.points.iter().filter(|p| inside(p.p)) {
+            if stable.is_some_and(|s| s != p.stable) {
+                let last = run.last().copied();
+                flush(&mut run, stable, chart)?;
+                run.extend(last);
+            }
+            stable = Some(p.stable);
+            run.push((p.p, p.peaks.get(i).copied().unwrap_or(f64::NAN)));
+        }
+        flush(&mut run, stable, chart)?;
+    }
+    let label = format!("period {}", br.tilts);
+    chart
+        .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+    for ev in br
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::Flip && inside(e.p))
+    {
+        chart.draw_series(ev.point.peaks.iter().map(|&a| {
+            Polygon::new(
+                vec![
+                    (ev.p - 3.0, a),
+                    (ev.p, a * 1.004),
+                    (ev.p + 3.0, a),
+                    (ev.p, a * 0.996),
+                ],
+                BLACK.filled(),
+            )
+        }))?;
+    }
     Ok(())
 }
 
@@ -259,15 +273,13 @@ fn draw_lyapunov(
         .x_label_area_size(55)
         .y_label_area_size(90)
         .build_cartesian_2d(k0..k1, lo..hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("adaptation gain k [1/(J s²)]")
-        .y_desc("λ [1/s]")
-        .axis_desc_style((FONT, 20))
-        .label_style((FONT, 16))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
-        .draw()?;
+    crate::plot::mesh(
+        &mut chart,
+        "adaptation gain k [1/(J s²)]",
+        "λ [1/s]",
+        (20, 16),
+    )
+    .draw()?;
     chart.draw_series(LineSeries::new(
         vec![(k0, 0.0), (k1, 0.0)],
         BLACK.stroke_width(1),
@@ -360,15 +372,7 @@ pub fn draw_stability(path: &Path, r: &Region) -> Result<()> {
         "m_l_plant" => "the robot's arm mass m_l [kg] (the model keeps 1 kg)".to_string(),
         other => other.to_string(),
     };
-    chart
-        .configure_mesh()
-        .x_desc(xdesc)
-        .y_desc("adaptation gain k [1/(J s²)]")
-        .axis_desc_style((FONT, 20))
-        .label_style((FONT, 16))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
-        .draw()?;
+    crate::plot::mesh(&mut chart, &xdesc, "adaptation gain k [1/(J s²)]", (20, 16)).draw()?;
     // Shade between the curves where both are defined (linear interpolation in p2).
     if let (Some(fl), Some(fo)) = (&r.flip, &r.fold) {
         let interp = |c: &[[f64; 2]], x: f64| -> Option<f64> {

@@ -16,6 +16,32 @@ pub use tilting_sim::closed_loop::Trace;
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
+/// A chart's grid and axes in the figures' style: the axis descriptions `x_desc` and `y_desc`,
+/// `sizes` the descriptions' and the tick labels' font sizes (px), no minor grid lines, faint
+/// major ones. Returned for the caller's tick formatters and `draw()`.
+pub(crate) fn mesh<'a, 'b, DB, X, Y>(
+    chart: &'b mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    x_desc: &str,
+    y_desc: &str,
+    (desc, label): (u32, u32),
+) -> plotters::chart::MeshStyle<'a, 'b, X, Y, DB>
+where
+    DB: DrawingBackend,
+    X: plotters::coord::ranged1d::Ranged<ValueType = f64>
+        + plotters::coord::ranged1d::ValueFormatter<f64>,
+    Y: plotters::coord::ranged1d::Ranged<ValueType = f64>
+        + plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    let mut m = chart.configure_mesh();
+    m.x_desc(x_desc)
+        .y_desc(y_desc)
+        .axis_desc_style(("sans-serif", desc))
+        .label_style(("sans-serif", label))
+        .light_line_style(WHITE.mix(0.0))
+        .bold_line_style(BLACK.mix(0.08));
+    m
+}
+
 /// Registers the embedded DejaVu Sans as the `sans-serif` family (once per process).
 pub fn register_fonts() -> Result<()> {
     static DONE: OnceLock<bool> = OnceLock::new();
@@ -104,14 +130,7 @@ where
         .x_label_area_size(55)
         .y_label_area_size(95)
         .build_cartesian_2d(t, y)?;
-    chart
-        .configure_mesh()
-        .x_desc("time t [s]")
-        .y_desc(ylabel)
-        .axis_desc_style(("sans-serif", 22))
-        .label_style(("sans-serif", 18))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
+    crate::plot::mesh(&mut chart, "time t [s]", ylabel, (22, 18))
         .y_label_formatter(&|v| format!("{v:.3}"))
         .draw()?;
     Ok(chart)

@@ -225,14 +225,7 @@ fn draw_fig5_panel(area: &Area, q: &Panel) -> Result<()> {
         .x_label_area_size(55)
         .y_label_area_size(95)
         .build_cartesian_2d(0.0..t_end, lo..hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("time t [s]")
-        .y_desc("tilt angle α [rad]")
-        .axis_desc_style((FONT, 20))
-        .label_style((FONT, 16))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
+    crate::plot::mesh(&mut chart, "time t [s]", "tilt angle α [rad]", (20, 16))
         .y_label_formatter(&tick3)
         .draw()?;
     chart

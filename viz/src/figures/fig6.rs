@@ -72,16 +72,14 @@ fn draw_fig6(
         .x_label_area_size(60)
         .y_label_area_size(90)
         .build_cartesian_2d((kd_lo - 0.3)..(kd_hi + 1.6), 0.0..y_hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("damping gain K_D [1/s]")
-        .y_desc("maximal tilt angle α_max [rad]")
-        .axis_desc_style((FONT, 22))
-        .label_style((FONT, 17))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
-        .y_label_formatter(&|v| format!("{v:.2}"))
-        .draw()?;
+    crate::plot::mesh(
+        &mut chart,
+        "damping gain K_D [1/s]",
+        "maximal tilt angle α_max [rad]",
+        (22, 17),
+    )
+    .y_label_formatter(&|v| format!("{v:.2}"))
+    .draw()?;
     for (i, &kp) in kps.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         let row: Vec<&gains::Cell> = cells.iter().filter(|c| c.kp == kp).collect();

@@ -179,16 +179,14 @@ fn draw_fig7(
         .x_label_area_size(55)
         .y_label_area_size(90)
         .build_cartesian_2d(scale * a_lo..scale * a_hi, scale * v_lo..scale * v_hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("tilt angle α [rad]")
-        .y_desc("tilt rate dα/dt [rad/s]")
-        .axis_desc_style((FONT, 20))
-        .label_style((FONT, 16))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
-        .x_label_formatter(&tick3)
-        .draw()?;
+    crate::plot::mesh(
+        &mut chart,
+        "tilt angle α [rad]",
+        "tilt rate dα/dt [rad/s]",
+        (20, 16),
+    )
+    .x_label_formatter(&tick3)
+    .draw()?;
     // Draw the k = 0 runs first and the controlled orbit on top.
     for i in [0, 2, 1] {
         let r = &runs[i];
@@ -262,13 +260,7 @@ fn draw_fig7(
             .x_label_area_size(50)
             .y_label_area_size(80)
             .build_cartesian_2d(0.0..duration, lo..hi)?;
-        c.configure_mesh()
-            .x_desc("time t [s]")
-            .y_desc("α [rad]")
-            .axis_desc_style((FONT, 19))
-            .label_style((FONT, 15))
-            .light_line_style(WHITE.mix(0.0))
-            .bold_line_style(BLACK.mix(0.08))
+        crate::plot::mesh(&mut c, "time t [s]", "α [rad]", (19, 15))
             .y_label_formatter(&tick3)
             .draw()?;
         c.draw_series(LineSeries::new(

@@ -134,16 +134,14 @@ fn draw_fig8(
         .x_label_area_size(55)
         .y_label_area_size(90)
         .build_cartesian_2d((k0 - pad)..(k1 + pad), lo..hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("adaptation gain k [1/(J s²)]")
-        .y_desc("tilt peak |α|max [rad]")
-        .axis_desc_style((FONT, 20))
-        .label_style((FONT, 16))
-        .light_line_style(WHITE.mix(0.0))
-        .bold_line_style(BLACK.mix(0.08))
-        .y_label_formatter(&tick3)
-        .draw()?;
+    crate::plot::mesh(
+        &mut chart,
+        "adaptation gain k [1/(J s²)]",
+        "tilt peak |α|max [rad]",
+        (20, 16),
+    )
+    .y_label_formatter(&tick3)
+    .draw()?;
     chart
         .draw_series(rows.iter().flat_map(|r| {
             r.peaks
@@ -238,13 +236,7 @@ fn draw_series_panels(
             .x_label_area_size(50)
             .y_label_area_size(85)
             .build_cartesian_2d(x0..x1, plo..phi)?;
-        c.configure_mesh()
-            .x_desc("tilt number n")
-            .y_desc("|α|max [rad]")
-            .axis_desc_style((FONT, 19))
-            .label_style((FONT, 15))
-            .light_line_style(WHITE.mix(0.0))
-            .bold_line_style(BLACK.mix(0.08))
+        crate::plot::mesh(&mut c, "tilt number n", "|α|max [rad]", (19, 15))
             .x_label_formatter(&|v| format!("{v:.0}"))
             .y_label_formatter(&tick3)
             .draw()?;
