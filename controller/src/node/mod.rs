@@ -18,6 +18,10 @@
 //! from another session are refused while it keeps talking (`tilting_proto::source`), counted
 //! as `states_foreign`.
 //!
+//! With `--robots A,B,...` (host mode, 1 to 32 names) one process answers several robots over
+//! one zenoh session, each with its own keys, law, estimator, predictor, pins and counters, and
+//! prints one summary line per robot (`{"robot": NAME, "summary": ...}`).
+//!
 //! At Ctrl-C or SIGTERM the node prints a JSON summary of its counters on stdout; if stdout
 //! fails (a full disk, a closed pipe), it goes to
 //! `$TMPDIR/tilting-controller-{pid}-summary.json` instead, said on stderr.

@@ -57,6 +57,16 @@
 //! (`torques_foreign`) and logged at a bounded rate while it keeps answering; after
 //! `--watchdog` periods of silence the pin lapses (a restarted controller is a new session).
 //!
+//! # Host mode
+//!
+//! With `--robots A,B,...` (1 to 32 names, [`host`]) one process serves several robots over
+//! one zenoh session: each robot has its own keys `tilting/{name}/...`, loop, faults, pins and
+//! summary (one JSON line each, `{"robot": NAME, "summary": ...}`), and `--record FILE` writes
+//! `FILE-{name}` per robot; the other flags apply to every robot. In real time the robots are
+//! paced by a thread each (`--host-pacing each`, their grids shifted by `i/N` of a period) or by
+//! one thread (`--host-pacing one`); `--spin-us` defaults to 0 there. A `tilting-controller
+//! --robots` with the same names answers them all.
+//!
 //! # End of a run
 //!
 //! After `--duration` plant seconds (status `stopped`, exit code 0), at Ctrl-C/SIGTERM
