@@ -10,6 +10,7 @@
 //! the wall clock or in lockstep takes `realtime_turn()` first, so no two of them run at once
 //! (before the merge, such tests of different files never overlapped either).
 
+mod calibrate;
 mod emulated_link;
 mod faults;
 mod host_mode;
