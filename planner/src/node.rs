@@ -66,8 +66,9 @@ pub struct PlannerLawArgs {
 }
 
 impl PlannerLawArgs {
-    /// The law the flags describe, checked like the controller checks a reference and with
-    /// [`LawSpec::validate`] (the robust option, the orbit's start and steepness). With
+    /// The law the flags describe, checked as the controller checks a reference (the message,
+    /// [`LawSpec::validate`], the bounds) and, by the same [`LawSpec::validate`], in what the
+    /// wire does not carry (the robust option, the orbit's start and steepness). With
     /// `--from-orbit` this runs the orbit search (a few seconds) and reports it on stderr.
     pub fn resolve(&self) -> Result<LawSpec, NodeError> {
         let base = match &self.plan {
@@ -78,11 +79,14 @@ impl PlannerLawArgs {
         if self.from_orbit {
             law.energy_avg = orbit_energy_avg(law.kp, law.kd)?;
         }
-        check_reference(&law.to_wire()).map_err(NodeError::Invalid)?;
-        // The wire carries neither the robust option nor the orbit's start and steepness:
-        // checked here too, so that `live` refuses them before any node starts.
-        law.validate()
-            .map_err(|e| NodeError::Invalid(anyhow!("invalid law: {e}")))?;
+        // Each check once: the message's (finite values, signs), the law's own
+        // ([`LawSpec::validate`]: the wire's fields and what the wire does not carry, the robust
+        // option and the orbit's start and steepness, so that `live` refuses them before any
+        // node starts), and the controller's bounds.
+        let invalid = |e: &dyn std::fmt::Display| NodeError::Invalid(anyhow!("{e}"));
+        law.to_wire().validate().map_err(|e| invalid(&e))?;
+        law.validate().map_err(|e| invalid(&e))?;
+        tilting_controller::wire::check_bounds(&law).map_err(|e| invalid(&e))?;
         Ok(law)
     }
 }
