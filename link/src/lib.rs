@@ -35,6 +35,9 @@ use std::str::FromStr;
 /// control loop).
 pub const MAX_SECONDS: f64 = 60.0;
 
+/// Largest `--max-age` (periods) the plant allows: the oldest torque it may apply.
+pub const MAX_AGE: u64 = 1000;
+
 /// A jitter distribution, added to the constant delay.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "dist", rename_all = "lowercase")]
@@ -73,6 +76,18 @@ fn err(flag: &str, value: impl ToString, allowed: &str) -> LinkError {
         flag: flag.to_owned(),
         value: value.to_string(),
         allowed: allowed.to_owned(),
+    }
+}
+
+impl Jitter {
+    /// The mean (s) of the delay this jitter adds: uniform `max / 2`, the normal truncated at 0
+    /// `sigma sqrt(2 / pi)`, the exponential's `mean`.
+    pub fn mean(&self) -> f64 {
+        match *self {
+            Jitter::Uniform { max } => 0.5 * max,
+            Jitter::Normal { sigma } => sigma * (2.0 / std::f64::consts::PI).sqrt(),
+            Jitter::Exp { mean } => mean,
+        }
     }
 }
 
@@ -503,6 +518,60 @@ impl Impairment {
         self.state.is_perfect() && self.torque.is_perfect()
     }
 
+    /// Whether the torques come back in time for a loop sampled every `period` (s): the round
+    /// trip of the constant delays (the states' plus the torques', s) must be at most
+    /// [`Impairment::max_age`] periods, else every torque is older than the plant applies and
+    /// the loop has no control: refused, naming the delay flag, `--max-age` and the delays that
+    /// fit. `Ok(Some(warning))` when only the jitter's mean ([`Jitter::mean`]) makes the round
+    /// trip longer than that (the plant then drops most torques as too old), naming both.
+    pub fn check_round_trip(&self, period: f64) -> Result<Option<String>, LinkError> {
+        let (s, t) = (self.state.delay, self.torque.delay);
+        let reach = self.max_age as f64 * period;
+        let need = |rt: f64| (rt / period - 1e-9).ceil().max(0.0) as u64;
+        // The --max-age that would do, when the plant allows it.
+        let longer = |n: u64| {
+            if n <= MAX_AGE {
+                format!(", or --max-age {n} or more")
+            } else {
+                String::new()
+            }
+        };
+        let (flag, value) = if s == t {
+            ("--delay".to_owned(), format!("{s} s each way"))
+        } else {
+            (
+                "--state-delay + --torque-delay".to_owned(),
+                format!("{s} + {t} s"),
+            )
+        };
+        if need(s + t) > self.max_age {
+            return Err(LinkError {
+                flag,
+                value,
+                allowed: format!(
+                    "a round trip of at most --max-age {} periods ({reach} s at {period} s a \
+                     period): with {} s no torque arrives young enough to be applied; give a \
+                     delay in [0, {}] s each way{}",
+                    self.max_age,
+                    s + t,
+                    0.5 * reach,
+                    longer(need(s + t))
+                ),
+            });
+        }
+        let jitter = |l: &LinkSpec| l.jitter.map_or(0.0, |j| j.mean());
+        let mean = s + t + jitter(&self.state) + jitter(&self.torque);
+        Ok((need(mean) > self.max_age).then(|| {
+            format!(
+                "the link's mean round trip ({mean} s: {flag} {value} plus the jitter's mean) is \
+                 longer than --max-age {} periods ({reach} s): the plant will drop most torques as \
+                 too old; give less delay or jitter{}",
+                self.max_age,
+                longer(need(mean))
+            )
+        }))
+    }
+
     /// The hold of a loop sampled every `period` (s) over these links.
     pub fn hold(&self, period: f64) -> ImpairedHold {
         ImpairedHold::new(self.state, self.torque, self.seed, period, self.max_age)
@@ -637,6 +706,72 @@ mod tests {
     /// Sample means against the distributions' closed forms: uniform max/2, half-normal
     /// sigma sqrt(2/pi), exponential mean. With 200,000 samples the standard error of the mean
     /// is below 0.3 % of it; the tolerance is 1.5 %.
+    /// Jitter::mean against the sample mean of the link's own draws (200,000 each: the standard
+    /// error is below 0.3 % of the mean; tolerance 1.5 %).
+    #[test]
+    fn the_jitters_mean_is_the_sample_means() {
+        for j in [
+            Jitter::Uniform { max: 0.004 },
+            Jitter::Normal { sigma: 0.002 },
+            Jitter::Exp { mean: 0.003 },
+        ] {
+            let spec = LinkSpec {
+                jitter: Some(j),
+                ..LinkSpec::default()
+            };
+            let (sampled, _, _) = stats(spec, 200_000);
+            assert!(
+                (sampled / j.mean() - 1.0).abs() < 0.015,
+                "{j:?}: {sampled} vs {}",
+                j.mean()
+            );
+        }
+    }
+
+    /// A round trip of constant delays longer than --max-age periods is refused naming the
+    /// flags and the delays that fit; one exactly at it passes; a jitter whose mean makes it
+    /// longer is a warning naming both values.
+    #[test]
+    fn a_round_trip_longer_than_the_age_rule_is_refused_or_warned_about() {
+        let imp = |delay: f64, jitter: Option<Jitter>, max_age: u64| {
+            let spec = LinkSpec {
+                delay,
+                jitter,
+                ..LinkSpec::default()
+            };
+            Impairment {
+                state: spec,
+                torque: spec,
+                seed: 0,
+                max_age,
+            }
+        };
+        let e = imp(25.0, None, 10).check_round_trip(1e-3).unwrap_err();
+        let m = e.to_string();
+        assert_eq!(e.flag, "--delay");
+        // 50,000 periods would do, more than the plant allows: not offered.
+        assert!(
+            m.contains("--max-age 10") && m.contains("[0, 0.005] s") && !m.contains("50000"),
+            "{m}"
+        );
+        // 2 x 6 ms needs 12 periods.
+        let m = imp(0.006, None, 10).check_round_trip(1e-3).unwrap_err();
+        assert!(m.to_string().contains("--max-age 12 or more"), "{m}");
+        // 2 x 5 ms = 10 periods of 1 ms: every torque is exactly --max-age old.
+        assert_eq!(imp(0.005, None, 10).check_round_trip(1e-3), Ok(None));
+        // Uneven directions name both flags.
+        let mut uneven = imp(0.004, None, 10);
+        uneven.torque.delay = 0.007;
+        let e = uneven.check_round_trip(1e-3).unwrap_err();
+        assert_eq!(e.flag, "--state-delay + --torque-delay");
+        // 2 x 4 ms plus 2 x 1.5 ms of mean jitter = 11 ms > 10 periods: a warning.
+        let w = imp(0.004, Some(Jitter::Uniform { max: 0.003 }), 10)
+            .check_round_trip(1e-3)
+            .unwrap()
+            .unwrap();
+        assert!(w.contains("--max-age 10") && w.contains("0.011"), "{w}");
+    }
+
     #[test]
     fn jitter_means_match_their_closed_forms() {
         let n = 200_000;

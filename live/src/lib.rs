@@ -198,7 +198,7 @@ impl LiveArgs {
 }
 
 /// Largest `--max-age` (periods), as the plant allows.
-const MAX_AGE: u64 = 1000;
+const MAX_AGE: u64 = tilting_link::MAX_AGE;
 
 /// One direction of a link in words: `2 ms + exp:0.5 ms, loss 5 %`.
 fn describe_link(s: &LinkSpec) -> String {
@@ -229,6 +229,8 @@ struct Job<'a> {
     reference: LawSpec,
     /// The link the plant emulates, if impaired.
     impairment: Option<Impairment>,
+    /// Why most torques may come too late over that link ([`Impairment::check_round_trip`]).
+    link_warning: Option<String>,
     /// The output directory.
     dir: PathBuf,
     /// The zenoh ids the plant and the controller are started with (`--zenoh-id`), drawn at
@@ -367,6 +369,14 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, LiveError> {
             args.max_age
         )));
     }
+    // A link whose round trip outlasts --max-age: refused when no torque can arrive in time,
+    // a warning (printed at the start) when only its jitter makes most of them late.
+    let link_warning = match &impairment {
+        Some(imp) => imp
+            .check_round_trip(1.0 / args.rate)
+            .map_err(|e| usage(e.into()))?,
+        None => None,
+    };
     if let Some(tilting_sim::Predict::Given(d)) = args.predict.predict {
         // The controller predicts over `d`; the plant drops torques older than --max-age.
         tilting_sim::network::check_max_age(d, 1.0 / args.rate, args.max_age)
@@ -418,6 +428,7 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, LiveError> {
         keys,
         reference,
         impairment,
+        link_warning,
         dir,
         ids: tilting_record::Sources {
             plant: Some(tilting_net::random_source_id()),
@@ -457,6 +468,9 @@ fn announce(job: &Job) {
             imp.seed,
             args.max_age
         );
+    }
+    if let Some(w) = &job.link_warning {
+        eprintln!("live: warning: {w}");
     }
 }
 

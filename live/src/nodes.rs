@@ -466,6 +466,29 @@ mod tests {
         live: LiveArgs,
     }
 
+    /// `--delay 25` (s, each way) at 1 kHz with the default --max-age (10 periods): no torque
+    /// could come back in time, so the run is refused before anything starts, naming the
+    /// flags; a jitter that only makes the mean round trip too long is a warning.
+    #[test]
+    fn a_round_trip_longer_than_max_age_is_refused_or_warned_about() {
+        let live = |argv: &[&str]| Cli::try_parse_from(argv).unwrap().live;
+        let args = live(&["x", "--delay", "25"]);
+        let Err(e) = crate::check(&args) else {
+            panic!("--delay 25 accepted")
+        };
+        let m = e.to_string();
+        assert!(
+            m.contains("--delay") && m.contains("--max-age 10") && m.contains("[0, 0.005] s"),
+            "{m}"
+        );
+        let args = live(&["x", "--delay", "0.004", "--jitter", "exp:0.002"]);
+        let job = crate::check(&args).unwrap();
+        let w = job.link_warning.expect("a warning");
+        assert!(w.contains("--max-age 10") && w.contains("--delay"), "{w}");
+        let args = live(&["x", "--delay", "0.004"]);
+        assert_eq!(crate::check(&args).unwrap().link_warning, None);
+    }
+
     /// The children parse the flags `live` hands them into what `live` was given: the link,
     /// the law, `--predict`, the rate, the duration and the age rule (the controller from the
     /// run's robot file).
