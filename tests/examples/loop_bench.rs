@@ -30,6 +30,10 @@
 //!    `--ros2 2` the mirror is the DDS route (`--ros2 dds`) and the subscriber a real rclpy
 //!    node (`tests/python/rclpy_peer.py count` in the ROS 2 venv, `TILTING_ROS_VENV`, default
 //!    `/tmp/rosvenv`), discovery on loopback (`ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`).
+//!    `--fifo N` runs the real-time loop's plant and controller (both runs) under SCHED_FIFO
+//!    at N, as `tilting live --realtime N` does, and the subscriber at the normal priority: a
+//!    robot's computer that keeps its loop above its ROS 2 tools (needs root or CAP_SYS_NICE;
+//!    on a quiet machine only).
 //!    The runs without and with alternate (A B A B ...: each round runs the plain loop, then the
 //!    mirrored one); the summary prints the per-round p99 ratio (with / without) and misses
 //!    ratio ((with + 1) / (without + 1), finite when a run misses none), each with its median
@@ -338,7 +342,7 @@ fn real_loop(
     duration: f64,
     lockstep_s: Option<f64>,
     rss_every: f64,
-    (ros2, rate): (u8, f64),
+    (ros2, rate, fifo): (u8, f64, Option<i32>),
 ) -> anyhow::Result<LoopRun> {
     let rt = tilting_net::runtime()?;
     let port = free_port();
@@ -356,11 +360,12 @@ fn real_loop(
         2 => extra.extend(["--ros2", "dds"]),
         _ => {}
     }
-    let mut plant = Proc::spawn(
+    let mut plant = Proc::spawn_fifo(
         &format!("{tag}-plant"),
         &bins.0,
         &plant_args(&robot, port, &extra),
         dir,
+        fifo,
     );
     let received = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let (client, status, _ros_sub) = rt.block_on(async {
@@ -388,11 +393,12 @@ fn real_loop(
     let counter = (ros2 == 2)
         .then(|| rclpy_counter(&robot, duration))
         .transpose()?;
-    let mut ctl = Proc::spawn(
+    let mut ctl = Proc::spawn_fifo(
         &format!("{tag}-controller"),
         &bins.1,
         &peer_args(&robot, port, &[]),
         dir,
+        fifo,
     );
     let running = rt
         .block_on(status.wait_for(Duration::from_secs(15), |s| {
@@ -494,6 +500,9 @@ struct Opts {
     ros2: u8,
     /// The loop's rate (Hz): the raw ping-pong is paced at it and the real-time loop runs at it.
     rate: f64,
+    /// `--fifo N`: the real-time loop's plant and controller (with and without the mirror)
+    /// under SCHED_FIFO at N, as `tilting live --realtime N`; the subscriber is not.
+    fifo: Option<i32>,
 }
 
 fn parse_opts() -> anyhow::Result<Opts> {
@@ -506,6 +515,7 @@ fn parse_opts() -> anyhow::Result<Opts> {
         long_s: 30.0,
         ros2: 0,
         rate: 1000.0,
+        fifo: None,
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
@@ -523,10 +533,12 @@ fn parse_opts() -> anyhow::Result<Opts> {
             "--long-s" => o.long_s = v,
             "--ros2" if [0.0, 1.0, 2.0].contains(&v) => o.ros2 = v as u8,
             "--rate" if (1.0..=10_000.0).contains(&v) => o.rate = v,
+            "--fifo" if (1.0..=99.0).contains(&v) && v.fract() == 0.0 => o.fifo = Some(v as i32),
             _ => anyhow::bail!(
                 "unknown flag or value {flag} {v}; flags (seconds unless said): --b2b-s \
                  --paced-s --realtime-s --rounds N --lockstep-s --long-s (0 skips the memory run) \
-                 --ros2 0|1|2 (2: DDS) --rate HZ (1 to 10000, default 1000)"
+                 --ros2 0|1|2 (2: DDS) --rate HZ (1 to 10000, default 1000) --fifo N (1 to 99: \
+                 the real-time loop's nodes under SCHED_FIFO)"
             ),
         }
     }
@@ -635,7 +647,7 @@ fn main() -> anyhow::Result<()> {
             o.realtime_s,
             None,
             1e9,
-            (0, o.rate),
+            (0, o.rate, o.fifo),
         )?;
         let ros = match o.ros2 {
             0 => None,
@@ -646,7 +658,7 @@ fn main() -> anyhow::Result<()> {
                 o.realtime_s,
                 None,
                 1e9,
-                (m, o.rate),
+                (m, o.rate, o.fifo),
             )?),
         };
         let ls = real_loop(
@@ -656,7 +668,7 @@ fn main() -> anyhow::Result<()> {
             1e6,
             Some(o.lockstep_s),
             1e9,
-            (0, o.rate),
+            (0, o.rate, None),
         )?;
         rounds.push(Round {
             b2b,
@@ -678,7 +690,7 @@ fn main() -> anyhow::Result<()> {
             o.long_s,
             None,
             5.0,
-            (0, o.rate),
+            (0, o.rate, None),
         )?)
     } else {
         None

@@ -215,7 +215,22 @@ pub struct Proc(tilting_launch::Child);
 impl Proc {
     /// Starts `bin args...` with stdout and stderr in `{dir}/{name}.json` and `{dir}/{name}.log`.
     pub fn spawn(name: &str, bin: &Path, args: &[String], dir: &Path) -> Self {
-        Self(tilting_launch::Child::spawn(name, bin, args, dir).unwrap_or_else(|e| panic!("{e:#}")))
+        Self::spawn_fifo(name, bin, args, dir, None)
+    }
+
+    /// [`Proc::spawn`] under `SCHED_FIFO` at `fifo` (1..=99, every thread of the process, as
+    /// `tilting live --realtime` runs its nodes); `None`: the normal scheduler.
+    pub fn spawn_fifo(
+        name: &str,
+        bin: &Path,
+        args: &[String],
+        dir: &Path,
+        fifo: Option<i32>,
+    ) -> Self {
+        Self(
+            tilting_launch::Child::spawn_with(name, bin, args, dir, fifo)
+                .unwrap_or_else(|e| panic!("{e:#}")),
+        )
     }
 
     /// The process id.
