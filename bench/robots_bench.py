@@ -128,6 +128,8 @@ def run_bare(args, n, form):
     names = [f"rb{n}x{i}_{os.getpid()}" for i in range(n)]
     common = ["--duration", str(args.duration), "--rate", str(args.rate)] + shlex.split(args.plant_args)
     groups = [names] if form == "host" else [[nm] for nm in names]
+    # --fifo N: both nodes under SCHED_FIFO at N, every thread (as `tilting live --realtime N`).
+    rt = ["chrt", "-f", str(args.fifo)] if args.fifo else []
     busy0, total0 = cpu_times()
     plants, ctls = [], []
     for g in groups:
@@ -137,11 +139,11 @@ def run_bare(args, n, form):
         out = open(os.path.join(outdir, f"{tag}.plant.json"), "w")
         err = open(os.path.join(outdir, f"{tag}.plant.log"), "w")
         plants.append((tag, out.name, subprocess.Popen(
-            [plant_bin] + robot + ["--listen", f"tcp/127.0.0.1:{port}"] + common,
+            rt + [plant_bin] + robot + ["--listen", f"tcp/127.0.0.1:{port}"] + common,
             stdout=out, stderr=err)))
         cerr = open(os.path.join(outdir, f"{tag}.controller.log"), "w")
         ctls.append((tag, subprocess.Popen(
-            [ctl_bin] + robot + ["--connect", f"tcp/127.0.0.1:{port}"],
+            rt + [ctl_bin] + robot + ["--connect", f"tcp/127.0.0.1:{port}"],
             stdout=subprocess.DEVNULL, stderr=cerr)))
         time.sleep(args.stagger if form == "pairs" else 0.0)
     first, last = {}, {}
@@ -226,6 +228,9 @@ def main():
                          "and releasing it, so runs started at the same instant can be given the same "
                          "port (the controller then exits: address in use)")
     ap.add_argument("--live-args", default="", help="more flags for each `tilting live`")
+    ap.add_argument("--fifo", type=int, default=0,
+                    help="pairs and host forms: the nodes under SCHED_FIFO at this priority "
+                         "(1 to 99; `chrt -f`, needs root; a quiet machine only); 0: off")
     ap.add_argument("--forms", default="live",
                     help="comma-separated forms, run alternately for each N: live, pairs, host")
     ap.add_argument("--plant-args", default="",
@@ -245,6 +250,8 @@ def main():
         sys.exit(f"--rate: in [1, 10000] Hz, got {a.rate}")
     if not 0.0 <= a.stagger <= 5.0:
         sys.exit(f"--stagger: in [0, 5] s, got {a.stagger}")
+    if not 0 <= a.fifo <= 99:
+        sys.exit(f"--fifo: 0 (off) or a priority in [1, 99], got {a.fifo}")
     print(f"ZENOH_RUNTIME={os.environ.get('ZENOH_RUNTIME', '(default)')}; rate {a.rate} Hz; "
           f"{a.duration} s; {os.cpu_count()} cores")
     for n in ns:
