@@ -449,8 +449,10 @@ impl Pair for Dp853 {
 /// dense output ([`Dop853::dense`]).
 pub type Dop853 = StepControl<Dp853>;
 
-/// One DOP853 step in progress from `(t, y)` with `f0 = f(t, y)`.
-struct Step853<'a, const N: usize, F> {
+/// One step in progress from `(t, y)` with `f0` the derivative there, `f` the right-hand
+/// side: the [`Stepper`] of either pair (DOP853's `f(t, y)`, DOPRI5's `f(t, y, end)`, whose
+/// derivative at `(t, y)` is `f(t, y, true).0`).
+struct StepFrom<'a, const N: usize, F> {
     f: &'a mut F,
     t: f64,
     y: &'a SVector<f64, N>,
@@ -466,7 +468,7 @@ type Trial853<const N: usize> = (
     [SVector<f64, N>; 12],
 );
 
-impl<const N: usize, F> Stepper<Dp853> for Step853<'_, N, F>
+impl<const N: usize, F> Stepper<Dp853> for StepFrom<'_, N, F>
 where
     F: FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
 {
@@ -626,7 +628,7 @@ impl Dop853 {
     where
         F: FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,
     {
-        self.drive(&mut Step853 { f, t, y, f0 }, t, t_end)
+        self.drive(&mut StepFrom { f, t, y, f0 }, t, t_end)
     }
 
     /// Builds the continuous extension of `s` (three more evaluations of `f`).
@@ -816,14 +818,6 @@ impl Pair for Dp54 {
 /// start by the angle-sum formulas, and those of the end point directly).
 pub type Dopri5 = StepControl<Dp54>;
 
-/// One DOPRI5 step in progress from `(t, y)` with `f0 = f(t, y, true).0`.
-struct Step54<'a, const N: usize, F> {
-    f: &'a mut F,
-    t: f64,
-    y: &'a SVector<f64, N>,
-    f0: &'a SVector<f64, N>,
-}
-
 /// A DOPRI5 trial: the step, its stages `k1..k7` (`k7 = f(t1, y1)`) and the auxiliary value
 /// at its end.
 struct Trial54<const N: usize, A> {
@@ -831,7 +825,7 @@ struct Trial54<const N: usize, A> {
     k: [SVector<f64, N>; 6],
 }
 
-impl<const N: usize, A, F> Stepper<Dp54> for Step54<'_, N, F>
+impl<const N: usize, A, F> Stepper<Dp54> for StepFrom<'_, N, F>
 where
     F: FnMut(f64, &SVector<f64, N>, bool) -> (SVector<f64, N>, A),
 {
@@ -934,7 +928,7 @@ impl Dopri5 {
     where
         F: FnMut(f64, &SVector<f64, N>, bool) -> (SVector<f64, N>, A),
     {
-        self.drive(&mut Step54 { f, t, y, f0 }, t, t_end)
+        self.drive(&mut StepFrom { f, t, y, f0 }, t, t_end)
     }
 }
 
