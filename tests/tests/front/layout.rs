@@ -248,7 +248,9 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
             ) {
                 rust_files(&p, out);
             }
-        } else if name.ends_with(".rs") {
+        } else if name.ends_with(".rs") && name != "tests.rs" {
+            // A `tests.rs` is a module's unit tests moved out of its file (`#[cfg(test)] mod
+            // tests;`): test code, as the `#[cfg(test)]` that ends the scan of a file.
             out.push(p);
         }
     }
