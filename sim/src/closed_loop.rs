@@ -607,54 +607,10 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
         );
     }
     if let Some(n) = &r.network {
-        let max_age = n.age_histogram.len().saturating_sub(1);
-        let _ = writeln!(
-            s,
-            "network: {} states and {} torques lost on the links; {} torques applied ({} late, \
-             oldest {max_age} periods), {} reordered, {} superseded, {} too old; zero torque for \
-             the first {} periods",
-            n.states_lost,
-            n.torques_lost_on_link,
-            n.torques_applied,
-            n.torques_late,
-            n.torques_reordered,
-            n.torques_superseded,
-            n.torques_too_old,
-            n.periods_before_first_torque
-        );
-        if let Some(m) = n.safe_mode.filter(|m| m.trips > 0) {
-            let _ = writeln!(
-                s,
-                "safe mode (the plant's watchdog): entered {} times, first at t = {:.3} s; {} \
-                 periods ({:.3} s) in safe mode{}",
-                m.trips,
-                m.entered.unwrap_or(f64::NAN),
-                m.periods,
-                m.periods as f64 * sc.control_period,
-                m.since.map_or(String::new(), |t| format!(
-                    "; in safe mode since t = {t:.3} s at the end"
-                ))
-            );
-        }
+        network_lines(&mut s, n, sc.control_period);
     }
     if let Some(i) = &r.imperfections {
-        let _ = writeln!(
-            s,
-            "robot: sensor noise sigma alpha {} rad, beta {} rad, alpha_dot {} rad/s, beta_dot {} \
-             rad/s (seed {}); encoder {}; torque saturation {}; torque lag {} s; arm mass {:+} % \
-             of the controller's model",
-            i.noise[0],
-            i.noise[1],
-            i.noise[2],
-            i.noise[3],
-            i.seed,
-            i.encoder_counts
-                .map_or("exact".into(), |n| format!("{n} counts/rev")),
-            i.torque_saturation
-                .map_or("none".into(), |v| format!("{v} N m")),
-            i.torque_lag,
-            100.0 * i.mass_error
-        );
+        robot_line(&mut s, i);
     }
     let _ = writeln!(
         s,
@@ -666,6 +622,64 @@ pub fn summary(sc: &Scenario, r: &SimulationReport) -> String {
         r.stats.wall_time_s
     );
     s
+}
+
+/// The summary's lines on the emulated network `n` (the control period `period`, s): what the
+/// links lost and the plant applied, and the plant's safe mode if it was entered.
+fn network_lines(s: &mut String, n: &NetStats, period: f64) {
+    use std::fmt::Write as _;
+    let max_age = n.age_histogram.len().saturating_sub(1);
+    let _ = writeln!(
+        s,
+        "network: {} states and {} torques lost on the links; {} torques applied ({} late, \
+         oldest {max_age} periods), {} reordered, {} superseded, {} too old; zero torque for \
+         the first {} periods",
+        n.states_lost,
+        n.torques_lost_on_link,
+        n.torques_applied,
+        n.torques_late,
+        n.torques_reordered,
+        n.torques_superseded,
+        n.torques_too_old,
+        n.periods_before_first_torque
+    );
+    if let Some(m) = n.safe_mode.filter(|m| m.trips > 0) {
+        let _ = writeln!(
+            s,
+            "safe mode (the plant's watchdog): entered {} times, first at t = {:.3} s; {} \
+             periods ({:.3} s) in safe mode{}",
+            m.trips,
+            m.entered.unwrap_or(f64::NAN),
+            m.periods,
+            m.periods as f64 * period,
+            m.since.map_or(String::new(), |t| format!(
+                "; in safe mode since t = {t:.3} s at the end"
+            ))
+        );
+    }
+}
+
+/// The summary's line on the robot's imperfections `i` (sensor noise, encoder, torque
+/// saturation and lag, arm mass error).
+fn robot_line(s: &mut String, i: &Imperfections) {
+    use std::fmt::Write as _;
+    let _ = writeln!(
+        s,
+        "robot: sensor noise sigma alpha {} rad, beta {} rad, alpha_dot {} rad/s, beta_dot {} \
+         rad/s (seed {}); encoder {}; torque saturation {}; torque lag {} s; arm mass {:+} % \
+         of the controller's model",
+        i.noise[0],
+        i.noise[1],
+        i.noise[2],
+        i.noise[3],
+        i.seed,
+        i.encoder_counts
+            .map_or("exact".into(), |n| format!("{n} counts/rev")),
+        i.torque_saturation
+            .map_or("none".into(), |v| format!("{v} N m")),
+        i.torque_lag,
+        100.0 * i.mass_error
+    );
 }
 
 #[cfg(test)]
