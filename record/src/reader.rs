@@ -158,24 +158,7 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
                 continue;
             }
         };
-        rec.counts[topic.index()] += 1;
-        rec.first = Some(rec.first.map_or(m.log_time, |f| f.min(m.log_time)));
-        rec.last = Some(rec.last.map_or(m.log_time, |l| l.max(m.log_time)));
-        match topic {
-            Topic::Event => {
-                if let Ok(e) = codec::decode::<ModeEvent>(&data) {
-                    rec.tilts += u64::from(e.from == 0 && e.to != 0);
-                }
-            }
-            Topic::Status => {
-                if let Ok(s) = codec::decode::<Status>(&data) {
-                    if !s.fault.is_empty() && !rec.faults.contains(&s.fault) {
-                        rec.faults.push(s.fault);
-                    }
-                }
-            }
-            _ => {}
-        }
+        rec.tally(topic, &data, m.log_time);
     }
     rec.truncation = it.error.take();
     drop(it);
@@ -198,6 +181,31 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
         rec.truncation = Some("the file has no summary section (its writer did not finish)".into());
     }
     Ok(rec)
+}
+
+impl Recording {
+    /// Counts one valid message of `topic` (wire bytes `data`, logged at `log_time` ns): its
+    /// topic's count, the span, a tilt's start (an event from flat) and a new fault (a status).
+    fn tally(&mut self, topic: Topic, data: &[u8], log_time: u64) {
+        self.counts[topic.index()] += 1;
+        self.first = Some(self.first.map_or(log_time, |f| f.min(log_time)));
+        self.last = Some(self.last.map_or(log_time, |l| l.max(log_time)));
+        match topic {
+            Topic::Event => {
+                if let Ok(e) = codec::decode::<ModeEvent>(data) {
+                    self.tilts += u64::from(e.from == 0 && e.to != 0);
+                }
+            }
+            Topic::Status => {
+                if let Ok(s) = codec::decode::<Status>(data) {
+                    if !s.fault.is_empty() && !self.faults.contains(&s.fault) {
+                        self.faults.push(s.fault);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
 }
 
 /// The topic of a channel of ours (JSON with a `tilting.*` schema), `None` for any other.
