@@ -14,10 +14,11 @@
 //! at that run's `E_av`. The model's loop, simulated with that `E_av` as the plan simulates it
 //! ([`crate::peak::settle_energy_for_peak`]), gives the model's. Their difference, the
 //! **bias**, is taken as the robot's at nearby energies too, and the plan settles the model's
-//! loop at the wanted peak minus the bias. With several runs the bias is their mean (runs on
-//! both sides of the wanted peak average out the model's slope being steeper or shallower than
-//! the robot's). A run's own scatter (the mean of 100 tilts of a 1-2 % scatter) and the bias's
-//! change with the energy limit it to about 1-2 %.
+//! loop at the wanted peak minus the bias. With runs at two energies or more the bias is a
+//! least-squares line in `E_av` (two runs: the robot's own secant), which takes up the model's
+//! slope being steeper or shallower than the robot's; the model is then settled again at the
+//! bias where the last settling ended, until the target stays. A run's own scatter (the mean of
+//! about 100 tilts of a 1-2 % scatter) limits it to about 1-2 % on MuJoCo.
 
 use crate::orbit::OrbitProblem;
 use serde::{Deserialize, Serialize};
