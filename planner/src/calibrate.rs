@@ -250,8 +250,10 @@ pub fn tilt_peaks(samples: &[tilting_record::Sample]) -> Vec<f64> {
 
 /// The calibration of the model `pb` (the plan's gains) on `runs` for the wanted `peak` (rad):
 /// each run's bias against the model's loop at its `E_av` (started at `x0`, sampled every `dt`
-/// s, [`MODEL_TILTS`] tilts), and their mean. A run with other gains than `pb`'s is refused
-/// naming the gain; a bias over [`MAX_BIAS`] of the peak too.
+/// s, [`MODEL_TILTS`] tilts), their mean and, with two energies or more, its line. A run with
+/// other gains than `pb`'s is refused naming the gain; a mean bias over [`MAX_BIAS`] of the
+/// peak too (before the line's model runs). `model_peak` is `peak` less the mean bias and
+/// `period` NaN until the plan settles both ([`crate::jobs::orbit_for_peak`]).
 pub fn calibrate(
     pb: &OrbitProblem,
     x0: &tilting_plant::State,
@@ -288,7 +290,6 @@ pub fn calibrate(
     let n = out.len().max(1) as f64;
     let bias = out.iter().map(|r| r.bias).sum::<f64>() / n;
     let energy_avg = out.iter().map(|r| r.recorded.energy_avg).sum::<f64>() / n;
-    let slope = bias_slope(&out, energy_avg, bias, pb, x0, dt, orbit_period)?;
     if bias.is_nan() || bias.abs() > MAX_BIAS * peak {
         let worst = out
             .iter()
@@ -301,6 +302,7 @@ pub fn calibrate(
             max: 100.0 * MAX_BIAS,
         });
     }
+    let slope = bias_slope(&out, energy_avg, bias, pb, x0, dt, orbit_period)?;
     Ok(Calibration {
         runs: out,
         bias,

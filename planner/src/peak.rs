@@ -542,46 +542,22 @@ impl tilting_plant::Observer for TiltPeaks {
 }
 
 /// The loop `pb` (its gains and `k`; `E_av = energy_avg`, J) run by the hybrid simulator from
-/// the left-tilt start `x0` for `t_run` s, its torque sampled every `dt` s
+/// the left-tilt start `x0`, its torque sampled every `dt` s
 /// ([`tilting_sim::closed_loop::run_sampled`], the loop a lockstep plant node runs) or, with
-/// `dt = 0`, evaluated continuously: `(mean, min, max |peak| (rad), period (s))` of the
-/// [`AVERAGE_TILTS`] tilts after the first [`SETTLE_TILTS`]; all 0 (period NaN) when the
-/// loop stops tilting before.
+/// `dt = 0`, evaluated continuously, long enough for `average` tilts after the first
+/// [`SETTLE_TILTS`] with room for a loop slower than the orbit's period `orbit_period` (s):
+/// `(mean, min, max |peak| (rad), period (s))` of those `average` tilts; all 0 (period NaN)
+/// when the loop stops tilting before.
 fn settled(
     pb: &OrbitProblem,
     x0: &tilting_plant::State,
     energy_avg: f64,
     dt: f64,
-    t_run: f64,
-) -> Result<(f64, f64, f64, f64), String> {
-    settled_over(pb, x0, energy_avg, dt, t_run, AVERAGE_TILTS)
-}
-
-/// The mean |peak| (rad) of `tilts` tilts of the loop `pb` at `E_av = energy_avg` (J) after
-/// the first [`SETTLE_TILTS`], run as [`settle_energy_for_peak`] runs it (from `x0`, sampled
-/// every `dt` s or continuous at 0; `orbit_period` (s) sizes the run); 0 when it stops tilting.
-pub fn settled_mean(
-    pb: &OrbitProblem,
-    x0: &tilting_plant::State,
-    energy_avg: f64,
-    dt: f64,
     orbit_period: f64,
-    tilts: usize,
-) -> Result<f64, String> {
-    let t_run = 1.5 * orbit_period * (SETTLE_TILTS + tilts) as f64 / 2.0 + 2.0;
-    Ok(settled_over(pb, x0, energy_avg, dt, t_run, tilts)?.0)
-}
-
-/// [`settled`] averaging `average` tilts.
-fn settled_over(
-    pb: &OrbitProblem,
-    x0: &tilting_plant::State,
-    energy_avg: f64,
-    dt: f64,
-    t_run: f64,
     average: usize,
 ) -> Result<(f64, f64, f64, f64), String> {
     use tilting_plant::{Mode, Plant, SimConfig};
+    let t_run = 1.5 * orbit_period * (SETTLE_TILTS + average) as f64 / 2.0 + 2.0;
     let law = pb.with_adaptation(pb.control.law.k, energy_avg).law();
     let cfg = SimConfig {
         params: pb.params,
@@ -612,12 +588,27 @@ fn settled_over(
     Ok((mean, lo, hi, period))
 }
 
+/// The mean |peak| (rad) of `tilts` tilts of the loop `pb` at `E_av = energy_avg` (J) after
+/// the first [`SETTLE_TILTS`], run as [`settle_energy_for_peak`] runs it (from `x0`, sampled
+/// every `dt` s or continuous at 0; `orbit_period` (s) sizes the run); 0 when it stops tilting.
+pub fn settled_mean(
+    pb: &OrbitProblem,
+    x0: &tilting_plant::State,
+    energy_avg: f64,
+    dt: f64,
+    orbit_period: f64,
+    tilts: usize,
+) -> Result<f64, String> {
+    Ok(settled(pb, x0, energy_avg, dt, orbit_period, tilts)?.0)
+}
+
 /// Refines the `E_av` (J) of a planned orbit so that the loop the robot runs, simulated by the
 /// hybrid simulator with the robot's own landings (`pb.params.restitution`, which the shooting
 /// does not plan: it plans plastic landings) and its control period `dt` (s, 0: continuous),
-/// settles with a mean peak of `peak` (rad): the secant method on `E_av` from `energy_avg`, regula falsi once bracketed
-/// (the plan's), each step one run from the orbit's start `x0` ([`SETTLE_TILTS`] tilts left
-/// out, [`AVERAGE_TILTS`] averaged), to [`SETTLE_TOL`] (or [`NOISE_TOL`] after [`MAX_RUNS`] inside a bracket). `tick` after each run. The sampled
+/// settles with a mean peak of `peak` (rad): the secant method on `E_av` from `energy_avg`,
+/// regula falsi once bracketed (the plan's), each step one run from the orbit's start `x0`
+/// ([`SETTLE_TILTS`] tilts left out, [`AVERAGE_TILTS`] averaged), to [`SETTLE_TOL`] (or
+/// [`NOISE_TOL`] after [`MAX_RUNS`] inside a bracket). `tick` after each run. The sampled
 /// loop's peaks scatter about their mean (a quasi-periodic motion of the zero-order hold):
 /// `peak_min` and `peak_max` say how far.
 pub fn settle_energy_for_peak(
@@ -629,14 +620,12 @@ pub fn settle_energy_for_peak(
     orbit_period: f64,
     tick: &dyn Fn(&str),
 ) -> Result<SettledPeak, String> {
-    // Long enough for the tilts wanted, with room for a loop slower than planned.
-    let t_run = 1.5 * orbit_period * (SETTLE_TILTS + AVERAGE_TILTS) as f64 / 2.0 + 2.0;
     let run = |e: f64, runs: &mut usize| {
         *runs += 1;
         tick(&format!(
             "simulating the loop at E_av = {e:.6} J (run {runs})"
         ));
-        settled(pb, x0, e, dt, t_run)
+        settled(pb, x0, e, dt, orbit_period, AVERAGE_TILTS)
     };
     let mut runs = 0;
     // (E_av, its run) of the last two runs, and the nearest runs below and above the peak:

@@ -159,6 +159,7 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
             );
         }
         if let Some(c) = &report.calibration {
+            let want = args.peak.unwrap_or(0.0);
             for r in &c.runs {
                 s += &format!(
                     "  calibration: {} at E_av {:.9} J: the robot's mean peak {:.6} rad ({} \
@@ -168,15 +169,13 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
                     r.recorded.peak_mean,
                     r.recorded.tilts,
                     r.model_peak_mean,
-                    100.0 * r.bias / report_peak(args)
+                    100.0 * r.bias / want
                 );
             }
             s += &format!(
                 "  calibrated: the model's loop settled at {:.6} rad for the robot's {} rad, \
                  whose period is {:.6} s (the model's loop at that peak)\n",
-                c.model_peak,
-                report_peak(args),
-                c.period
+                c.model_peak, want, c.period
             );
         }
         for o in &report.solutions {
@@ -214,11 +213,6 @@ pub fn orbit(args: &OrbitArgs) -> Result<(), CommandError> {
         }
         s
     })
-}
-
-/// The wanted peak of `--peak` (rad; 0 without it).
-fn report_peak(args: &OrbitArgs) -> f64 {
-    args.peak.unwrap_or(0.0)
 }
 
 /// `reach`: which gains reach a wanted tilt peak.
