@@ -5,14 +5,21 @@
 use std::process::Command;
 use tilting_tests::*;
 
-fn plan_json(args: &[&str], dir: &std::path::Path) -> serde_json::Value {
-    let o = Command::new(bin("tilting"))
+/// `tilting plan orbit --params robot.toml --peak 0.018 --control-period 0.001 --json ARGS` in
+/// `dir`.
+fn plan_orbit(args: &[&str], dir: &std::path::Path) -> std::process::Output {
+    Command::new(bin("tilting"))
         .args(["plan", "orbit", "--params", "robot.toml", "--peak", "0.018"])
         .args(["--control-period", "0.001", "--json"])
         .args(args)
         .current_dir(dir)
         .output()
-        .expect("run tilting plan orbit");
+        .expect("run tilting plan orbit")
+}
+
+/// [`plan_orbit`]'s JSON, which must succeed.
+fn plan_json(args: &[&str], dir: &std::path::Path) -> serde_json::Value {
+    let o = plan_orbit(args, dir);
     assert!(
         o.status.success(),
         "plan orbit {args:?}: {}\n{}",
@@ -71,12 +78,7 @@ fn a_run_of_the_model_itself_calibrates_to_no_bias() {
         text.replace("[law]\n", "[law]\norbit_peak = 0.018\n"),
     )
     .unwrap();
-    let o = Command::new(bin("tilting"))
-        .args(["plan", "orbit", "--params", "robot.toml", "--peak", "0.018"])
-        .args(["--control-period", "0.001", "--calibrate", "run"])
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
+    let o = plan_orbit(&["--calibrate", "run"], dir.path());
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("law.orbit_peak"), "{err}");
