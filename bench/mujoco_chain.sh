@@ -30,7 +30,8 @@
 # OPPOINT (1; 0 skips step 3b), OP_S (60), LINK (real: step 4 over a delaying TCP proxy in real
 # time; lockstep: the MuJoCo plant in lockstep emulates the same link, deterministic, and the
 # recordings of steps 1 and 3b are made in lockstep too),
-# CAL (2: rounds of step 3c; 0 skips it), CAL_S (40),
+# CAL (2: rounds of step 3c; 0 skips it), CAL_S (40), CAL_LINK (0; 1: the calibration runs over
+# step 4's link with its prediction),
 # CONTACTS ("stiff mid moderate"), EXC_S (60), TILT_S (30), RUN_S (60), JOBS (1: chains one
 # after another; 2 runs two chains side by side, which adds load and misses), RUNS (the live
 # runs of step 4: LAW-plain|trim[-planstart], LAW physical or paper; -planstart: `live --plan
@@ -250,8 +251,13 @@ print(l.get("best"), ", ".join("%s %.3f" % (w["law"], w["residual_rms"]) for w i
                 say "3c. calibration run $i kept (REUSE=1)"
             else
                 say "3c. calibration run $i: the plain law on the plan, ${CAL_S:-40} s"
-                "$T" live --plant-cmd "$rec_plant" --plant-params "$d/true.toml" --params "$d/robot.toml" \
-                    --plan "$d/plan.json" --duration "${CAL_S:-40}" --seed 0 --out "$d/cal$i" >"$d/cal$i.out" 2>&1
+                local cal_how=(--plant-cmd "$rec_plant" --seed 0)
+                # CAL_LINK=1: over step 4's 50 ms link with its prediction, the conditions
+                # the plan is run in (on a compliant contact the link moves the orbit by more
+                # than the calibration corrects: mid contact, -16 % without, +8 % with).
+                [ "${CAL_LINK:-0}" = 1 ] && mapfile -t cal_how < <(link_flags "$plant")
+                "$T" live "${cal_how[@]}" --plant-params "$d/true.toml" --params "$d/robot.toml" \
+                    --plan "$d/plan.json" --duration "${CAL_S:-40}" --out "$d/cal$i" >"$d/cal$i.out" 2>&1
             fi
             cal_runs+=("$d/cal$i")
             if "$T" plan orbit --params "$d/robot.toml" --peak "$peak" --control-period 0.001 \
@@ -283,6 +289,16 @@ print(repr(p["energy_avg_adaptation"]), repr(s["period"]))' "$d/plan.json" "$d/p
     runs_only "$robot" "$contact"
 }
 
+# link_flags PLANT: live's flags for the 50 ms round trip of step 4, one per line (read them
+# with `mapfile -t`: the plant command is one flag value with spaces).
+link_flags() {
+    local cmd="python3 $HERE/delay_plant.py $1 --watchdog 100"
+    # LINK=lockstep: the link emulated by the MuJoCo plant in lockstep (docs/mujoco.md): the
+    # same 25 ms each way, deterministic, whatever the machine's load.
+    [ "${LINK:-real}" = lockstep ] && cmd="$1 --clock lockstep"
+    printf '%s\n' --plant-cmd "$cmd" --delay 0.025 --predict 0.05 --max-age 100 --seed 0
+}
+
 # runs_only ROBOT CONTACT: step 4 and 5 of a chain whose robot.toml and plan.json exist.
 runs_only() {
     local robot=$1 contact=$2
@@ -300,14 +316,9 @@ s = p["solutions"][0]
 period = (p.get("calibration") or p.get("settled") or s)["period"]
 print(repr(p["energy_avg_adaptation"]), repr(period), round(s["max_tilt"], 6))' "$d/plan.json") ||
         { fail "4 (reading plan.json)" "$d/plan.json"; return 1; }
-    local link=(--plant-cmd "python3 $HERE/delay_plant.py $plant --watchdog 100"
-        --plant-params "$d/true.toml" --duration "$RUN_S" --delay 0.025 --predict 0.05
-        --max-age 100 --seed 0)
-    if [ "${LINK:-real}" = lockstep ]; then
-        # The link emulated by the MuJoCo plant in lockstep (docs/mujoco.md): the same 25 ms
-        # each way, deterministic, whatever the machine's load.
-        link[1]="$plant --clock lockstep"
-    fi
+    local link
+    mapfile -t link < <(link_flags "$plant")
+    link+=(--plant-params "$d/true.toml" --duration "$RUN_S")
     local run law trim start rest
     rm -f "$d/rows.jsonl"
     for run in $RUNS; do
