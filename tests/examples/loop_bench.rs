@@ -33,7 +33,9 @@
 //!    `--fifo N` runs the real-time loop's plant and controller (both runs) under SCHED_FIFO
 //!    at N, as `tilting live --realtime N` does, and the subscriber at the normal priority: a
 //!    robot's computer that keeps its loop above its ROS 2 tools (needs root or CAP_SYS_NICE;
-//!    on a quiet machine only).
+//!    on a quiet machine only). The raw paced ping-pong then runs under SCHED_FIFO at N too
+//!    (its pacing thread, its sessions' threads and the pong process), so its late echoes are
+//!    the floor the loop's misses are compared with.
 //!    The runs without and with alternate (A B A B ...: each round runs the plain loop, then the
 //!    mirrored one); the summary prints the per-round p99 ratio (with / without) and misses
 //!    ratio ((with + 1) / (without + 1), finite when a run misses none), each with its median
@@ -67,7 +69,14 @@ use tilting_tests::{
 
 // Pacing: the plant's own clock (absolute `clock_nanosleep` deadlines, then a short spin), so the
 // paced ping-pong and the plant wake up the same way.
-use tilting_plant::node::clock::{now_ns, set_min_timer_slack, sleep_until};
+use tilting_plant::node::clock::{now_ns, set_fifo_priority, set_min_timer_slack, sleep_until};
+
+/// Returns the calling thread to the normal scheduling policy (after [`set_fifo_priority`]).
+fn normal_priority() {
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: `param` is a valid sched_param; pid 0 is the calling thread.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) };
+}
 
 // ------------------------------------------------------------------ statistics
 
@@ -151,7 +160,22 @@ struct PingPong {
 }
 
 impl PingPong {
-    fn start(exe: &Path, dir: &Path) -> anyhow::Result<Self> {
+    /// With `fifo`, this thread runs under SCHED_FIFO while the sessions' threads and the
+    /// pong process are made, so they inherit it (the real-time loop's nodes run wholly under
+    /// `--fifo` too: a fair floor), and returns to the normal policy afterwards, so that the
+    /// processes this benchmark starts later (the lockstep loop, the rclpy subscriber) do not.
+    fn start(exe: &Path, dir: &Path, fifo: Option<i32>) -> anyhow::Result<Self> {
+        if let Some(p) = fifo {
+            set_fifo_priority(p).map_err(|e| anyhow::anyhow!("--fifo {p}: {e}"))?;
+        }
+        let me = Self::start_inner(exe, dir);
+        if fifo.is_some() {
+            normal_priority();
+        }
+        me
+    }
+
+    fn start_inner(exe: &Path, dir: &Path) -> anyhow::Result<Self> {
         let robot = format!("bench_{}", std::process::id());
         let (port, pong_port) = (free_port(), free_port());
         let rt = tilting_net::runtime()?;
@@ -274,7 +298,19 @@ impl PingPong {
     /// Paced at `rate` Hz for `secs` as the plant paces: publish at each deadline, read the
     /// echo's arrival time at the next one. Returns the round trips (µs) and the echoes that
     /// had not arrived by the next deadline.
-    fn paced(&mut self, secs: f64, rate: f64) -> (Vec<f64>, u64) {
+    fn paced(&mut self, secs: f64, rate: f64, fifo: Option<i32>) -> (Vec<f64>, u64) {
+        // Under `--fifo` this pacing thread runs as the plant's does (it was checked at start).
+        if let Some(p) = fifo {
+            let _ = set_fifo_priority(p);
+        }
+        let out = self.paced_inner(secs, rate);
+        if fifo.is_some() {
+            normal_priority();
+        }
+        out
+    }
+
+    fn paced_inner(&mut self, secs: f64, rate: f64) -> (Vec<f64>, u64) {
         let h = (1e9 / rate).round() as u64;
         let n = (secs * rate) as u64;
         let mut v = Vec::with_capacity(n as usize);
@@ -625,7 +661,7 @@ fn main() -> anyhow::Result<()> {
     // measurements alternate so that both see the same background load and the same placement
     // of threads on cores (on a shared 2-core machine round trips flip between two levels,
     // about 25 and 50 us, from one run to the next).
-    let mut pp = PingPong::start(&exe, &dir)?;
+    let mut pp = PingPong::start(&exe, &dir, o.fifo)?;
     let mut rounds = Vec::new();
     for r in 1..=o.rounds {
         eprintln!(
@@ -639,7 +675,7 @@ fn main() -> anyhow::Result<()> {
             o.lockstep_s
         );
         let (b2b, b2b_rate) = pp.back_to_back(o.b2b_s)?;
-        let (paced, late) = pp.paced(o.paced_s, o.rate);
+        let (paced, late) = pp.paced(o.paced_s, o.rate, o.fifo);
         let rt = real_loop(
             &bins,
             &dir,
