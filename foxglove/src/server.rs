@@ -13,7 +13,9 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 use tilting_plant::{Mode, Params, State};
-use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
+use tilting_proto::{
+    codec, AnyReference, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand,
+};
 use tilting_record::schema::{json_schema, schema_name, to_json};
 
 /// The default address: loopback, Foxglove's default port.
@@ -417,7 +419,15 @@ impl Publisher {
                     self.plot(done);
                 }
             }
-            Topic::Reference => self.reference = codec::decode::<Reference>(&item.wire).ok(),
+            // The gain plotted is the paper law's (its own or by name in the generic layout);
+            // any other law's reference plots no gain.
+            Topic::Reference => {
+                self.reference = match codec::decode::<AnyReference>(&item.wire) {
+                    Ok(AnyReference::Paper(r)) => Some(r),
+                    Ok(AnyReference::Law(l)) => l.to_paper(),
+                    Err(_) => None,
+                }
+            }
         }
     }
 

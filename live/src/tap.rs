@@ -13,7 +13,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use tilting_net::{subscribe_decoded_from, watch_presence, DropCounter, Presence, Role, ZenohArgs};
 use tilting_planner::node::ReferencePublisher;
-use tilting_proto::{Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
+use tilting_proto::{AnyReference, Keys, ModeEvent, PlantState, Reference, Status, TorqueCommand};
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
@@ -99,7 +99,7 @@ impl Tap {
         );
         let tx = recorder.sender();
         subscribers.push(
-            subscribe_decoded_from(publishing, refs, move |m: Reference, from| {
+            subscribe_decoded_from(publishing, refs, move |m: AnyReference, from| {
                 tx.send_from(Record::Reference(m), from)
             })
             .await?,

@@ -11,7 +11,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_net::{Role, ZenohArgs};
-use tilting_proto::{codec, Keys, ModeEvent, PlantState, Reference, Status, Topic, TorqueCommand};
+use tilting_proto::{
+    codec, AnyReference, Keys, ModeEvent, PlantState, Status, Topic, TorqueCommand,
+};
 use tilting_record::sink::{Drain, Sink};
 
 /// Parses a topic name for clap (`state`, `torque`, `event`, `status`, `reference`).
@@ -93,10 +95,55 @@ pub fn describe(topic: Topic, bytes: &[u8], json: bool) -> Result<String, String
             out(&s, json, h)
         }
         Topic::Reference => {
-            let r: Reference = codec::decode(bytes).map_err(|e| e.to_string())?;
-            out(&r, json, tilting_controller::LawSpec::from(&r).to_string())
+            // Either layout (protocol 3): the paper's gains, or any law's name and parameters.
+            let r: AnyReference = codec::decode(bytes).map_err(|e| e.to_string())?;
+            let human = match &r {
+                AnyReference::Paper(p) => tilting_controller::LawSpec::from(p).to_string(),
+                AnyReference::Law(l) => describe_law(l),
+            };
+            out(&r, json, human)
         }
     })
+}
+
+/// A `LawReference` in words: the law's name, its parameters (the paper law's by name, any
+/// other's by position, `p0`, `p1`, ...: their names are the law's own), and the trajectory.
+fn describe_law(l: &tilting_proto::LawReference) -> String {
+    let trajectory = match l.trajectory {
+        tilting_proto::Reference::HOLD => "hold".to_owned(),
+        t => format!(
+            "{} amplitude {} rad, omega {} rad/s",
+            if t == tilting_proto::Reference::SINUSOID {
+                "sinusoid"
+            } else {
+                "excitation"
+            },
+            l.amplitude,
+            l.omega
+        ),
+    };
+    let params: Vec<String> = l
+        .parameters
+        .iter()
+        .enumerate()
+        .map(
+            |(i, v)| match tilting_proto::LawReference::PAPER_PARAMETERS.get(i) {
+                Some(name) if l.law == tilting_proto::LawReference::PAPER_LAW => {
+                    format!("{name} {v}")
+                }
+                _ => format!("p{i} {v}"),
+            },
+        )
+        .collect();
+    format!(
+        "law {} [{}], {trajectory}",
+        l.law,
+        if params.is_empty() {
+            "no parameters".to_owned()
+        } else {
+            params.join(", ")
+        }
+    )
 }
 
 /// The session flags of `echo` and `hz`.

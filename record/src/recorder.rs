@@ -31,7 +31,8 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_proto::{
-    codec, encode, Keys, ModeEvent, PlantState, Reference, SourceId, Status, Topic, TorqueCommand,
+    codec, encode, AnyReference, Keys, ModeEvent, PlantState, SourceId, Status, Topic,
+    TorqueCommand,
 };
 
 /// Capacity of the queue to the writer thread (messages): about 30 s of a 1 kHz loop.
@@ -52,8 +53,9 @@ pub enum Record {
     Event(ModeEvent),
     /// A plant status.
     Status(Status),
-    /// A reference of the planner.
-    Reference(Reference),
+    /// A reference of the planner, either layout (the paper's `Reference` or any law's
+    /// `LawReference`, protocol 3): recorded as sent.
+    Reference(AnyReference),
     /// A payload as received on `topic`'s key, decoded (and counted as invalid if it does not
     /// decode and validate) by the writer thread.
     Wire(Topic, Vec<u8>),

@@ -6,6 +6,13 @@
 //! descriptions), for the JSON the writer emits: every field required, no other field. A test
 //! checks each schema against the JSON of a message.
 //!
+//! The reference topic carries either layout of the planner's message (protocol 3,
+//! `tilting_proto::AnyReference`): the paper law's 57-byte `Reference` or any law's 107-byte
+//! `LawReference`. Its one JSON form ([`ReferenceJson`]) has `kind`, `amplitude` and `omega`
+//! always, then either the paper's five named gains (`kp` ... `torque_limit`) or the law's
+//! name and parameters (`law`, `parameters`): which fields are present tells the layouts apart,
+//! so [`from_json`] gives back the bytes as sent, 57 or 107.
+//!
 //! Next to each enumeration byte the JSON carries its name ([`NAMES`]: `mode` 1 and
 //! `mode_name` `"left"`, a status' `state_name` `"safe mode"`, ...), so a viewer (Foxglove's
 //! raw messages, a plot's tooltip) shows a word; the numbers stay for plots and programs.
@@ -14,6 +21,7 @@ use schemars::generate::SchemaSettings;
 use schemars::JsonSchema;
 use serde_json::Value;
 use tilting_proto::{codec, DecodeError, ModeEvent, PlantState, Reference, Status, Topic};
+use tilting_proto::{AnyReference, LawReference};
 use tilting_proto::{Message, TorqueCommand};
 
 /// The schema's name: `tilting.<MessageType>`.
@@ -35,7 +43,7 @@ pub fn json_schema(topic: Topic) -> Value {
         Topic::Torque => of::<TorqueCommand>(),
         Topic::Event => of::<ModeEvent>(),
         Topic::Status => of::<Status>(),
-        Topic::Reference => of::<Reference>(),
+        Topic::Reference => of::<ReferenceJson>(),
     };
     v["title"] = schema_name(topic).into();
     one_type_per_field(&mut v);
@@ -149,7 +157,14 @@ pub fn to_json(topic: Topic, wire: &[u8]) -> Result<Vec<u8>, DecodeError> {
         Topic::Torque => enc::<TorqueCommand>(wire),
         Topic::Event => enc::<ModeEvent>(wire),
         Topic::Status => enc::<Status>(wire),
-        Topic::Reference => enc::<Reference>(wire),
+        Topic::Reference => {
+            let m: AnyReference = codec::decode(wire)?;
+            let mut v = serde_json::to_value(ReferenceJson::from(&m)).unwrap_or_default();
+            if let Some(o) = v.as_object_mut() {
+                o.retain(|_, x| !x.is_null());
+            }
+            Ok(v)
+        }
     }?;
     if let Some(o) = v.as_object_mut() {
         add_names(topic, o);
@@ -169,6 +184,9 @@ pub enum FromJsonError {
     /// A name that does not name its byte (`mode_name` `"left"` with `mode` 2).
     #[error("{0}")]
     Name(String),
+    /// A reference with the fields of neither layout, or of both ([`ReferenceJson`]).
+    #[error("{0}")]
+    Layout(String),
 }
 
 /// The wire payload of a JSON object of `topic`: the inverse of [`to_json`], byte for byte
@@ -189,7 +207,126 @@ pub fn from_json(topic: Topic, json: &[u8]) -> Result<Vec<u8>, FromJsonError> {
         Topic::Torque => dec::<TorqueCommand>(v),
         Topic::Event => dec::<ModeEvent>(v),
         Topic::Status => dec::<Status>(v),
-        Topic::Reference => dec::<Reference>(v),
+        Topic::Reference => {
+            let j: ReferenceJson = serde_json::from_value(v)?;
+            let m = j.into_message()?;
+            m.validate()?;
+            Ok(codec::encode(&m))
+        }
+    }
+}
+
+/// The JSON form of the reference topic's message, either layout (the module's
+/// documentation): `kind`, `amplitude` and `omega` always; the paper's five gains for a
+/// `Reference` (57 bytes), or `law` and `parameters` for a `LawReference` (107 bytes).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceJson {
+    /// The trajectory: 0 hold `beta_d = pi/2`, 1 sinusoid, 2 excitation (a `Reference`'s
+    /// `kind`, a `LawReference`'s `trajectory`).
+    pub kind: u8,
+    /// Sinusoid amplitude (the excitation's bound), rad (ignored for hold).
+    pub amplitude: f64,
+    /// Sinusoid angular frequency (the excitation's base), rad/s.
+    pub omega: f64,
+    /// The paper's law (a 57-byte `Reference` only): proportional gain, 1/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kp: Option<f64>,
+    /// The paper's law only: derivative gain, 1/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kd: Option<f64>,
+    /// The paper's law only: energy-adaptation gain `k`, 1/(J s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<f64>,
+    /// The paper's law only: the energy the adaptation tracks, `E_av`, J.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy_avg: Option<f64>,
+    /// The paper's law only: torque limit, N m (0 for none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub torque_limit: Option<f64>,
+    /// Any law (a 107-byte `LawReference` only): its name, as in the controller's registry
+    /// (`plain-pd`, `computed-torque`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<String>,
+    /// Any law only: its parameters in the order of its list (0 to 8), each in the unit that
+    /// law documents.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parameters: Option<Vec<f64>>,
+}
+
+impl From<&AnyReference> for ReferenceJson {
+    fn from(m: &AnyReference) -> Self {
+        let none = Self {
+            kind: 0,
+            amplitude: 0.0,
+            omega: 0.0,
+            kp: None,
+            kd: None,
+            k: None,
+            energy_avg: None,
+            torque_limit: None,
+            law: None,
+            parameters: None,
+        };
+        match m {
+            AnyReference::Paper(r) => Self {
+                kind: r.kind,
+                amplitude: r.amplitude,
+                omega: r.omega,
+                kp: Some(r.kp),
+                kd: Some(r.kd),
+                k: Some(r.k),
+                energy_avg: Some(r.energy_avg),
+                torque_limit: Some(r.torque_limit),
+                ..none
+            },
+            AnyReference::Law(l) => Self {
+                kind: l.trajectory,
+                amplitude: l.amplitude,
+                omega: l.omega,
+                law: Some(l.law.clone()),
+                parameters: Some(l.parameters.clone()),
+                ..none
+            },
+        }
+    }
+}
+
+impl ReferenceJson {
+    /// The message of this JSON: a `Reference` when the five gains are given and neither
+    /// `law` nor `parameters`, a `LawReference` when `law` and `parameters` are given and none
+    /// of the gains; else an error naming the fields.
+    pub fn into_message(self) -> Result<AnyReference, FromJsonError> {
+        let gains = [self.kp, self.kd, self.k, self.energy_avg, self.torque_limit];
+        match (gains, self.law, self.parameters) {
+            ([Some(kp), Some(kd), Some(k), Some(energy_avg), Some(torque_limit)], None, None) => {
+                Ok(AnyReference::Paper(Reference {
+                    kind: self.kind,
+                    amplitude: self.amplitude,
+                    omega: self.omega,
+                    kp,
+                    kd,
+                    k,
+                    energy_avg,
+                    torque_limit,
+                }))
+            }
+            ([None, None, None, None, None], Some(law), Some(parameters)) => {
+                Ok(AnyReference::Law(LawReference {
+                    trajectory: self.kind,
+                    amplitude: self.amplitude,
+                    omega: self.omega,
+                    law,
+                    parameters,
+                }))
+            }
+            _ => Err(FromJsonError::Layout(
+                "invalid reference: give either all of `kp`, `kd`, `k`, `energy_avg`, \
+                 `torque_limit` (the paper's law, a Reference) or `law` and `parameters` \
+                 (any law, a LawReference), not both nor part of either"
+                    .into(),
+            )),
+        }
     }
 }
 
@@ -262,6 +399,16 @@ mod tests {
                     torque_limit: 0.0,
                 }),
             ),
+            (
+                Topic::Reference,
+                encode(&LawReference {
+                    trajectory: Reference::SINUSOID,
+                    amplitude: 0.25,
+                    omega: 1.0 / 3.0,
+                    law: "plain-pd".into(),
+                    parameters: vec![400.0, -0.0, 5e-324],
+                }),
+            ),
         ]
     }
 
@@ -269,16 +416,25 @@ mod tests {
     /// is required: a message or schema edited alone fails here.
     #[test]
     fn schemas_match_the_json() {
+        // The fields seen per topic, over its samples (the reference's two layouts).
+        let mut seen: std::collections::BTreeMap<Topic, std::collections::BTreeSet<String>> =
+            Default::default();
         for (topic, wire) in samples() {
             let v: Value = serde_json::from_slice(&to_json(topic, &wire).unwrap()).unwrap();
             let obj = v.as_object().unwrap();
             let schema = json_schema(topic);
             let props = schema["properties"].as_object().unwrap();
             let mut a: Vec<_> = obj.keys().collect();
-            let mut b: Vec<_> = props.keys().collect();
             a.sort();
-            b.sort();
-            assert_eq!(a, b, "{topic}");
+            seen.entry(topic)
+                .or_default()
+                .extend(a.iter().map(|k| k.to_string()));
+            for k in &a {
+                assert!(
+                    props.contains_key(k.as_str()),
+                    "{topic}.{k}: not in the schema"
+                );
+            }
             for (k, val) in obj {
                 let p = &props[k];
                 // One JSON type per field, as Foxglove's and Lichtblick's parsers require.
@@ -289,9 +445,11 @@ mod tests {
                     "integer" => val.is_u64(),
                     "number" => val.is_number(),
                     "string" => val.is_string(),
+                    // A fixed-size array (`x_before`) or a list (`parameters`).
                     "array" => val.as_array().is_some_and(|a| {
-                        Some(a.len() as u64) == p["minItems"].as_u64()
-                            && Some(a.len() as u64) == p["maxItems"].as_u64()
+                        let n = a.len() as u64;
+                        p["minItems"].as_u64().unwrap_or(0) <= n
+                            && p["maxItems"].as_u64().is_none_or(|m| n <= m)
                             && a.iter().all(Value::is_number)
                             && p["items"]["type"] == "number"
                     }),
@@ -311,17 +469,41 @@ mod tests {
                 .map(|r| r.as_str().unwrap())
                 .collect();
             required.sort();
-            // Every field is required but the rates a plant may not measure.
-            let optional = ["alpha_dot", "beta_dot"];
+            // Every field is required but the rates a plant may not measure and the fields of
+            // one layout of the reference.
+            let optional: &[&str] = match topic {
+                Topic::State => &["alpha_dot", "beta_dot"],
+                Topic::Reference => &[
+                    "kp",
+                    "kd",
+                    "k",
+                    "energy_avg",
+                    "torque_limit",
+                    "law",
+                    "parameters",
+                ],
+                _ => &[],
+            };
             let fields: Vec<&str> = a
                 .iter()
                 .map(|k| k.as_str())
-                .filter(|k| topic != Topic::State || !optional.contains(k))
+                .filter(|k| !optional.contains(k))
                 .collect();
             assert_eq!(required, fields, "{topic}: every field is required");
             assert_eq!(schema["additionalProperties"], false, "{topic}");
             assert_eq!(schema["title"], schema_name(topic));
             assert_eq!(schema["type"], "object");
+        }
+        // Every field of a schema is in some sample's JSON.
+        for t in Topic::ALL {
+            let schema = json_schema(t);
+            let props: std::collections::BTreeSet<String> = schema["properties"]
+                .as_object()
+                .unwrap()
+                .keys()
+                .cloned()
+                .collect();
+            assert_eq!(seen[&t], props, "{t}");
         }
     }
 
@@ -482,6 +664,68 @@ mod tests {
             &from_json(Topic::State, &serde_json::to_vec(&v).unwrap()).unwrap(),
             wire
         );
+    }
+
+    /// The reference topic's two layouts: a `LawReference` shows its law's name and
+    /// parameters (and no gains), a `Reference` its five gains (and no name); each JSON goes
+    /// back to its own layout's bytes (107 and 57), and a JSON with the fields of both or of
+    /// neither is refused naming them.
+    #[test]
+    fn both_reference_layouts_show_their_law_and_keep_their_bytes() {
+        let law = LawReference {
+            trajectory: Reference::HOLD,
+            amplitude: 0.0,
+            omega: 0.0,
+            law: "plain-pd".into(),
+            parameters: vec![400.0, 56.56],
+        };
+        let wire = encode(&law);
+        assert_eq!(wire.len(), LawReference::SIZE);
+        let v: Value = serde_json::from_slice(&to_json(Topic::Reference, &wire).unwrap()).unwrap();
+        assert_eq!(v["law"], "plain-pd");
+        assert_eq!(v["parameters"], serde_json::json!([400.0, 56.56]));
+        assert_eq!(v["kind_name"], "hold");
+        assert!(v.get("kp").is_none(), "{v}");
+        let back = from_json(Topic::Reference, &serde_json::to_vec(&v).unwrap()).unwrap();
+        assert_eq!(back, wire);
+        // The paper's law by name in the generic layout stays 107 bytes, not the 57 of the
+        // paper's own layout with the same numbers.
+        let paper = Reference {
+            kind: Reference::HOLD,
+            amplitude: 0.0,
+            omega: 0.0,
+            kp: 100.0,
+            kd: 14.14,
+            k: 500.0,
+            energy_avg: 20.0,
+            torque_limit: 0.0,
+        };
+        let generic = encode(&LawReference::from(&paper));
+        let j = to_json(Topic::Reference, &generic).unwrap();
+        assert_eq!(from_json(Topic::Reference, &j).unwrap(), generic);
+        let short = encode(&paper);
+        let j = to_json(Topic::Reference, &short).unwrap();
+        assert_eq!(from_json(Topic::Reference, &j).unwrap(), short);
+        assert_eq!((short.len(), generic.len()), (57, 107));
+        // Both layouts' fields, or part of one: refused, naming the fields.
+        let mut both = v.clone();
+        both["kp"] = 1.0.into();
+        let mut part = serde_json::from_slice::<Value>(&j).unwrap();
+        part.as_object_mut().unwrap().remove("kd");
+        for bad in [both, part] {
+            let e = from_json(Topic::Reference, &serde_json::to_vec(&bad).unwrap())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("`kp`") && e.contains("`parameters`"), "{e}");
+        }
+        // The law's own checks: a parameter that is not finite has no JSON, nine have no
+        // wire form.
+        let mut nine = v.clone();
+        nine["parameters"] = serde_json::json!(vec![0.0; 9]);
+        let e = from_json(Topic::Reference, &serde_json::to_vec(&nine).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("count"), "{e}");
     }
 
     #[test]
