@@ -357,10 +357,8 @@ pub fn simulate_with<L: TorqueLaw>(
 }
 
 /// [`simulate_with_progress`] with the scenario's controller `ctrl` given (wrapped by
-/// [`crate::recording`] to keep every sample it reads and every torque it answers).
-// long: the run's refusals, its three couplings and the report, as simulate_with_progress had
-// them (moved here whole so that a recording runs the same code); to be split with the
-// watchdog's setup.
+/// [`crate::recording`] to keep every sample it reads and every torque it answers): the run's
+/// refusals ([`couplings`]), its coupling ([`run_coupled`]) and the report ([`report`]).
 pub(crate) fn simulate_law<L: TorqueLaw>(
     sc: &Scenario,
     opts: SimOptions,
@@ -377,19 +375,56 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
         min_dt: sc.duration / PLOT_SAMPLES,
     };
     rec.push(0.0, plant.mode(), &plant.state(), true);
-    let t_end = sc.duration;
     let start = Instant::now();
+    let (network, hardware) = couplings(sc, &opts, imperfect)?;
+    let run = run_coupled(
+        &mut plant,
+        ctrl,
+        sc,
+        &opts,
+        Coupled {
+            network,
+            hardware,
+            imperfect,
+        },
+        &mut rec,
+        progress,
+    );
+    let wall = start.elapsed().as_secs_f64();
+    Ok(report(sc, &opts, imperfect, &plant, rec, run, wall))
+}
+
+/// A control period (`> 0`) that a run needs, or the error saying why (`allowed`).
+fn needs_period(sc: &Scenario, allowed: &str) -> Result<(), ScenarioError> {
+    if sc.is_sampled() {
+        return Ok(());
+    }
+    Err(ScenarioError::OutOfRange {
+        field: "control_period".into(),
+        flag: "--control-period".into(),
+        value: sc.control_period.to_string(),
+        allowed: allowed.into(),
+    })
+}
+
+/// The network (`None`: the controller's torque reaches the plant at once) and the hardware
+/// imperfections (`None`: perfect sensors and actuator) a run of `sc` couples through, after
+/// the refusals: a loop option, an impaired network or hardware imperfections without a control
+/// period, a prediction older than the plant's `max_age`, or sampling on events with an
+/// actuator's saturation or lag. A loop option without a network runs over a perfect one that
+/// drops samples older than [`DEFAULT_MAX_AGE`] periods.
+fn couplings(
+    sc: &Scenario,
+    opts: &SimOptions,
+    imperfect: Option<Imperfections>,
+) -> Result<(Option<Impairment>, Option<Imperfections>), ScenarioError> {
     let network = opts.network.filter(|n| !n.is_perfect());
     let plain = opts.loop_options.is_plain();
-    if !plain && !sc.is_sampled() {
-        return Err(ScenarioError::OutOfRange {
-            field: "control_period".into(),
-            flag: "--control-period".into(),
-            value: sc.control_period.to_string(),
-            allowed: "> 0 for --predict, --sample-on-event or --estimator: they act on a sampled \
-                      loop"
-                .into(),
-        });
+    if !plain {
+        needs_period(
+            sc,
+            "> 0 for --predict, --sample-on-event or --estimator: they act on a sampled loop",
+        )?;
     }
     let network = match network {
         None if !plain => Some(opts.network.unwrap_or(Impairment {
@@ -401,28 +436,21 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
     if let (Some(n), Some(Predict::Given(d))) = (&network, opts.loop_options.predict) {
         crate::network::check_max_age(d, sc.control_period, n.max_age)?;
     }
-    if let (Some(n), false) = (&network, sc.is_sampled()) {
-        let _ = n;
-        return Err(ScenarioError::OutOfRange {
-            field: "control_period".into(),
-            flag: "--control-period".into(),
-            value: sc.control_period.to_string(),
-            allowed: "> 0 for a run over an impaired network (--delay, --jitter, --loss, \
-                      --loss-burst): the network carries samples"
-                .into(),
-        });
+    if network.is_some() {
+        needs_period(
+            sc,
+            "> 0 for a run over an impaired network (--delay, --jitter, --loss, --loss-burst): \
+             the network carries samples",
+        )?;
     }
     let hardware = imperfect.filter(Imperfections::has_hardware);
-    if let (Some(_), false) = (&hardware, sc.is_sampled()) {
-        return Err(ScenarioError::OutOfRange {
-            field: "control_period".into(),
-            flag: "--control-period".into(),
-            value: sc.control_period.to_string(),
-            allowed: "> 0 for a robot with sensor noise, an encoder, angles only or an actuator's \
-                      saturation or lag (--noise-*, --encoder-counts, --measure angles, \
-                      --torque-saturation, --torque-lag): the controller samples the sensors"
-                .into(),
-        });
+    if hardware.is_some() {
+        needs_period(
+            sc,
+            "> 0 for a robot with sensor noise, an encoder, angles only or an actuator's \
+             saturation or lag (--noise-*, --encoder-counts, --measure angles, \
+             --torque-saturation, --torque-lag): the controller samples the sensors",
+        )?;
     }
     let actuator = hardware.is_some_and(|h| h.torque_saturation.is_some() || h.torque_lag > 0.0);
     if opts.loop_options.sample_on_event && actuator {
@@ -433,23 +461,55 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
             allowed: "without --torque-saturation and --torque-lag (not combined yet)".into(),
         });
     }
-    let mut net_stats = None;
-    let (result, controller_samples) = if network.is_some() || hardware.is_some() {
+    Ok((network, hardware))
+}
+
+/// What a run couples the plant and the controller through (from [`couplings`]), and the
+/// robot's imperfections (for the hardware at the loop's ends).
+struct Coupled {
+    network: Option<Impairment>,
+    hardware: Option<Imperfections>,
+    imperfect: Option<Imperfections>,
+}
+
+/// How a run went: its end (a fault, or safe mode), the controller's samples, and the network's
+/// statistics (a run over a network, or one whose watchdog tripped).
+struct Run {
+    result: Result<(), Fault>,
+    controller_samples: u64,
+    net_stats: Option<NetStats>,
+}
+
+/// Runs `plant` under `ctrl` to the scenario's duration (s) through the coupling `c`: the
+/// sampled loop over the network and hardware if there are any (a run that ends in safe mode
+/// ends in [`Fault::SafeMode`], as the plant would say), else the plain sampled loop, else the
+/// continuous coupling in at most [`MAX_CHUNKS`] pieces.
+fn run_coupled<L: TorqueLaw>(
+    plant: &mut Plant,
+    ctrl: &L,
+    sc: &Scenario,
+    opts: &SimOptions,
+    c: Coupled,
+    rec: &mut Collector,
+    progress: &mut dyn FnMut(f64),
+) -> Run {
+    let t_end = sc.duration;
+    if c.network.is_some() || c.hardware.is_some() {
         // The perfect link (no --delay ...) hands each torque over at once: the plain sampled
         // loop, with the hardware at its ends.
         let perfect = Impairment::default();
         let (r, n, st) = run_sampled_over(
-            &mut plant,
+            plant,
             ctrl,
             sc.control_period,
             t_end,
-            network.as_ref().unwrap_or(&perfect),
+            c.network.as_ref().unwrap_or(&perfect),
             &LoopOptions {
                 model: Some(sc.sim_config()),
                 ..opts.loop_options
             },
-            &mut imperfect.unwrap_or_default().hardware(),
-            &mut rec,
+            &mut c.imperfect.unwrap_or_default().hardware(),
+            rec,
             progress,
         );
         // The run ended in safe mode: say so, as the plant would (it holds the arm).
@@ -464,31 +524,49 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
             }),
             (r, _, _) => r,
         };
-        net_stats = (network.is_some() || st.safe_mode.is_some_and(|s| s.trips > 0)).then_some(st);
-        (r, n)
+        let net_stats =
+            (c.network.is_some() || st.safe_mode.is_some_and(|s| s.trips > 0)).then_some(st);
+        Run {
+            result: r,
+            controller_samples: n,
+            net_stats,
+        }
     } else if sc.is_sampled() {
-        run_sampled(
-            &mut plant,
-            ctrl,
-            sc.control_period,
-            t_end,
-            &mut rec,
-            progress,
-        )
+        let (result, controller_samples) =
+            run_sampled(plant, ctrl, sc.control_period, t_end, rec, progress);
+        Run {
+            result,
+            controller_samples,
+            net_stats: None,
+        }
     } else {
         let pieces = (t_end / MIN_CHUNK).ceil().clamp(1.0, MAX_CHUNKS) as u64;
-        let r = run_continuous(&mut plant, ctrl, t_end, pieces, &mut rec, progress);
-        (r, 0)
-    };
-    let wall = start.elapsed().as_secs_f64();
-    // A peak reached in the last tilt, which has not landed (yet, or ever: the run ended in
-    // it, at its duration or by a fault), is a peak of the run too.
+        Run {
+            result: run_continuous(plant, ctrl, t_end, pieces, rec, progress),
+            controller_samples: 0,
+            net_stats: None,
+        }
+    }
+}
+
+/// The report of a run of `sc` that has ended (`wall`: its wall-clock time, s): what `rec`
+/// collected, with the peak of a last tilt that has not landed (yet, or ever: the run ended in
+/// it, at its duration or by a fault), which is a peak of the run too, and the final state.
+fn report(
+    sc: &Scenario,
+    opts: &SimOptions,
+    imperfect: Option<Imperfections>,
+    plant: &Plant,
+    mut rec: Collector,
+    run: Run,
+    wall: f64,
+) -> SimulationReport {
     if let Some(p) = plant.peak_in_progress() {
         rec.tilt_peak(&p);
     }
     rec.push(plant.time(), plant.mode(), &plant.state(), true);
     let st = plant.stats();
-    Ok(SimulationReport {
+    SimulationReport {
         measured: rec.measured.unwrap_or_default(),
         events: rec.events,
         tilt_peaks: rec.peaks,
@@ -497,8 +575,8 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
             mode: plant.mode(),
             x: plant.state().into(),
         },
-        fault: result.err(),
-        network: net_stats,
+        fault: run.result.err(),
+        network: run.net_stats,
         loop_options: opts.loop_options,
         imperfections: imperfect,
         stats: RunStats {
@@ -515,12 +593,12 @@ pub(crate) fn simulate_law<L: TorqueLaw>(
             dense_outputs: st.dense,
             transitions: plant.transitions(),
             tilts: plant.tilts(),
-            controller_samples,
+            controller_samples: run.controller_samples,
             wall_time_s: wall,
         },
         excitation: None,
         samples: rec.samples.unwrap_or_default(),
-    })
+    }
 }
 
 /// The law that runs, in words, for the summaries of `simulate` and `live`: the gains, and the
