@@ -511,6 +511,116 @@ struct Served {
     _presence: [Arc<tilting_net::Presence>; 2],
 }
 
+/// The model the estimator and the predictor of a robot with parameters `params` run: it
+/// lands by the robot's law (its parameter file's `impact`), applied at the landings they see
+/// coming.
+fn landing_model(params: tilting_plant::Params) -> tilting_plant::SimConfig {
+    tilting_plant::SimConfig {
+        params,
+        impact: params.impact,
+        ..tilting_plant::SimConfig::default()
+    }
+}
+
+impl Node {
+    /// The node of robot `keys` running `law` (its parameters, robust options and counters at
+    /// zero), publishing its torques on `torque` and watching the robot's planner through
+    /// `planner`; its estimator, predictor (`--predict`) and plant pin (`--plant-id`) from
+    /// `args`.
+    fn new(
+        args: &ControllerArgs,
+        keys: &Keys,
+        law: Controller,
+        planner: Arc<tilting_net::Presence>,
+        torque: TypedPublisher<TorqueCommand>,
+    ) -> Self {
+        let params = law.config().params;
+        let model = landing_model(params);
+        Node {
+            estimation: Mutex::new(Estimation::new(args.estimator.choice(), model)),
+            params: law.config().params,
+            orbit_peak: law.config().law.orbit_peak,
+            orbit_start: law.config().law.orbit_start,
+            orbit_steepness: law.config().law.orbit_steepness,
+            law: Mutex::new(law),
+            states: DropCounter::new(keys.plant_state()),
+            // The period is learnt by the predictor only; the window bounds jumps by the
+            // shortest one. The slack (1 s) is the recorder's: a burst after a stall of this
+            // process.
+            window: Mutex::new(StateWindow::new(
+                None,
+                MIN_PERIOD,
+                tilting_plant::SimConfig::default().fall_angle,
+                1.0,
+                false,
+            )),
+            states_refused: AtomicU64::new(0),
+            plant: Mutex::new(SourcePin::expect_or_new(
+                args.plant_id,
+                Duration::from_secs_f64(PLANT_PIN_LAPSE),
+            )),
+            states_foreign: AtomicU64::new(0),
+            references: DropCounter::new(keys.planner_reference()),
+            torques_published: AtomicU64::new(0),
+            torques_not_finite: AtomicU64::new(0),
+            publish_errors: AtomicU64::new(0),
+            references_applied: AtomicU64::new(0),
+            references_rejected: AtomicU64::new(0),
+            live_reference: AtomicBool::new(false),
+            ignore_planner: args.ignore_planner,
+            planner,
+            torque,
+            predict: args.predict.predict.map(|p| {
+                let (delay, estimate) = match p {
+                    Predict::Given(d) => (d, false),
+                    Predict::Estimated => (0.0, true),
+                };
+                Mutex::new(Prediction {
+                    p: Predictor::new(landing_model(params), 1e-3, delay),
+                    period_known: false,
+                    period_exact: false,
+                    estimate,
+                    estimates: 0,
+                })
+            }),
+        }
+    }
+}
+
+/// Asks the planner's queryable on `key` for the current reference (timeout 2 s) each time
+/// `query_rx` receives, unless the node ignores the planner; a reply goes to
+/// [`Node::on_reference`], an error reply counts as a dropped reference. Ends when the channel
+/// closes.
+fn spawn_querier(
+    session: zenoh::Session,
+    node: Arc<Node>,
+    key: String,
+    mut query_rx: tokio::sync::mpsc::UnboundedReceiver<()>,
+) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        while query_rx.recv().await.is_some() {
+            if node.ignore_planner {
+                continue;
+            }
+            let n = node.clone();
+            let r = session
+                .get(key.clone())
+                .timeout(Duration::from_secs(2))
+                .callback(move |reply| match reply.result() {
+                    Ok(sample) => n.on_reference(&sample.payload().to_bytes(), false),
+                    Err(e) => n.references.record_drop(&format!(
+                        "error reply to the reference query: {}",
+                        String::from_utf8_lossy(&e.payload().to_bytes())
+                    )),
+                })
+                .await;
+            if let Err(e) = r {
+                tracing::warn!("reference query failed: {e}");
+            }
+        }
+    })
+}
+
 /// Declares robot `keys`' subscribers, publisher, querier and token on `session`.
 async fn serve(
     session: &zenoh::Session,
@@ -519,7 +629,7 @@ async fn serve(
     law: Controller,
 ) -> anyhow::Result<Served> {
     // Ask the planner's queryable for the current reference now and whenever a planner appears.
-    let (query_tx, mut query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
+    let (query_tx, query_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
     let _ = query_tx.send(());
     let (planner, planner_sub) =
         tilting_net::watch_presence(session, keys.alive_planner(), move |alive| {
@@ -529,66 +639,7 @@ async fn serve(
         })
         .await?;
     let torque = TypedPublisher::declare(session, keys.controller_torque(), Qos::Control).await?;
-    let params = law.config().params;
-    // The model lands by the robot's law (its parameter file's `impact`): the estimator and
-    // the predictor apply it at the landings they see coming.
-    let model = tilting_plant::SimConfig {
-        params,
-        impact: params.impact,
-        ..tilting_plant::SimConfig::default()
-    };
-    let node = Arc::new(Node {
-        estimation: Mutex::new(Estimation::new(args.estimator.choice(), model)),
-        params: law.config().params,
-        orbit_peak: law.config().law.orbit_peak,
-        orbit_start: law.config().law.orbit_start,
-        orbit_steepness: law.config().law.orbit_steepness,
-        law: Mutex::new(law),
-        states: DropCounter::new(keys.plant_state()),
-        // The period is learnt by the predictor only; the window bounds jumps by the shortest
-        // one. The slack (1 s) is the recorder's: a burst after a stall of this process.
-        window: Mutex::new(StateWindow::new(
-            None,
-            MIN_PERIOD,
-            tilting_plant::SimConfig::default().fall_angle,
-            1.0,
-            false,
-        )),
-        states_refused: AtomicU64::new(0),
-        plant: Mutex::new(SourcePin::expect_or_new(
-            args.plant_id,
-            Duration::from_secs_f64(PLANT_PIN_LAPSE),
-        )),
-        states_foreign: AtomicU64::new(0),
-        references: DropCounter::new(keys.planner_reference()),
-        torques_published: AtomicU64::new(0),
-        torques_not_finite: AtomicU64::new(0),
-        publish_errors: AtomicU64::new(0),
-        references_applied: AtomicU64::new(0),
-        references_rejected: AtomicU64::new(0),
-        live_reference: AtomicBool::new(false),
-        ignore_planner: args.ignore_planner,
-        planner: planner.clone(),
-        torque,
-        predict: args.predict.predict.map(|p| {
-            let (delay, estimate) = match p {
-                Predict::Given(d) => (d, false),
-                Predict::Estimated => (0.0, true),
-            };
-            let model = tilting_plant::SimConfig {
-                params,
-                impact: params.impact,
-                ..tilting_plant::SimConfig::default()
-            };
-            Mutex::new(Prediction {
-                p: Predictor::new(model, 1e-3, delay),
-                period_known: false,
-                period_exact: false,
-                estimate,
-                estimates: 0,
-            })
-        }),
-    });
+    let node = Arc::new(Node::new(args, &keys, law, planner.clone(), torque));
 
     let n = node.clone();
     let state_sub = tilting_net::subscribe_sourced(session, keys.plant_state(), move |b, from| {
@@ -613,33 +664,12 @@ async fn serve(
 
     let (plant, plant_sub) =
         tilting_net::watch_presence(session, keys.alive_plant(), |_| {}).await?;
-    let querier = {
-        let session = session.clone();
-        let node = node.clone();
-        let key = keys.planner_reference().to_owned();
-        tokio::spawn(async move {
-            while query_rx.recv().await.is_some() {
-                if node.ignore_planner {
-                    continue;
-                }
-                let n = node.clone();
-                let r = session
-                    .get(key.clone())
-                    .timeout(Duration::from_secs(2))
-                    .callback(move |reply| match reply.result() {
-                        Ok(sample) => n.on_reference(&sample.payload().to_bytes(), false),
-                        Err(e) => n.references.record_drop(&format!(
-                            "error reply to the reference query: {}",
-                            String::from_utf8_lossy(&e.payload().to_bytes())
-                        )),
-                    })
-                    .await;
-                if let Err(e) = r {
-                    tracing::warn!("reference query failed: {e}");
-                }
-            }
-        })
-    };
+    let querier = spawn_querier(
+        session.clone(),
+        node.clone(),
+        keys.planner_reference().to_owned(),
+        query_rx,
+    );
     let token = tilting_net::declare_token(session, keys.alive_controller()).await?;
     tracing::info!(robot = keys.robot(), "controller ready");
     let mut subscribers = vec![state_sub, reference_sub, planner_sub, plant_sub];
