@@ -632,6 +632,8 @@ impl Dop853 {
     }
 
     /// Builds the continuous extension of `s` (three more evaluations of `f`).
+    // long: the DOP853 dense-output tableau (Hairer's contd8): three stages and four rows of
+    // coefficients, one a line.
     pub fn dense<const N: usize, F>(&mut self, f: &mut F, s: &Step<N>) -> Dense<N>
     where
         F: FnMut(f64, &SVector<f64, N>) -> SVector<f64, N>,

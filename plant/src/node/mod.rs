@@ -238,6 +238,37 @@ async fn serve(
         .await?;
     let token = tilting_net::declare_token(session, keys.alive_plant()).await?;
 
+    let lp = new_loop(
+        args,
+        (plant, record),
+        shared.clone(),
+        pubs,
+        link.clone(),
+        impairment,
+    )?;
+    let served = Served {
+        keys,
+        shared,
+        link,
+        ros2,
+        _token: token,
+        _subscribers: [torque_sub, presence_sub],
+        _presence: presence,
+    };
+    Ok((served, lp))
+}
+
+/// The pacing loop of one robot, at its start (no step taken, every counter at zero): the
+/// plant `plant` (and its recording `record`) at the period, safe mode, hardware and clock of
+/// `args`; `impairment` held in lockstep (a real-time run crosses `link`, the emulated links).
+fn new_loop(
+    args: &PlantArgs,
+    (plant, record): (Plant, Option<Recording>),
+    shared: Arc<Shared>,
+    pubs: Arc<Publishers>,
+    link: Option<Arc<emulation::Emulator>>,
+    impairment: Option<tilting_link::Impairment>,
+) -> anyhow::Result<Loop> {
     let args = args.clone();
     let h = args.period();
     let safe = args.safe.settings()?;
@@ -245,13 +276,13 @@ async fn serve(
         .filter(|_| args.clock == ClockMode::Lockstep)
         .map(|imp| imp.hold(args.period()));
     let hw = args.imperfections()?.hardware();
-    let lp = Loop {
+    Ok(Loop {
         args,
         h,
         plant,
         safe,
         watchdog: crate::safe::Watchdog::new(safe.watchdog),
-        shared: shared.clone(),
+        shared,
         pubs,
         obs: Obs::default(),
         record,
@@ -270,7 +301,7 @@ async fn serve(
         hw,
         measured: None,
         previous_angles: None,
-        link: link.clone(),
+        link,
         age: Ring::new(),
         deadline_misses: 0,
         last_answer: None,
@@ -288,47 +319,19 @@ async fn serve(
         period_t0: 0,
         event_answer: None,
         stagger: None,
-    };
-    let served = Served {
-        keys,
-        shared,
-        link,
-        ros2,
-        _token: token,
-        _subscribers: [torque_sub, presence_sub],
-        _presence: presence,
-    };
-    Ok((served, lp))
+    })
 }
 
-async fn run_async(
-    args: PlantArgs,
-    robots: Vec<(Keys, Plant, Option<Recording>)>,
-    hosted: bool,
-) -> anyhow::Result<ExitCode> {
-    let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
-    let mut served = Vec::with_capacity(robots.len());
-    let mut loops = Vec::with_capacity(robots.len());
-    for robot in robots {
-        let (s, lp) = serve(&session, &args, robot).await?;
-        served.push(s);
-        loops.push(lp);
-    }
-    // Each pacing thread says on `done` when its runs end; `None` once all have.
-    let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
-    let one = hosted && args.host_pacing == HostPacing::One;
-    let mut groups: Vec<Vec<Loop>> = if one {
-        vec![loops]
-    } else {
-        loops.into_iter().map(|lp| vec![lp]).collect()
-    };
+/// One pacing thread per group of `groups` (all the robots in one when `one`), each running
+/// its loops to their end (in one real-time schedule when `one`), saying so on `done_tx`, and
+/// answering each loop's outcome and summary.
+#[allow(clippy::type_complexity)]
+fn spawn_pacing(
+    groups: Vec<Vec<Loop>>,
+    one: bool,
+    done_tx: &tokio::sync::mpsc::UnboundedSender<()>,
+) -> anyhow::Result<Vec<std::thread::JoinHandle<Vec<(Outcome, PlantSummary)>>>> {
     let mut pacing = Vec::with_capacity(groups.len());
-    if hosted && !one {
-        let n = groups.len() as f64;
-        for (i, g) in groups.iter_mut().enumerate() {
-            g[0].stagger = Some(i as f64 / n);
-        }
-    }
     for mut group in groups {
         let done = done_tx.clone();
         pacing.push(
@@ -353,6 +356,37 @@ async fn run_async(
                 .context("cannot start the pacing thread")?,
         );
     }
+    Ok(pacing)
+}
+
+async fn run_async(
+    args: PlantArgs,
+    robots: Vec<(Keys, Plant, Option<Recording>)>,
+    hosted: bool,
+) -> anyhow::Result<ExitCode> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Plant).await?;
+    let mut served = Vec::with_capacity(robots.len());
+    let mut loops = Vec::with_capacity(robots.len());
+    for robot in robots {
+        let (s, lp) = serve(&session, &args, robot).await?;
+        served.push(s);
+        loops.push(lp);
+    }
+    // Each pacing thread says on `done` when its runs end; `None` once all have.
+    let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
+    let one = hosted && args.host_pacing == HostPacing::One;
+    let mut groups: Vec<Vec<Loop>> = if one {
+        vec![loops]
+    } else {
+        loops.into_iter().map(|lp| vec![lp]).collect()
+    };
+    if hosted && !one {
+        let n = groups.len() as f64;
+        for (i, g) in groups.iter_mut().enumerate() {
+            g[0].stagger = Some(i as f64 / n);
+        }
+    }
+    let pacing = spawn_pacing(groups, one, &done_tx)?;
     drop(done_tx);
     let all_done = async { while done_rx.recv().await.is_some() {} };
     tokio::select! {
