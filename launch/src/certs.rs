@@ -193,6 +193,38 @@ impl Host {
     }
 }
 
+/// The certificate parameters of `node` of `robot` (its common name, a TLS client and server
+/// key), validity left to the caller. Its subjectAltName: the sessions that are dialled name
+/// their host, `localhost` and `127.0.0.1` for the router, the plant and the recorder, and each
+/// of `hosts` for its node.
+fn node_params(robot: &str, node: &str, hosts: &[Host]) -> anyhow::Result<CertificateParams> {
+    let mut sans: Vec<String> = Vec::new();
+    // The certificates of the sessions that are dialled name their host: the nodes dial
+    // the router, the controller and the recorder dial the plant (the direct loop), the
+    // controller dials the recorder ([`RECORDER`]), and each checks the name. On one host
+    // that is the loopback host; `--host` adds the others ("Three hosts" in the README).
+    if node == "router" || node == "plant" || node == RECORDER {
+        sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
+    }
+    for h in hosts.iter().filter(|h| h.node == node) {
+        if !sans.contains(&h.name) {
+            sans.push(h.name.clone());
+        }
+    }
+    let mut p = CertificateParams::new(sans)?;
+    p.distinguished_name
+        .push(DnType::CommonName, common_name(robot, node));
+    p.key_usages = vec![
+        KeyUsagePurpose::DigitalSignature,
+        KeyUsagePurpose::KeyEncipherment,
+    ];
+    p.extended_key_usages = vec![
+        ExtendedKeyUsagePurpose::ClientAuth,
+        ExtendedKeyUsagePurpose::ServerAuth,
+    ];
+    Ok(p)
+}
+
 /// Creates `out` and writes into it: `ca.pem` (the CA certificate; its key is not kept),
 /// `{node}.pem` and `{node}.key` for each of [`NODES`] and `extra`, a client configuration
 /// `{node}.json5` for each node (mode client, scouting off, TLS with its certificate, connect to
@@ -244,30 +276,7 @@ pub fn generate(
     nodes.extend(extra.iter().cloned());
     let endpoints = DirectEndpoints::from_hosts(hosts, router_endpoint);
     for node in &nodes {
-        let mut sans: Vec<String> = Vec::new();
-        // The certificates of the sessions that are dialled name their host: the nodes dial
-        // the router, the controller and the recorder dial the plant (the direct loop), the
-        // controller dials the recorder ([`RECORDER`]), and each checks the name. On one host
-        // that is the loopback host; `--host` adds the others ("Three hosts" in the README).
-        if node == "router" || node == "plant" || node == RECORDER {
-            sans.extend(["localhost".to_owned(), "127.0.0.1".to_owned()]);
-        }
-        for h in hosts.iter().filter(|h| &h.node == node) {
-            if !sans.contains(&h.name) {
-                sans.push(h.name.clone());
-            }
-        }
-        let mut p = CertificateParams::new(sans)?;
-        p.distinguished_name
-            .push(DnType::CommonName, common_name(robot, node));
-        p.key_usages = vec![
-            KeyUsagePurpose::DigitalSignature,
-            KeyUsagePurpose::KeyEncipherment,
-        ];
-        p.extended_key_usages = vec![
-            ExtendedKeyUsagePurpose::ClientAuth,
-            ExtendedKeyUsagePurpose::ServerAuth,
-        ];
+        let mut p = node_params(robot, node, hosts)?;
         validity(&mut p);
         let key = KeyPair::generate().with_context(|| format!("cannot generate {node}'s key"))?;
         let cert = p
