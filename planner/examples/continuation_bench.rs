@@ -48,43 +48,7 @@ fn main() {
     let d = continuation::diagram(&base, Param::K, paper::ORBIT_K, guess, &set, &|_, _| {})
         .expect("continuation");
     let cont_s = t.elapsed().as_secs_f64();
-    for br in &d.branches {
-        let worst = br.points.iter().map(|p| p.residual).fold(0.0, f64::max);
-        let mism = br
-            .points
-            .iter()
-            .map(|p| p.resimulated_mismatch)
-            .fold(0.0, f64::max);
-        println!(
-            "period {:>2}: {:>4} points, k in [{:.3}, {:.3}], {:>4} steps, {:>5} Newton iterations, residual <= {worst:.1e}, re-simulated <= {mism:.1e}, end {:?}",
-            br.tilts,
-            br.points.len(),
-            br.points.first().map_or(f64::NAN, |p| p.p),
-            br.points.last().map_or(f64::NAN, |p| p.p),
-            br.steps,
-            br.newton_iterations,
-            br.end
-        );
-        for e in &br.events {
-            println!(
-                "    {:?} at k = {:.7} (test {:.1e}), multipliers {:?}",
-                e.kind, e.p, e.test, e.point.multipliers
-            );
-        }
-    }
-    for (i, k) in d.flips.iter().enumerate() {
-        println!("k_{} = {k:.7}", i + 1);
-    }
-    for (i, r) in d.ratios.iter().enumerate() {
-        println!(
-            "delta_{} = {r:.4} (Feigenbaum {FEIGENBAUM_DELTA:.4})",
-            i + 1
-        );
-    }
-    println!(
-        "k_inf = {:?} (own ratio), {:?} (Feigenbaum's)",
-        d.p_inf, d.p_inf_feigenbaum
-    );
+    print_diagram(&d);
     let steps = d.steps();
     println!(
         "continuation: {cont_s:.3} s, {steps} steps, {:.2} ms per step",
@@ -121,5 +85,48 @@ fn main() {
     println!(
         "whole diagram with its Lyapunov curve: {:.3} s",
         all.elapsed().as_secs_f64()
+    );
+}
+
+/// Prints each branch of `d` (points, range of k, steps, Newton iterations, worst residual and
+/// re-simulated mismatch, end, its bifurcations), the flips, their ratios against Feigenbaum's
+/// constant and the accumulation point.
+fn print_diagram(d: &continuation::Diagram) {
+    for br in &d.branches {
+        let worst = br.points.iter().map(|p| p.residual).fold(0.0, f64::max);
+        let mism = br
+            .points
+            .iter()
+            .map(|p| p.resimulated_mismatch)
+            .fold(0.0, f64::max);
+        println!(
+            "period {:>2}: {:>4} points, k in [{:.3}, {:.3}], {:>4} steps, {:>5} Newton iterations, residual <= {worst:.1e}, re-simulated <= {mism:.1e}, end {:?}",
+            br.tilts,
+            br.points.len(),
+            br.points.first().map_or(f64::NAN, |p| p.p),
+            br.points.last().map_or(f64::NAN, |p| p.p),
+            br.steps,
+            br.newton_iterations,
+            br.end
+        );
+        for e in &br.events {
+            println!(
+                "    {:?} at k = {:.7} (test {:.1e}), multipliers {:?}",
+                e.kind, e.p, e.test, e.point.multipliers
+            );
+        }
+    }
+    for (i, k) in d.flips.iter().enumerate() {
+        println!("k_{} = {k:.7}", i + 1);
+    }
+    for (i, r) in d.ratios.iter().enumerate() {
+        println!(
+            "delta_{} = {r:.4} (Feigenbaum {FEIGENBAUM_DELTA:.4})",
+            i + 1
+        );
+    }
+    println!(
+        "k_inf = {:?} (own ratio), {:?} (Feigenbaum's)",
+        d.p_inf, d.p_inf_feigenbaum
     );
 }

@@ -13,6 +13,8 @@
 //!   cascade, Lyapunov exponents) and its stability region in two, with [`Progress`].
 
 mod continuation;
+mod continuation_text;
+mod orbit_text;
 
 pub use continuation::{
     ContinuationJob, ContinuationReport, ContinuationTiming, Continued, Progress, StabilityJob,
@@ -580,63 +582,15 @@ pub fn orbit_for_peak(
             crate::peak::PeakError::NoOrbit { .. } => JobError::Failed(e.to_string()),
             _ => JobError::Invalid(e.to_string()),
         })?;
-    let mut calibration = None;
-    let settled = if control_period.is_some() || params.restitution != 0.0 || !calibrate.is_empty()
-    {
-        let robot = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
-        let x0 = OrbitProblem::start(found.orbit.beta0, found.orbit.beta_dot0);
-        let dt = control_period.unwrap_or(0.0);
-        let mut target = peak;
-        if !calibrate.is_empty() {
-            let c = crate::calibrate::calibrate(
-                &robot,
-                &x0,
-                calibrate,
-                peak,
-                dt,
-                found.orbit.period,
-                tick,
-            )
-            .map_err(|e| match e {
-                crate::calibrate::CalibrateError::Model(m) => JobError::Failed(m),
-                e => JobError::Invalid(e.to_string()),
-            })?;
-            target = peak - c.bias_at(found.energy_avg_adaptation);
-            calibration = Some(c);
-        }
-        let settle = |from: f64, target: f64| {
-            crate::peak::settle_energy_for_peak(
-                &robot,
-                &x0,
-                from,
-                target,
-                dt,
-                found.orbit.period,
-                tick,
-            )
-            .map_err(JobError::Failed)
+    let (settled, calibration) =
+        if control_period.is_some() || params.restitution != 0.0 || !calibrate.is_empty() {
+            let robot = OrbitProblem::new(params, impact, kp, kd).with_adaptation(k, 0.0);
+            let dt = control_period.unwrap_or(0.0);
+            let (s, c) = settle_on_robot(&robot, &found, peak, dt, calibrate, tick)?;
+            (Some(s), c)
+        } else {
+            (None, None)
         };
-        if let Some(c) = calibration.as_mut() {
-            c.period = settle(found.energy_avg_adaptation, peak)?.period;
-        }
-        let mut s = settle(found.energy_avg_adaptation, target)?;
-        // A bias that moves with E_av: settle again at the bias where the last one ended, until
-        // the target stays (a few rounds: the bias's slope is small against the model's).
-        if let Some(c) = calibration.as_mut() {
-            for _ in 0..6 {
-                let next = peak - c.bias_at(s.energy_avg);
-                if (next - target).abs() <= 1e-4 * peak {
-                    break;
-                }
-                target = next;
-                s = settle(s.energy_avg, target)?;
-            }
-            c.model_peak = target;
-        }
-        Some(s)
-    } else {
-        None
-    };
     Ok(OrbitReport {
         kp,
         kd,
@@ -654,6 +608,62 @@ pub fn orbit_for_peak(
         settled,
         calibration,
     })
+}
+
+/// The `E_av` (J) at which the loop `robot` (the robot's landings, sampled every `dt` s, 0 for
+/// continuous) settles at a mean peak of `peak` (rad), from the shooting's orbit `found`; with
+/// `calibrate` (runs on the robot), at `peak` less the robot's bias against the model at the
+/// `E_av` where the settling ends (settled again until that target moves by at most 1e-4 of
+/// the peak, six rounds at most), with the [`crate::calibrate::Calibration`] that says so.
+fn settle_on_robot(
+    robot: &OrbitProblem,
+    found: &crate::peak::PeakOrbit,
+    peak: f64,
+    dt: f64,
+    calibrate: &[crate::calibrate::RecordedOrbit],
+    tick: &dyn Fn(&str),
+) -> Result<
+    (
+        crate::peak::SettledPeak,
+        Option<crate::calibrate::Calibration>,
+    ),
+    JobError,
+> {
+    let x0 = OrbitProblem::start(found.orbit.beta0, found.orbit.beta_dot0);
+    let mut calibration = None;
+    let mut target = peak;
+    if !calibrate.is_empty() {
+        let c =
+            crate::calibrate::calibrate(robot, &x0, calibrate, peak, dt, found.orbit.period, tick)
+                .map_err(|e| match e {
+                    crate::calibrate::CalibrateError::Model(m) => JobError::Failed(m),
+                    e => JobError::Invalid(e.to_string()),
+                })?;
+        target = peak - c.bias_at(found.energy_avg_adaptation);
+        calibration = Some(c);
+    }
+    let settle = |from: f64, target: f64| {
+        crate::peak::settle_energy_for_peak(robot, &x0, from, target, dt, found.orbit.period, tick)
+            .map_err(JobError::Failed)
+    };
+    if let Some(c) = calibration.as_mut() {
+        c.period = settle(found.energy_avg_adaptation, peak)?.period;
+    }
+    let mut s = settle(found.energy_avg_adaptation, target)?;
+    // A bias that moves with E_av: settle again at the bias where the last one ended, until
+    // the target stays (a few rounds: the bias's slope is small against the model's).
+    if let Some(c) = calibration.as_mut() {
+        for _ in 0..6 {
+            let next = peak - c.bias_at(s.energy_avg);
+            if (next - target).abs() <= 1e-4 * peak {
+                break;
+            }
+            target = next;
+            s = settle(s.energy_avg, target)?;
+        }
+        c.model_peak = target;
+    }
+    Ok((s, calibration))
 }
 
 /// The reach map of `plan reach`: which `(K_D, k)` of the grids `[from, to, step]` reach the

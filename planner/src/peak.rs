@@ -253,21 +253,7 @@ fn follow(
     // The direction of E_av that moves the peak towards the target: from a small probe.
     let probe = |e: f64, g: [f64; 3]| orbit::solve(&pb.with_adaptation(k, e), g).ok();
     let mut prev: Point = (z0, e0, s0);
-    let dir = {
-        let h = search.step * 0.1;
-        match probe(e0 + h, z0) {
-            Some(s) => {
-                let up = peak_of(&s) > peak_of(&prev.2);
-                let want_up = target > peak_of(&prev.2);
-                if up == want_up {
-                    1.0
-                } else {
-                    -1.0
-                }
-            }
-            None => 1.0,
-        }
-    };
+    let dir = direction(&probe, &prev, target, search.step * 0.1);
     let mut last: Option<Point> = None;
     let mut step = search.step;
     let mut best = prev.clone();
@@ -320,6 +306,40 @@ fn follow(
             }
         }
     }
+    best_or_refusal(best, target, branch)
+}
+
+/// The direction of `E_av` (+1 or -1) that moves the peak of the orbit `prev` towards
+/// `target` (rad), from an orbit `probe`d `h` (J) above it; +1 where the probe fails.
+fn direction(
+    probe: &dyn Fn(f64, [f64; 3]) -> Option<OrbitSolution>,
+    prev: &Point,
+    target: f64,
+    h: f64,
+) -> f64 {
+    let peak_of = |s: &OrbitSolution| s.max_tilt.abs();
+    match probe(prev.1 + h, prev.0) {
+        Some(s) => {
+            let up = peak_of(&s) > peak_of(&prev.2);
+            let want_up = target > peak_of(&prev.2);
+            if up == want_up {
+                1.0
+            } else {
+                -1.0
+            }
+        }
+        None => 1.0,
+    }
+}
+
+/// The orbit `best` found by [`follow`] if its peak is `target` (rad, within 1e-10), else the
+/// refusal naming the largest (or smallest) peak reached and its `E_av`.
+fn best_or_refusal(
+    best: Point,
+    target: f64,
+    branch: Vec<(f64, f64, bool)>,
+) -> Result<PeakOrbit, PeakError> {
+    let peak_of = |s: &OrbitSolution| s.max_tilt.abs();
     let (bp, be) = (peak_of(&best.2), best.1);
     if (bp - target).abs() < 1e-10 {
         return Ok(PeakOrbit {

@@ -6,7 +6,7 @@ use super::{print_stdout, usage};
 use crate::CommandError;
 use clap::Args;
 use std::path::PathBuf;
-use tilting_planner::identify::{self, Identification, IdentifyError, Options, Velocities};
+use tilting_planner::identify::{self, IdentifyError, Options, Velocities};
 use tilting_plant::Params;
 
 /// Flags of `tilting identify`.
@@ -83,46 +83,32 @@ pub enum VelocitiesArg {
 
 /// Runs `tilting identify`.
 pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
-    if !(args.half_window.is_finite() && (0.002..=0.5).contains(&args.half_window)) {
-        return Err(usage(format!(
-            "invalid `--half-window` = {}: allowed a time in s in [0.002, 0.5]",
-            args.half_window
-        )));
-    }
-    if !(args.window.is_finite() && (0.01..=2.0).contains(&args.window)) {
-        return Err(usage(format!(
-            "invalid `--window` = {}: allowed a time in s in [0.01, 2]",
-            args.window
-        )));
-    }
-    if !(args.min_speed.is_finite() && (0.0..=10.0).contains(&args.min_speed)) {
-        return Err(usage(format!(
-            "invalid `--min-speed` = {}: allowed a speed in rad/s in [0, 10]",
-            args.min_speed
-        )));
-    }
-    if let Some(s) = args.settle {
-        if !(s.is_finite() && (0.0..=1.0).contains(&s)) {
-            return Err(usage(format!(
-                "invalid `--settle` = {s}: allowed a time in s in [0, 1]"
-            )));
-        }
-    }
+    let mut opts = Options {
+        velocities: match args.velocities {
+            VelocitiesArg::Angles => Velocities::Angles,
+            VelocitiesArg::Recorded => Velocities::Recorded,
+        },
+        half_window: args.half_window,
+        window: args.window,
+        v_min: args.min_speed,
+        refine: if args.no_refine {
+            None
+        } else {
+            Options::default().refine
+        },
+        settle: args.settle,
+        ..Options::default()
+    };
+    opts.check().map_err(refused)?;
     // The prior: --params, else the [prior] table of the robot file --out writes into.
     let prior = args
         .params
         .clone()
         .or_else(|| args.out.as_deref().and_then(crate::robot::prior_of));
-    let base = match &prior {
-        Some(p) => Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into()))?,
-        None => Params::default(),
-    };
-    if !(args.fit_window.is_finite() && (0.01..=10.0).contains(&args.fit_window)) {
-        return Err(usage(format!(
-            "invalid `--fit-window` = {}: allowed a time in s in [0.01, 10]",
-            args.fit_window
-        )));
+    if let Some(p) = &prior {
+        opts.base = Params::from_toml_file(p).map_err(|e| CommandError::Usage(e.into()))?;
     }
+    identify::check_fit_window(args.fit_window).map_err(refused)?;
     if let Some(p) = &args.plot {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(usage(format!(
@@ -141,29 +127,8 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
         .map(|f| f.display().to_string())
         .collect::<Vec<_>>()
         .join(" + ");
-    let mut id = identify::identify(
-        &rec.trace,
-        &rec.tau,
-        &Options {
-            base,
-            velocities: match args.velocities {
-                VelocitiesArg::Angles => Velocities::Angles,
-                VelocitiesArg::Recorded => Velocities::Recorded,
-            },
-            half_window: args.half_window,
-            window: args.window,
-            v_min: args.min_speed,
-            refine: if args.no_refine {
-                None
-            } else {
-                Options::default().refine
-            },
-            settle: args.settle,
-            ..Options::default()
-        },
-    )
-    .map_err(refused)?;
-    let resim = id.check_fit(&rec.trace, &rec.tau, &base, args.fit_window);
+    let mut id = identify::identify(&rec.trace, &rec.tau, &opts).map_err(refused)?;
+    let resim = id.check_fit(&rec.trace, &rec.tau, &opts.base, args.fit_window);
     if let Some(p) = &args.plot {
         let f = id.fit.as_ref().map(|f| &f.identified);
         let title = f.map_or(String::new(), |f| {
@@ -190,7 +155,11 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CommandError> {
     let text = if args.json {
         serde_json::to_string_pretty(&id).map_err(|e| CommandError::Failed(e.into()))? + "\n"
     } else {
-        human(&id, &source, args.out.as_ref())
+        let mut s = id.human(&source);
+        if let Some(o) = &args.out {
+            s += &format!("wrote {} (use it with --params)\n", o.display());
+        }
+        s
     };
     print_stdout(&text)
 }
@@ -200,187 +169,5 @@ fn refused(e: IdentifyError) -> CommandError {
     match e {
         IdentifyError::Load(_) | IdentifyError::Read(_) => CommandError::Failed(e.into()),
         e => usage(e.to_string()),
-    }
-}
-
-fn human(id: &Identification, source: &str, out: Option<&PathBuf>) -> String {
-    use std::fmt::Write as _;
-    let mut s = String::new();
-    let r = id.rows;
-    let _ = writeln!(
-        s,
-        "{source}: {} equations ({} flat and {} tilted intervals; {} skipped at events or \
-         without a torque)",
-        r.equations, r.flat, r.tilted, r.skipped
-    );
-    let _ = writeln!(
-        s,
-        "condition number {:.3e} (columns scaled), residual RMS {:.3e} N m\n",
-        id.condition_number, id.residual_rms
-    );
-    let _ = writeln!(
-        s,
-        "{:<8} {:<28} {:>14} {:>11}  unit",
-        "base", "", "estimate", "std err"
-    );
-    for e in &id.base {
-        match (e.value, e.std_error) {
-            (Some(v), Some(se)) => {
-                let _ = writeln!(
-                    s,
-                    "{:<8} {:<28} {v:>14.6} {se:>11.2e}  {}",
-                    e.name, e.combination, e.unit
-                );
-            }
-            _ => {
-                let why = e
-                    .not_identifiable
-                    .as_deref()
-                    .unwrap_or("not fixed by the data");
-                let _ = writeln!(
-                    s,
-                    "{:<8} {:<28} not identifiable: {why}",
-                    e.name, e.combination
-                );
-            }
-        }
-    }
-    if let Some(r) = &id.refinement {
-        let _ = writeln!(
-            s,
-            "\noutput-error refinement ({} flat windows of {} s joined, {} angles, {} \
-             iterations{}): beta RMS {:.3e} rad (least squares {:.3e}); J {:.6} +- {:.1e} kg m^2, \
-             m_l l_c g {:.6} +- {:.1e} N m, b_v {:.6} +- {:.1e} N m s/rad, tau_c {:.6} +- \
-             {:.1e} N m (b_v and tau_c above are these where their standard errors are smaller)",
-            r.windows,
-            r.window_s,
-            r.samples,
-            r.iterations,
-            if r.converged { "" } else { ", not converged" },
-            r.rms,
-            r.rms_start,
-            r.value[0],
-            r.std_error[0],
-            r.value[1],
-            r.std_error[1],
-            r.value[2],
-            r.std_error[2],
-            r.value[3],
-            r.std_error[3]
-        );
-    }
-    if let Some(l) = &id.landing {
-        landing_summary(&mut s, l);
-    }
-    let p = &id.params;
-    let _ = writeln!(
-        s,
-        "\nparameters: m_f {:.6} kg, m_l {:.6} kg (prior), l_c {:.6} m, i_l {:.6} kg m^2, \
-         j_m {:.6} kg m^2, n_g {:.6}, b_v {:.6} N m s/rad, tau_c {:.6} N m, i_f {:.6} kg m^2, \
-         impact {}, restitution {:.4}",
-        p.m_f,
-        p.m_l,
-        p.lc(),
-        p.i_l,
-        p.j_m,
-        p.n_g,
-        p.b_v,
-        p.tau_c,
-        p.i_f,
-        p.impact.as_str(),
-        p.restitution
-    );
-    let _ = writeln!(s, "not identifiable from motion:");
-    for n in &id.not_identifiable {
-        let _ = writeln!(s, "  - {n}");
-    }
-    for w in &id.warnings {
-        let _ = writeln!(s, "warning: {w}");
-    }
-    if let Some(f) = &id.fit {
-        let _ = writeln!(
-            s,
-            "fit check (re-simulated under the recorded torques, restarted every {} s, {} \
-             windows): RMS alpha {:.3e} rad, beta {:.3e} rad with the identified parameters; \
-             {:.3e} rad, {:.3e} rad with the prior",
-            f.identified.window_s,
-            f.identified.windows,
-            f.identified.rms_alpha,
-            f.identified.rms_beta,
-            f.prior.rms_alpha,
-            f.prior.rms_beta
-        );
-    }
-    if let Some(o) = out {
-        let _ = writeln!(s, "wrote {} (use it with --params)", o.display());
-    }
-    s
-}
-
-/// The landings' lines of the human summary: the regressed `c`, the restitution, each law's
-/// coefficient and residual, the best.
-fn landing_summary(s: &mut String, l: &identify::landing::LandingFit) {
-    use std::fmt::Write as _;
-    let _ = writeln!(
-        s,
-        "\nlandings: {} used ({} skipped: a side shorter than {} samples), {} rebounds; \
-         beta_dot+ = beta_dot- + c alpha_dot-: c = {:.5} +- {:.1e}; physical law's restitution \
-         e = {:.4} +- {:.1e}",
-        l.landings.len(),
-        l.skipped,
-        identify::landing::MIN_SIDE,
-        l.rebounds,
-        l.c,
-        l.c_std_error,
-        l.restitution,
-        l.restitution_std_error
-    );
-    if let Some(t) = &l.by_tilts {
-        let _ = writeln!(
-            s,
-            "  restitution by the tilts after the landings (the model's next peak as recorded): \
-             e = {:.4} +- {:.1e} over {} landings{}",
-            t.e,
-            t.std_error,
-            t.landings,
-            if t.e < 0.0 {
-                " (below 0: the plate passes on into the next tilt)"
-            } else {
-                ""
-            }
-        );
-    }
-    if let Some(d) = &l.contact_dwell {
-        let _ = writeln!(
-            s,
-            "  the contact reports the plate flat for {:.2} ms on average (longest {:.2} ms) \
-             at {} landings that pass on into the other tilt{}",
-            d.mean * 1e3,
-            d.longest * 1e3,
-            d.spells,
-            if d.outliers > 0 {
-                format!(
-                    " ({} longer than {} x the median left out: the plate at rest a moment)",
-                    d.outliers,
-                    identify::landing::DWELL_OUTLIER
-                )
-            } else {
-                String::new()
-            }
-        );
-    }
-    for f in &l.laws {
-        let _ = writeln!(
-            s,
-            "  {:<14} c {:.5}  residual RMS {:.3e} rad/s{}",
-            f.law.as_str(),
-            f.c,
-            f.residual_rms,
-            if f.law == l.best {
-                "  <- fits best"
-            } else {
-                ""
-            }
-        );
     }
 }

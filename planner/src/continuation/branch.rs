@@ -143,6 +143,25 @@ pub(crate) fn crossings(a: &Matrix2<f64>, b: &Matrix2<f64>, skip_fold: bool) -> 
     out
 }
 
+/// Locates each bifurcation of `kinds` between the neighbouring points `cur` and `next` of a
+/// branch (to `tol`, as [`locate`]) and appends it to `events`; the first that fails ends the
+/// search with the reason (`locating a <kind>: <why>`).
+fn locate_all(
+    c: &Continuation,
+    (cur, next): (&Solved, &Solved),
+    kinds: Vec<EventKind>,
+    tol: f64,
+    events: &mut Vec<Event>,
+) -> Result<(), String> {
+    for kind in kinds {
+        let ev = locate(c, cur, next, kind as usize, tol)
+            .and_then(|s| event(c, &s, kind))
+            .map_err(|e| format!("locating a {kind:?}: {e}"))?;
+        events.push(ev);
+    }
+    Ok(())
+}
+
 /// Continues from the solved `first` along `dir` until the parameter leaves the settings'
 /// range, the step count runs out, or the corrector fails at the smallest step. `born_at_flip`
 /// skips fold detection on the first step (a doubled branch starts with a multiplier at +1).
@@ -203,16 +222,10 @@ pub(crate) fn follow(
             arclength::monodromy_of(&cur),
             arclength::monodromy_of(&next),
         );
-        for kind in crossings(&ma, &mb, born_at_flip && br.steps == 1) {
-            match locate(c, &cur, &next, kind as usize, set.locate_tol)
-                .and_then(|s| event(c, &s, kind))
-            {
-                Ok(ev) => br.events.push(ev),
-                Err(e) => {
-                    br.end = EndReason::Failed(format!("locating a {kind:?}: {e}"));
-                    return br;
-                }
-            }
+        let kinds = crossings(&ma, &mb, born_at_flip && br.steps == 1);
+        if let Err(e) = locate_all(c, (&cur, &next), kinds, set.locate_tol, &mut br.events) {
+            br.end = EndReason::Failed(e);
+            return br;
         }
         let pt = match point(c, &next) {
             Ok(p) => p,

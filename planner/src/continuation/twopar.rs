@@ -116,6 +116,25 @@ impl Plane {
             "the two-parameter corrector did not converge".into(),
         ))
     }
+
+    /// [`Plane::correct`] from `pred`, the point kept only where its orbit still tilts back at
+    /// once after each landing (the hybrid simulator's mismatch below 1e-6).
+    fn correct_tilting(
+        &self,
+        pred: &DVector<f64>,
+        t: &DVector<f64>,
+        jac: &DMatrix<f64>,
+    ) -> Result<DVector<f64>, OrbitError> {
+        let v = self.correct(pred, t, jac)?;
+        let pb = self.problem(&v)?;
+        let m = v.len() - 2;
+        match cycle::resimulated_mismatch(&pb, &v.rows(0, m).into_owned()) {
+            Some(x) if x < 1e-6 => Ok(v),
+            _ => Err(OrbitError::Invalid(
+                "the orbit no longer tilts back at once after each landing".into(),
+            )),
+        }
+    }
 }
 
 /// Continues the bifurcation `kind` located on a branch in `p1` (at `p1_value` with the cycle
@@ -168,15 +187,7 @@ pub fn curve(
                 Ok(tj) => tj,
                 Err(e) => break EndReason::Failed(e.to_string()),
             };
-            let next = pl.correct(&(&u + &t * h), &t, &jac).and_then(|v| {
-                let pb = pl.problem(&v)?;
-                match cycle::resimulated_mismatch(&pb, &v.rows(0, m).into_owned()) {
-                    Some(x) if x < 1e-6 => Ok(v),
-                    _ => Err(OrbitError::Invalid(
-                        "the orbit no longer tilts back at once after each landing".into(),
-                    )),
-                }
-            });
+            let next = pl.correct_tilting(&(&u + &t * h), &t, &jac);
             match next {
                 Ok(v) if (&v - &u).norm() <= 2.0 * h => {
                     steps += 1;

@@ -397,33 +397,7 @@ fn one(
 ) -> Option<LandingEstimate> {
     let s = &trace.samples;
     let (te, from, to) = clusters[c];
-    let prev = if c > 0 {
-        clusters[c - 1].0
-    } else {
-        f64::NEG_INFINITY
-    };
-    let next = clusters.get(c + 1).map_or(f64::INFINITY, |n| n.0);
-    // Samples strictly before the event in the tilt, strictly after it up to the next.
-    let k = s.partition_point(|x| x.t < te);
-    let rates = s
-        .get(k.saturating_sub(1))
-        .is_some_and(|x| x.x[3].is_finite());
-    let most = if rates { SIDE_RATES } else { SIDE };
-    let before: Vec<usize> = (0..k)
-        .rev()
-        .take_while(|&i| s[i].mode == from && s[i].t > prev)
-        .take(most)
-        .collect();
-    let start = s[k..].iter().position(|x| x.t > te).map(|d| k + d);
-    let after: Vec<usize> = start.map_or(Vec::new(), |a| {
-        (a..s.len())
-            .take_while(|&i| s[i].t < next)
-            .take(most)
-            .collect()
-    });
-    if before.len() < MIN_SIDE || after.len() < MIN_SIDE {
-        return None;
-    }
+    let (before, after) = side_samples(trace, clusters, c)?;
     let pre = |t: f64| side(trace, &before, t);
     // The landing instant: the root of alpha before, between the samples around the event.
     let (t_lo, t_hi) = (s[before[0]].t, s[after[0]].t);
@@ -434,57 +408,15 @@ fn one(
             tl = r;
         }
     }
-    let (Some(b), Some(mut a)) = (pre(tl), side(trace, &after, tl)) else {
+    let (Some(mut b), Some(mut a)) = (pre(tl), side(trace, &after, tl)) else {
         return None;
     };
-    let mut b = b;
-    // The side before likewise, where the last sample's rates are recorded: carried
-    // forward under its held torque to alpha = 0 (two Newton steps on the landing instant).
-    let last = &s[before[0]];
-    if let (Some(u), true) = (
-        tau.get(before[0]).copied().flatten(),
-        last.x.iter().all(|v| v.is_finite()),
-    ) {
-        let mut t = tl;
-        let mut x = integrate(p, from, last.x, u, t - last.t);
-        for _ in 0..2 {
-            if x[2] != 0.0 {
-                t -= x[0] / x[2];
-                x = integrate(p, from, last.x, u, t - last.t);
-            }
-        }
-        if x.iter().all(|v| v.is_finite()) && t > last.t && t < s[after[0]].t {
-            tl = t;
-            b.v = [x[0], x[1]];
-            b.d = [x[2], x[3]];
-        }
+    if let Some(u) = tau.get(before[0]).copied().flatten() {
+        tl = carry_to_landing(p, from, &s[before[0]], u, tl, t_hi, &mut b);
     }
-    // The side after, over the partial interval from the landing to the first sample
-    // after it: the torque held there is the one before the landing, in the new mode's
-    // dynamics, while the polynomial carries the next intervals' (the controller answers
-    // the new mode at the next sample: measured 1.2 % of the jump off on the paper's
-    // orbit). So the state at that sample is integrated back to the landing instant
-    // under the held torque with the identified parameters.
     let k_int = s.partition_point(|x| x.t <= tl).saturating_sub(1);
-    let first = &s[after[0]];
-    if let (Some(u), true) = (tau.get(k_int).copied().flatten(), first.mode == to) {
-        // The sample itself where its rates are recorded (a polynomial through the next
-        // samples spans the torque's jump there: on the paper's orbit the plate rests
-        // until the next sample, whose torque tips it).
-        let recorded = first.x.iter().all(|v| v.is_finite()).then_some(first.x);
-        let fitted = || side(trace, &after, first.t).map(|a| [a.v[0], a.v[1], a.d[0], a.d[1]]);
-        if let Some(x) = recorded.or_else(fitted) {
-            let x = if to == Mode::Flat {
-                [0.0, x[1], 0.0, x[3]]
-            } else {
-                x
-            };
-            let back = integrate(p, to, x, u, tl - first.t);
-            if back.iter().all(|v| v.is_finite()) {
-                a.v = [back[0], back[1]];
-                a.d = [back[2], back[3]];
-            }
-        }
+    if let Some(u) = tau.get(k_int).copied().flatten() {
+        back_to_landing(trace, &after, p, to, u, tl, &mut a);
     }
     let (ad, bd) = (b.d[0], b.d[1]);
     // The plate leaves the landing at rest unless it rebounds over the same edge, or passes
@@ -505,6 +437,118 @@ fn one(
         c: fast.then(|| (bd1 - bd) / ad),
         e: fast.then(|| -ad1 / ad),
     })
+}
+
+/// The indices of the samples on each side of landing `c` of `clusters`: strictly before the
+/// event in its tilt, latest first, and strictly after it up to the next landing, at most
+/// `SIDE` each (`SIDE_RATES` where the last sample before records its rates); `None` when a
+/// side has fewer than `MIN_SIDE`.
+fn side_samples(
+    trace: &Trace,
+    clusters: &[(f64, Mode, Mode)],
+    c: usize,
+) -> Option<(Vec<usize>, Vec<usize>)> {
+    let s = &trace.samples;
+    let (te, from, _) = clusters[c];
+    let prev = if c > 0 {
+        clusters[c - 1].0
+    } else {
+        f64::NEG_INFINITY
+    };
+    let next = clusters.get(c + 1).map_or(f64::INFINITY, |n| n.0);
+    let k = s.partition_point(|x| x.t < te);
+    let rates = s
+        .get(k.saturating_sub(1))
+        .is_some_and(|x| x.x[3].is_finite());
+    let most = if rates { SIDE_RATES } else { SIDE };
+    let before: Vec<usize> = (0..k)
+        .rev()
+        .take_while(|&i| s[i].mode == from && s[i].t > prev)
+        .take(most)
+        .collect();
+    let start = s[k..].iter().position(|x| x.t > te).map(|d| k + d);
+    let after: Vec<usize> = start.map_or(Vec::new(), |a| {
+        (a..s.len())
+            .take_while(|&i| s[i].t < next)
+            .take(most)
+            .collect()
+    });
+    if before.len() < MIN_SIDE || after.len() < MIN_SIDE {
+        return None;
+    }
+    Some((before, after))
+}
+
+/// The side before `b` where the last sample before the landing, `last`, records its rates:
+/// its state carried forward in the tilt `from` under its held torque `u` (N m) to
+/// `alpha = 0` (two Newton steps on the landing instant from `tl`, s). Returns the landing
+/// instant (s): the carried one where it falls between `last` and the first sample after
+/// (`t_after`, s), with `b` set to the carried state, else `tl` with `b` kept.
+fn carry_to_landing(
+    p: &Params,
+    from: Mode,
+    last: &tilting_record::Sample,
+    u: f64,
+    tl: f64,
+    t_after: f64,
+    b: &mut Side,
+) -> f64 {
+    if !last.x.iter().all(|v| v.is_finite()) {
+        return tl;
+    }
+    let mut t = tl;
+    let mut x = integrate(p, from, last.x, u, t - last.t);
+    for _ in 0..2 {
+        if x[2] != 0.0 {
+            t -= x[0] / x[2];
+            x = integrate(p, from, last.x, u, t - last.t);
+        }
+    }
+    if x.iter().all(|v| v.is_finite()) && t > last.t && t < t_after {
+        b.v = [x[0], x[1]];
+        b.d = [x[2], x[3]];
+        return t;
+    }
+    tl
+}
+
+/// The side after `a` over the partial interval from the landing (at `tl`, s) to the first
+/// sample after it (`after[0]`), where that sample is in the new mode `to`: the torque held
+/// there, `u` (N m), is the one before the landing, in the new mode's dynamics, while the
+/// polynomial carries the next intervals' (the controller answers the new mode at the next
+/// sample: measured 1.2 % of the jump off on the paper's orbit). So the state at that sample is
+/// integrated back to the landing instant under the held torque with the parameters `p`;
+/// `a` is kept where that is not finite.
+fn back_to_landing(
+    trace: &Trace,
+    after: &[usize],
+    p: &Params,
+    to: Mode,
+    u: f64,
+    tl: f64,
+    a: &mut Side,
+) {
+    let first = &trace.samples[after[0]];
+    if first.mode != to {
+        return;
+    }
+    // The sample itself where its rates are recorded (a polynomial through the next
+    // samples spans the torque's jump there: on the paper's orbit the plate rests
+    // until the next sample, whose torque tips it).
+    let recorded = first.x.iter().all(|v| v.is_finite()).then_some(first.x);
+    let fitted = || side(trace, after, first.t).map(|a| [a.v[0], a.v[1], a.d[0], a.d[1]]);
+    if let Some(x) = recorded.or_else(fitted) {
+        let x = if to == Mode::Flat {
+            [0.0, x[1], 0.0, x[3]]
+        } else {
+            x
+        };
+        let back = integrate(p, to, x, u, tl - first.t);
+        if back.iter().all(|v| v.is_finite()) {
+            a.v = [back[0], back[1]];
+            a.d = [back[2], back[3]];
+        }
+    }
 }
 
 /// The law the landings follow: `c` by regression, the physical law's `e`, each law's

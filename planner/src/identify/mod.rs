@@ -16,6 +16,7 @@ pub mod landing;
 pub mod load;
 mod lsq;
 pub mod refine;
+mod report;
 pub mod rows;
 pub mod smooth;
 
@@ -103,6 +104,64 @@ impl Default for Options {
             settle: None,
         }
     }
+}
+
+/// `value` if it is finite and in `range`, else [`IdentifyError::OutOfRange`] naming `flag` and
+/// `allowed`.
+fn in_range(
+    flag: &'static str,
+    value: f64,
+    range: std::ops::RangeInclusive<f64>,
+    allowed: &'static str,
+) -> Result<(), IdentifyError> {
+    if value.is_finite() && range.contains(&value) {
+        return Ok(());
+    }
+    Err(IdentifyError::OutOfRange {
+        flag,
+        value,
+        allowed,
+    })
+}
+
+impl Options {
+    /// The options' ranges, each refusal naming its flag: `half_window` in [0.002, 0.5] s,
+    /// `window` in [0.01, 2] s, `v_min` in [0, 10] rad/s, `settle` in [0, 1] s.
+    pub fn check(&self) -> Result<(), IdentifyError> {
+        in_range(
+            "half-window",
+            self.half_window,
+            0.002..=0.5,
+            "a time in s in [0.002, 0.5]",
+        )?;
+        in_range(
+            "window",
+            self.window,
+            0.01..=2.0,
+            "a time in s in [0.01, 2]",
+        )?;
+        in_range(
+            "min-speed",
+            self.v_min,
+            0.0..=10.0,
+            "a speed in rad/s in [0, 10]",
+        )?;
+        if let Some(s) = self.settle {
+            in_range("settle", s, 0.0..=1.0, "a time in s in [0, 1]")?;
+        }
+        Ok(())
+    }
+}
+
+/// The fit check's restart interval `window` (s, [`Identification::check_fit`]) if it is in
+/// [0.01, 10], else the refusal naming `--fit-window`.
+pub fn check_fit_window(window: f64) -> Result<(), IdentifyError> {
+    in_range(
+        "fit-window",
+        window,
+        0.01..=10.0,
+        "a time in s in [0.01, 10]",
+    )
 }
 
 /// One base parameter's estimate.
@@ -236,6 +295,16 @@ pub enum IdentifyError {
         samples: usize,
         /// Torques.
         torques: usize,
+    },
+    /// An option out of its range (named by its flag).
+    #[error("invalid `--{flag}` = {value}: allowed {allowed}")]
+    OutOfRange {
+        /// The flag (`half-window`, `window`, `min-speed`, `settle`, `fit-window`).
+        flag: &'static str,
+        /// The value given.
+        value: f64,
+        /// The range, with its unit.
+        allowed: &'static str,
     },
     /// A friction estimate is negative beyond its error.
     #[error(
@@ -498,6 +567,7 @@ pub fn identify(
     tau: &[Option<f64>],
     opts: &Options,
 ) -> Result<Identification, IdentifyError> {
+    opts.check()?;
     let p = &opts.base;
     if tau.len() != trace.samples.len() {
         return Err(IdentifyError::Mismatch {

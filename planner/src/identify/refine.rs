@@ -263,6 +263,69 @@ struct Data {
     tau: Vec<f64>,
 }
 
+/// The arm's state `(beta, beta_dot)` (rad, rad/s) and its sensitivities to `(J, G, b, tau_c,
+/// beta0, beta_dot0)`, or their derivatives in time.
+type Sens = (f64, f64, SVector<f64, 6>, SVector<f64, 6>);
+
+/// The augmented field of the arm's joint with parameters `p = [J, G, b, tau_c]`: the
+/// derivative of `x = (q, v, sq, sv)` (rad, rad/s and their sensitivities) under the torque `u`
+/// (N m) in the friction phase `s` (the sign of the sliding velocity; 0 stuck).
+fn sens_field(p: &[f64; 4], x: &Sens, u: f64, s: f64) -> Sens {
+    type V6 = SVector<f64, 6>;
+    let [j, g, b, tc] = *p;
+    let (q, v, sq, sv) = x;
+    let (sn, cs) = q.sin_cos();
+    let a = (u - g * cs - b * v - tc * s) / j;
+    let mut da = V6::zeros();
+    da[0] = -a / j;
+    da[1] = -cs / j;
+    da[2] = -v / j;
+    da[3] = -s / j;
+    let dsv = da + sq * (g * sn / j) - sv * (b / j);
+    (*v, a, *sv, dsv)
+}
+
+/// One classical RK4 step of `h` seconds of [`sens_field`] from `x = (q, v, sq, sv)` under the
+/// torque `u` (N m) in the friction phase `s`.
+fn sens_step(p: &[f64; 4], x: &Sens, h: f64, u: f64, s: f64) -> Sens {
+    let (q, v, sq, sv) = x;
+    let k1 = sens_field(p, x, u, s);
+    let k2 = sens_field(
+        p,
+        &(
+            q + 0.5 * h * k1.0,
+            v + 0.5 * h * k1.1,
+            sq + k1.2 * (0.5 * h),
+            sv + k1.3 * (0.5 * h),
+        ),
+        u,
+        s,
+    );
+    let k3 = sens_field(
+        p,
+        &(
+            q + 0.5 * h * k2.0,
+            v + 0.5 * h * k2.1,
+            sq + k2.2 * (0.5 * h),
+            sv + k2.3 * (0.5 * h),
+        ),
+        u,
+        s,
+    );
+    let k4 = sens_field(
+        p,
+        &(q + h * k3.0, v + h * k3.1, sq + k3.2 * h, sv + k3.3 * h),
+        u,
+        s,
+    );
+    (
+        q + h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0),
+        v + h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1),
+        sq + (k1.2 + k2.2 * 2.0 + k3.2 * 2.0 + k4.2) * (h / 6.0),
+        sv + (k1.3 + k2.3 * 2.0 + k3.3 * 2.0 + k4.3) * (h / 6.0),
+    )
+}
+
 impl Data {
     /// Levenberg-Marquardt on `(p, wins' initial states)`, with the continuity residuals when
     /// `link`: the iterations, whether the cost settled, and the normal equations at the end.
@@ -464,50 +527,8 @@ impl Data {
         rows.clear();
         rows.push((q, sq));
         let last = if w.linked { w.b } else { w.b - 1 };
-        // The augmented field: (q, v, sq, sv)' for the torque u and phase s.
-        let field = |q: f64, v: f64, sq: &V6, sv: &V6, u: f64, s: f64| {
-            let (sn, cs) = q.sin_cos();
-            let a = (u - g * cs - b * v - tc * s) / j;
-            let mut da = V6::zeros();
-            da[0] = -a / j;
-            da[1] = -cs / j;
-            da[2] = -v / j;
-            da[3] = -s / j;
-            let dsv = da + sq * (g * sn / j) - sv * (b / j);
-            (v, a, *sv, dsv)
-        };
         let step = |q: f64, v: f64, sq: &V6, sv: &V6, h: f64, u: f64, s: f64| {
-            let k1 = field(q, v, sq, sv, u, s);
-            let k2 = field(
-                q + 0.5 * h * k1.0,
-                v + 0.5 * h * k1.1,
-                &(sq + k1.2 * (0.5 * h)),
-                &(sv + k1.3 * (0.5 * h)),
-                u,
-                s,
-            );
-            let k3 = field(
-                q + 0.5 * h * k2.0,
-                v + 0.5 * h * k2.1,
-                &(sq + k2.2 * (0.5 * h)),
-                &(sv + k2.3 * (0.5 * h)),
-                u,
-                s,
-            );
-            let k4 = field(
-                q + h * k3.0,
-                v + h * k3.1,
-                &(sq + k3.2 * h),
-                &(sv + k3.3 * h),
-                u,
-                s,
-            );
-            (
-                q + h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0),
-                v + h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1),
-                sq + (k1.2 + k2.2 * 2.0 + k3.2 * 2.0 + k4.2) * (h / 6.0),
-                sv + (k1.3 + k2.3 * 2.0 + k3.3 * 2.0 + k4.3) * (h / 6.0),
-            )
+            sens_step(p, &(q, v, *sq, *sv), h, u, s)
         };
         let acc = |q: f64, v: f64, u: f64, s: f64| (u - g * q.cos() - b * v - tc * s) / j;
         for k in w.a..last {

@@ -133,8 +133,8 @@ pub fn build_from_angles(
 ) -> (Rows, Vec<Option<[f64; 4]>>) {
     let Windows {
         len: window,
-        v_min,
         settle,
+        ..
     } = w;
     let mut r = Rows::default();
     let s = &trace.samples;
@@ -159,16 +159,7 @@ pub fn build_from_angles(
             continue;
         }
         let h = (s[b - 1].t - s[a].t) / (n - 1) as f64;
-        let angle = |i: usize| -> Vec<f64> { s[a..b].iter().map(|x| x.x[i]).collect() };
-        let (al, be) = (angle(0), angle(1));
-        let x: Vec<[f64; 4]> = (0..n)
-            .map(|i| {
-                let (lo, p) = sg.window(i, n);
-                let w = lo..lo + sg.len();
-                let (ea, eb) = (sg.at(&al[w.clone()], p, h), sg.at(&be[w], p, h));
-                [ea.q, eb.q, ea.dq, eb.dq]
-            })
-            .collect();
+        let x = smooth_states(&s[a..b], h, sg);
         let len = window.min(n);
         let hop = (len / 4).max(1);
         let count = 1 + (n - len).div_ceil(hop);
@@ -180,53 +171,18 @@ pub fn build_from_angles(
                 c * (n - len) / (count - 1)
             };
             let win = lo..lo + len;
-            // The joint slides through the window: slower than v_min at no more than one
-            // sample in SLOW_SHARE (a reversal passed at speed, where the sign of the
-            // estimated beta_dot is wrong for a moment at most). Where the joint lingers it
-            // may stick, and Coulomb friction is not tau_c sign(beta_dot) there.
-            let sign = x[lo + len / 2][3].signum();
-            let slow = x[win.clone()].iter().filter(|v| v[3].abs() < v_min).count();
-            let sliding = slow * SLOW_SHARE <= len;
             let tq: Vec<f64> = tau[a + lo..a + lo + len - 1]
                 .iter()
                 .map(|t| t.unwrap_or(0.0))
                 .collect();
-            let mode = s[a].mode;
             let edge = match (starts_at_change, ends_at_change) {
                 (false, false) => usize::MAX,
                 (true, false) => lo + settle,
                 (false, true) => n - lo - len + settle,
                 (true, true) => (lo + settle).min(n - lo - len + settle),
             };
-            let mut rows = weak_rows(&x[win.clone()], &tq, h, mode, f, g);
-            // A row's noise grows as its window shrinks (the phi'' F(q) term: about
-            // (W / len)^2.5 for white angle noise): a window cut short by its segment counts
-            // for less, so that the few long windows are not drowned.
-            let weight = (len as f64 / window as f64).min(1.0).powf(2.5);
-            for (row, rhs) in rows.iter_mut() {
-                row.iter_mut().for_each(|v| *v *= weight);
-                *rhs *= weight;
-            }
-            match (mode, rows) {
-                (Mode::Flat, [_, (arm, rhs)]) => {
-                    if !sliding {
-                        continue;
-                    }
-                    r.push(arm, rhs, edge, false);
-                }
-                (_, [(plate, zero), (arm, rhs)]) => {
-                    r.push(plate, zero, edge, true);
-                    if sliding {
-                        r.push(arm, rhs, edge, false);
-                    }
-                }
-            }
-            if sliding {
-                if sign > 0.0 {
-                    r.sliding_fwd += 1;
-                } else {
-                    r.sliding_bwd += 1;
-                }
+            if !window_rows(&mut r, &x[win.clone()], &tq, h, s[a].mode, [f, g], w, edge) {
+                continue;
             }
             covered[win].iter_mut().for_each(|c| *c = true);
         }
@@ -242,6 +198,81 @@ pub fn build_from_angles(
         }
     }
     (r, states)
+}
+
+/// The smoothed states `(alpha, beta, alpha_dot, beta_dot)` (rad, rad/s) of the samples `seg`
+/// of one segment (evenly spaced by `h`, s) by the differentiator `sg` on their angles.
+fn smooth_states(seg: &[tilting_record::Sample], h: f64, sg: &Savgol) -> Vec<[f64; 4]> {
+    let n = seg.len();
+    let angle = |i: usize| -> Vec<f64> { seg.iter().map(|x| x.x[i]).collect() };
+    let (al, be) = (angle(0), angle(1));
+    (0..n)
+        .map(|i| {
+            let (lo, p) = sg.window(i, n);
+            let w = lo..lo + sg.len();
+            let (ea, eb) = (sg.at(&al[w.clone()], p, h), sg.at(&be[w], p, h));
+            [ea.q, eb.q, ea.dq, eb.dq]
+        })
+        .collect()
+}
+
+/// Pushes onto `r` the weak-form rows of one window of [`build_from_angles`]: the smoothed
+/// states `x` of its samples (spacing `h`, s) in contact mode `mode`, the torques `tq` (N m)
+/// held over its intervals, the arm's friction and gravity constants `[f, g]`, `edge` samples
+/// from the nearest mode change. The plate's row always (in a tilt), the arm's when the joint
+/// slides through the window (slower than `w.v_min` at no more than one sample in
+/// `SLOW_SHARE`). Returns whether the window was used (a flat window where the joint does not
+/// slide is not).
+#[allow(clippy::too_many_arguments)]
+fn window_rows(
+    r: &mut Rows,
+    x: &[[f64; 4]],
+    tq: &[f64],
+    h: f64,
+    mode: Mode,
+    [f, g]: [f64; 2],
+    w: Windows,
+    edge: usize,
+) -> bool {
+    let len = x.len();
+    // The joint slides through the window: slower than v_min at no more than one
+    // sample in SLOW_SHARE (a reversal passed at speed, where the sign of the
+    // estimated beta_dot is wrong for a moment at most). Where the joint lingers it
+    // may stick, and Coulomb friction is not tau_c sign(beta_dot) there.
+    let sign = x[len / 2][3].signum();
+    let slow = x.iter().filter(|v| v[3].abs() < w.v_min).count();
+    let sliding = slow * SLOW_SHARE <= len;
+    let mut rows = weak_rows(x, tq, h, mode, f, g);
+    // A row's noise grows as its window shrinks (the phi'' F(q) term: about
+    // (W / len)^2.5 for white angle noise): a window cut short by its segment counts
+    // for less, so that the few long windows are not drowned.
+    let weight = (len as f64 / w.len as f64).min(1.0).powf(2.5);
+    for (row, rhs) in rows.iter_mut() {
+        row.iter_mut().for_each(|v| *v *= weight);
+        *rhs *= weight;
+    }
+    match (mode, rows) {
+        (Mode::Flat, [_, (arm, rhs)]) => {
+            if !sliding {
+                return false;
+            }
+            r.push(arm, rhs, edge, false);
+        }
+        (_, [(plate, zero), (arm, rhs)]) => {
+            r.push(plate, zero, edge, true);
+            if sliding {
+                r.push(arm, rhs, edge, false);
+            }
+        }
+    }
+    if sliding {
+        if sign > 0.0 {
+            r.sliding_fwd += 1;
+        } else {
+            r.sliding_bwd += 1;
+        }
+    }
+    true
 }
 
 /// How [`build_from_angles`] places its windows.

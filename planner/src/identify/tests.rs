@@ -72,3 +72,37 @@ fn an_impossible_rotor_is_lumped_like_an_unseen_one() {
     // A reduction gear n_g = 0.5 is a rotor: pi4 = -0.5 j_m, pi5 = -0.75 j_m.
     assert_eq!(rotor_unseen(&fit(-0.005, -0.0075, 1e-5), &cols, 1.0), None);
 }
+
+/// Each option's range has two ends and a refusal past each that names the flag: the ends
+/// themselves pass, a hair beyond (and NaN) does not.
+#[test]
+fn options_out_of_range_are_refused_naming_the_flag() {
+    let ok = Options::default();
+    assert!(ok.check().is_ok());
+    type Set = fn(&mut Options, f64);
+    let cases: [(&str, f64, f64, Set); 4] = [
+        ("half-window", 0.002, 0.5, |o, v| o.half_window = v),
+        ("window", 0.01, 2.0, |o, v| o.window = v),
+        ("min-speed", 0.0, 10.0, |o, v| o.v_min = v),
+        ("settle", 0.0, 1.0, |o, v| o.settle = Some(v)),
+    ];
+    for (flag, lo, hi, set) in cases {
+        for v in [lo, hi] {
+            let mut o = ok;
+            set(&mut o, v);
+            assert!(o.check().is_ok(), "{flag} = {v}");
+        }
+        for v in [lo - 1e-9, hi * (1.0 + 1e-9), f64::NAN] {
+            let mut o = ok;
+            set(&mut o, v);
+            let e = o.check().unwrap_err().to_string();
+            assert!(e.contains(&format!("`--{flag}` = {v}")), "{e}");
+        }
+    }
+    assert!(check_fit_window(0.01).is_ok() && check_fit_window(10.0).is_ok());
+    let e = check_fit_window(10.5).unwrap_err().to_string();
+    assert!(
+        e.contains("`--fit-window` = 10.5") && e.contains("[0.01, 10]"),
+        "{e}"
+    );
+}
