@@ -126,23 +126,13 @@ pub fn draw_cascade(
                 .flat_map(|p| p.peaks.iter().copied())
         }));
     let (lo, hi) = crate::plot::padded_range(peaks, 0.05);
-    let mut chart = ChartBuilder::on(&top)
-        .caption(
-            "tilt peaks |α|max: sweep (grey), period-1/2/4/8/16 orbits as BVPs (solid stable, dashed unstable), flips ◆",
-            (FONT, 20),
-        )
-        .margin(14)
-        .margin_right(40)
-        .x_label_area_size(50)
-        .y_label_area_size(90)
-        .build_cartesian_2d(k0..k1, lo..hi)?;
-    crate::plot::mesh(
-        &mut chart,
-        "adaptation gain k [1/(J s²)]",
+    let mut chart = k_chart(
+        &top,
+        "tilt peaks |α|max: sweep (grey), period-1/2/4/8/16 orbits as BVPs (solid stable, dashed unstable), flips ◆",
+        [k0, k1, lo, hi],
         "tilt peak |α|max [rad]",
-        (20, 16),
-    )
-    .draw()?;
+        50,
+    )?;
     chart.draw_series(rows.iter().filter(|r| inside(r.k)).flat_map(|r| {
         r.peaks
             .iter()
@@ -151,26 +141,57 @@ pub fn draw_cascade(
     for br in &d.branches {
         draw_branch(&mut chart, br, (k0, k1))?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.3))
-        .label_font((FONT, 17))
-        .draw()?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     draw_lyapunov(&bottom, (k0, k1), d, lyap, sampled)?;
     root.present()?;
     Ok(())
 }
 
+/// A panel of Fig. 8b on `area`: `k` in `[k0, k1]` (1/(J s^2)) across, `lo..hi` up (in the
+/// unit of `y_desc`, its axis label), captioned `caption`, its mesh drawn; `x_labels`: the
+/// height (px) of the area under it for the `k` labels.
+fn k_chart<'a, 'b: 'a>(
+    area: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    caption: &str,
+    [k0, k1, lo, hi]: [f64; 4],
+    y_desc: &str,
+    x_labels: u32,
+) -> Result<Chart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 20))
+        .margin(14)
+        .margin_right(40)
+        .x_label_area_size(x_labels)
+        .y_label_area_size(90)
+        .build_cartesian_2d(k0..k1, lo..hi)?;
+    crate::plot::mesh(&mut chart, "adaptation gain k [1/(J s²)]", y_desc, (20, 16)).draw()?;
+    Ok(chart)
+}
+
+/// The legend of `chart` at `pos`, on a light box.
+fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, pos: SeriesLabelPosition) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font((FONT, 17))
+        .draw()?;
+    Ok(())
+}
+
+/// A chart of `f64` over `f64` on a bitmap (`'a`: the drawing area's borrow, `'b`: the
+/// bitmap's).
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
 /// One branch of Fig. 8b over `k` in `[k0, k1]`: a curve per tilt of its cycle (solid where
 /// the orbit is stable, dashed where not), its legend entry and its flips (black diamonds).
-fn draw_branch<'a>(
-    chart: &mut ChartContext<
-        'a,
-        BitMapBackend<'a>,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
+fn draw_branch<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
     br: &Branch,
     (k0, k1): (f64, f64),
 ) -> Result<()> {
@@ -263,23 +284,13 @@ fn draw_lyapunov(
         pts.iter().chain(&s1).chain(&s2).map(|p| p.1).chain([0.0]),
         0.08,
     );
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            "largest Lyapunov exponent λ (variational equations through the landings)",
-            (FONT, 20),
-        )
-        .margin(14)
-        .margin_right(40)
-        .x_label_area_size(55)
-        .y_label_area_size(90)
-        .build_cartesian_2d(k0..k1, lo..hi)?;
-    crate::plot::mesh(
-        &mut chart,
-        "adaptation gain k [1/(J s²)]",
+    let mut chart = k_chart(
+        area,
+        "largest Lyapunov exponent λ (variational equations through the landings)",
+        [k0, k1, lo, hi],
         "λ [1/s]",
-        (20, 16),
-    )
-    .draw()?;
+        55,
+    )?;
     chart.draw_series(LineSeries::new(
         vec![(k0, 0.0), (k1, 0.0)],
         BLACK.stroke_width(1),
@@ -308,6 +319,19 @@ fn draw_lyapunov(
                 PathElement::new(vec![(x, y), (x + 24, y)], orange.stroke_width(1))
             });
     }
+    draw_cascade_marks(&mut chart, d, (k0, k1), (lo, hi))?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    Ok(())
+}
+
+/// The flips of the cascade `d` in `[k0, k1]` (1/(J s^2)) as grey dashed lines over `lo..hi`
+/// on `chart`, and its accumulation point `k_inf` as a red line with its legend entry.
+fn draw_cascade_marks<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
+    d: &Diagram,
+    (k0, k1): (f64, f64),
+    (lo, hi): (f64, f64),
+) -> Result<()> {
     for &k in d.flips.iter().filter(|&&k| k >= k0 && k <= k1) {
         chart.draw_series(DashedLineSeries::new(
             vec![(k, lo), (k, hi)],
@@ -330,13 +354,59 @@ fn draw_lyapunov(
                 )
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.3))
-        .label_font((FONT, 17))
-        .draw()?;
+    Ok(())
+}
+
+/// `k` on the curve `c` (points `[k, p2]`) at `p2 = x`, linear between the first two
+/// neighbouring points whose `p2` span `x`; `None` where none does.
+fn interp(c: &[[f64; 2]], x: f64) -> Option<f64> {
+    c.windows(2).find_map(|w| {
+        let (a, b) = (w[0], w[1]);
+        let (lo, hi) = (a[1].min(b[1]), a[1].max(b[1]));
+        (x >= lo && x <= hi && hi > lo).then(|| a[0] + (b[0] - a[0]) * (x - a[1]) / (b[1] - a[1]))
+    })
+}
+
+/// Shades on `chart` (green, with its legend entry) the region of Fig. 8c between the flip
+/// curve `flip` (above) and the fold curve `fold` (below), points `[k, p2]`, over `p2` in
+/// `[x0, x1]` at 201 abscissae, where the flip lies above the fold.
+fn shade_stable<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
+    flip: &[[f64; 2]],
+    fold: &[[f64; 2]],
+    (x0, x1): (f64, f64),
+) -> Result<()> {
+    let n = 200;
+    let mut upper = Vec::new();
+    let mut lower = Vec::new();
+    for i in 0..=n {
+        let x = x0 + (x1 - x0) * i as f64 / n as f64;
+        if let (Some(u), Some(l)) = (interp(flip, x), interp(fold, x)) {
+            if u > l {
+                upper.push((x, u));
+                lower.push((x, l));
+            }
+        }
+    }
+    if !upper.is_empty() {
+        let poly: Vec<(f64, f64)> = upper
+            .iter()
+            .copied()
+            .chain(lower.iter().rev().copied())
+            .collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(
+                poly,
+                RGBColor(44, 160, 44).mix(0.25).filled(),
+            )))?
+            .label("period-1 orbit stable")
+            .legend(|(x, y)| {
+                Rectangle::new(
+                    [(x, y - 6), (x + 24, y + 6)],
+                    RGBColor(44, 160, 44).mix(0.25).filled(),
+                )
+            });
+    }
     Ok(())
 }
 
@@ -375,45 +445,7 @@ pub fn draw_stability(path: &Path, r: &Region) -> Result<()> {
     crate::plot::mesh(&mut chart, &xdesc, "adaptation gain k [1/(J s²)]", (20, 16)).draw()?;
     // Shade between the curves where both are defined (linear interpolation in p2).
     if let (Some(fl), Some(fo)) = (&r.flip, &r.fold) {
-        let interp = |c: &[[f64; 2]], x: f64| -> Option<f64> {
-            c.windows(2).find_map(|w| {
-                let (a, b) = (w[0], w[1]);
-                let (lo, hi) = (a[1].min(b[1]), a[1].max(b[1]));
-                (x >= lo && x <= hi && hi > lo)
-                    .then(|| a[0] + (b[0] - a[0]) * (x - a[1]) / (b[1] - a[1]))
-            })
-        };
-        let n = 200;
-        let mut upper = Vec::new();
-        let mut lower = Vec::new();
-        for i in 0..=n {
-            let x = x0 + (x1 - x0) * i as f64 / n as f64;
-            if let (Some(u), Some(l)) = (interp(&fl.points, x), interp(&fo.points, x)) {
-                if u > l {
-                    upper.push((x, u));
-                    lower.push((x, l));
-                }
-            }
-        }
-        if !upper.is_empty() {
-            let poly: Vec<(f64, f64)> = upper
-                .iter()
-                .copied()
-                .chain(lower.iter().rev().copied())
-                .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(
-                    poly,
-                    RGBColor(44, 160, 44).mix(0.25).filled(),
-                )))?
-                .label("period-1 orbit stable")
-                .legend(|(x, y)| {
-                    Rectangle::new(
-                        [(x, y - 6), (x + 24, y + 6)],
-                        RGBColor(44, 160, 44).mix(0.25).filled(),
-                    )
-                });
-        }
+        shade_stable(&mut chart, &fl.points, &fo.points, (x0, x1))?;
     }
     for (c, col, label) in [
         (
@@ -445,13 +477,7 @@ pub fn draw_stability(path: &Path, r: &Region) -> Result<()> {
         )))?
         .label("the paper's loop (k = 500)")
         .legend(|(x, y)| Cross::new((x + 12, y), 6, BLACK.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.3))
-        .label_font((FONT, 17))
-        .draw()?;
+    legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     root.present()?;
     Ok(())
 }

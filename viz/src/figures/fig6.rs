@@ -81,50 +81,7 @@ fn draw_fig6(
     .y_label_formatter(&|v| format!("{v:.2}"))
     .draw()?;
     for (i, &kp) in kps.iter().enumerate() {
-        let color = PALETTE[i % PALETTE.len()];
-        let row: Vec<&gains::Cell> = cells.iter().filter(|c| c.kp == kp).collect();
-        // The smallest-tilt branch over the whole row, joined where it exists.
-        let lower: Vec<Option<(f64, f64)>> = row
-            .iter()
-            .map(|c| c.max_tilt.first().map(|&m| (c.kd, m)))
-            .collect();
-        for seg in lower.split(|p| p.is_none()) {
-            chart.draw_series(LineSeries::new(
-                seg.iter().flatten().copied(),
-                color.stroke_width(2),
-            ))?;
-        }
-        // Where three orbits coexist, the middle and upper ones meet in a fold: draw them as
-        // one curve, the middle branch forward and the upper one back.
-        let three: Vec<&&gains::Cell> = row.iter().filter(|c| c.max_tilt.len() == 3).collect();
-        if three.len() >= 2 {
-            let fold: Vec<(f64, f64)> = three
-                .iter()
-                .map(|c| (c.kd, c.max_tilt[1]))
-                .chain(three.iter().rev().map(|c| (c.kd, c.max_tilt[2])))
-                .collect();
-            chart.draw_series(LineSeries::new(fold, color.mix(0.6).stroke_width(2)))?;
-        }
-        for c in &row {
-            for (&m, &st) in c.max_tilt.iter().zip(&c.stable) {
-                let style = if st {
-                    color.filled()
-                } else {
-                    color.stroke_width(2)
-                };
-                chart.draw_series(std::iter::once(Circle::new((c.kd, m), 5, style)))?;
-            }
-        }
-        // Each line is labelled at its right end.
-        if let Some(&(kd, m)) = lower.iter().flatten().last() {
-            chart.draw_series(std::iter::once(Text::new(
-                format!("K_P = {kp}"),
-                (kd + 0.2, m),
-                TextStyle::from((FONT, 17))
-                    .color(&color)
-                    .pos(Pos::new(HPos::Left, VPos::Center)),
-            )))?;
-        }
+        draw_fig6_row(&mut chart, kp, PALETTE[i % PALETTE.len()], cells)?;
     }
     chart
         .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
@@ -150,5 +107,60 @@ fn draw_fig6(
     }
     legend(&mut chart, SeriesLabelPosition::UpperMiddle)?;
     root.present()?;
+    Ok(())
+}
+
+/// One `K_P` (1/s^2) of Fig. 6 in `color`: the cells of `cells` at `kp` as the maximal tilt
+/// (rad) over `K_D` (1/s), the smallest-tilt branch joined where it exists, the middle and
+/// upper branches as one fold, each orbit a dot (filled: stable), labelled at its right end.
+fn draw_fig6_row(
+    chart: &mut Chart<'_>,
+    kp: f64,
+    color: RGBColor,
+    cells: &[gains::Cell],
+) -> Result<()> {
+    let row: Vec<&gains::Cell> = cells.iter().filter(|c| c.kp == kp).collect();
+    // The smallest-tilt branch over the whole row, joined where it exists.
+    let lower: Vec<Option<(f64, f64)>> = row
+        .iter()
+        .map(|c| c.max_tilt.first().map(|&m| (c.kd, m)))
+        .collect();
+    for seg in lower.split(|p| p.is_none()) {
+        chart.draw_series(LineSeries::new(
+            seg.iter().flatten().copied(),
+            color.stroke_width(2),
+        ))?;
+    }
+    // Where three orbits coexist, the middle and upper ones meet in a fold: draw them as
+    // one curve, the middle branch forward and the upper one back.
+    let three: Vec<&&gains::Cell> = row.iter().filter(|c| c.max_tilt.len() == 3).collect();
+    if three.len() >= 2 {
+        let fold: Vec<(f64, f64)> = three
+            .iter()
+            .map(|c| (c.kd, c.max_tilt[1]))
+            .chain(three.iter().rev().map(|c| (c.kd, c.max_tilt[2])))
+            .collect();
+        chart.draw_series(LineSeries::new(fold, color.mix(0.6).stroke_width(2)))?;
+    }
+    for c in &row {
+        for (&m, &st) in c.max_tilt.iter().zip(&c.stable) {
+            let style = if st {
+                color.filled()
+            } else {
+                color.stroke_width(2)
+            };
+            chart.draw_series(std::iter::once(Circle::new((c.kd, m), 5, style)))?;
+        }
+    }
+    // Each line is labelled at its right end.
+    if let Some(&(kd, m)) = lower.iter().flatten().last() {
+        chart.draw_series(std::iter::once(Text::new(
+            format!("K_P = {kp}"),
+            (kd + 0.2, m),
+            TextStyle::from((FONT, 17))
+                .color(&color)
+                .pos(Pos::new(HPos::Left, VPos::Center)),
+        )))?;
+    }
     Ok(())
 }

@@ -110,6 +110,12 @@ pub(super) fn fig7(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig7Summary> {
         &runs,
         ctx.set.fig7_duration,
     )?;
+    Ok(fig7_summary(o, &runs))
+}
+
+/// What Fig. 7 shows in words and numbers: the unstable orbit `o` and each run's tilts, last
+/// peak (rad) and fault.
+fn fig7_summary(o: OrbitSolution, runs: &[Run]) -> Fig7Summary {
     let text = runs
         .iter()
         .map(|r| {
@@ -128,7 +134,7 @@ pub(super) fn fig7(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig7Summary> {
         })
         .collect::<Vec<_>>()
         .join("; ");
-    Ok(Fig7Summary {
+    Fig7Summary {
         text: format!(
             "orbit max tilt {:.4} rad, E_av = {:.6} J; {text}",
             o.max_tilt, o.energy_avg
@@ -142,7 +148,7 @@ pub(super) fn fig7(ctx: &Ctx, tick: &(dyn Fn() + Sync)) -> Result<Fig7Summary> {
             })
             .collect(),
         orbit: o,
-    })
+    }
 }
 
 fn draw_fig7(
@@ -161,12 +167,27 @@ fn draw_fig7(
         (FONT, 24),
     )?;
     let (top, bottom) = root.split_vertically(680);
+    draw_fig7_phase(&top, o, orbit_trace, runs)?;
+    draw_fig7_alphas(&bottom, runs, duration)?;
+    root.present()?;
+    Ok(())
+}
+
+/// Fig. 7's phase portrait `(alpha, alpha_dot)` (rad, rad/s) on `top`: the three `runs`
+/// (perturbed down, controlled, perturbed up), in a frame 2.2 times the controlled orbit's, and
+/// the unstable orbit `o` (one period, `orbit_trace`) dashed.
+fn draw_fig7_phase<'a>(
+    top: &DrawingArea<BitMapBackend<'a>, Shift>,
+    o: &OrbitSolution,
+    orbit_trace: &Trace,
+    runs: &'a [Run],
+) -> Result<()> {
     // Phase portrait, scaled to the controlled orbit: the diverging run leaves the frame.
     let ctrl = &runs[1].trace;
     let (a_lo, a_hi) = symmetric(ctrl.alpha.iter().copied(), 0.0);
     let (v_lo, v_hi) = symmetric(ctrl.alpha_dot.iter().copied(), 0.0);
     let scale = 2.2;
-    let mut chart = ChartBuilder::on(&top)
+    let mut chart = ChartBuilder::on(top)
         .caption(
             format!(
                 "phase portrait (α, dα/dt): the unstable orbit lies between the decaying and the growing run; k = {FIG7_K} holds the adapted loop on its own orbit (last peak {:.4} rad)",
@@ -243,7 +264,16 @@ fn draw_fig7(
                 + PathElement::new(vec![(15, 0), (24, 0)], BLACK.stroke_width(2))
         });
     legend(&mut chart, SeriesLabelPosition::UpperRight)?;
-    // Bottom: alpha(t) side by side.
+    Ok(())
+}
+
+/// Fig. 7's bottom row on `bottom`: `alpha(t)` (rad) of each of the `runs` over `duration` (s),
+/// side by side, captioned with the run's fault if any.
+fn draw_fig7_alphas(
+    bottom: &DrawingArea<BitMapBackend<'_>, Shift>,
+    runs: &[Run],
+    duration: f64,
+) -> Result<()> {
     for (area, r) in bottom.split_evenly((1, 3)).iter().zip(runs) {
         let (lo, hi) = symmetric(r.trace.alpha.iter().copied(), 0.08);
         let caption = format!(
@@ -268,6 +298,5 @@ fn draw_fig7(
             r.color.stroke_width(2),
         ))?;
     }
-    root.present()?;
     Ok(())
 }

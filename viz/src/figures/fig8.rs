@@ -150,6 +150,22 @@ fn draw_fig8(
         }))?
         .label("tilt peaks after the transient")
         .legend(|(x, y)| Circle::new((x + 12, y), 3, BLACK.filled()));
+    draw_fig8_marks(&mut chart, rows, k_star, (lo, hi))?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    draw_series_panels(&bottom, series, series_sw)?;
+    root.present()?;
+    Ok(())
+}
+
+/// The marks on Fig. 8's bifurcation diagram `chart` (tilt peaks `lo..hi`, rad): a red cross at
+/// the bottom for each of the `rows` that stopped on a fault, `k*` (1/(J s^2)) dashed where the
+/// orbit flips, and a grey tick at each `k` of [`FIG8_SERIES`].
+fn draw_fig8_marks(
+    chart: &mut Chart<'_>,
+    rows: &[bifurcation::Row],
+    k_star: Option<f64>,
+    (lo, hi): (f64, f64),
+) -> Result<()> {
     let faulted: Vec<f64> = rows
         .iter()
         .filter(|r| r.fault.is_some())
@@ -190,9 +206,6 @@ fn draw_fig8(
                 });
         }
     }
-    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
-    draw_series_panels(&bottom, series, series_sw)?;
-    root.present()?;
     Ok(())
 }
 

@@ -45,7 +45,7 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 use style::{
-    clip, legend, star_points, style_mesh, symmetric, tick3, Area, BLUE, FONT, GREEN, GREY,
+    clip, legend, star_points, style_mesh, symmetric, tick3, Area, Chart, BLUE, FONT, GREEN, GREY,
     PALETTE, RED,
 };
 use tilting_controller::{ComputedTorque, ControlConfig, LawSpec, PlannableLaw, Trajectory};

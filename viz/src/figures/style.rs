@@ -25,6 +25,13 @@ pub(super) const FONT: &str = "sans-serif";
 
 pub(super) type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
+/// A chart of `f64` over `f64` on a bitmap.
+pub(super) type Chart<'a> = ChartContext<
+    'a,
+    BitMapBackend<'a>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
 pub(super) fn style_mesh<'a, X, Y>(
     chart: &mut ChartContext<'a, BitMapBackend<'a>, Cartesian2d<X, Y>>,
     x_desc: &str,
