@@ -55,6 +55,7 @@
 pub mod bridge;
 mod error;
 pub mod foxglove;
+pub mod host;
 mod monitor;
 mod nodes;
 mod orbit;
@@ -119,6 +120,23 @@ pub struct LiveArgs {
     /// Robot name: keys are tilting/{robot}/...
     #[arg(long, default_value = tilting_proto::keys::DEFAULT_ROBOT, value_name = "NAME")]
     pub robot: String,
+    /// Host mode (issue 32): these robots (1 to 32 distinct names, comma-separated, each with
+    /// its keys tilting/NAME/...) from ONE plant process (`tilting-plant --robots`) and ONE
+    /// controller process (`tilting-controller --robots`); each robot gets its own recording,
+    /// status line, report, orbit verdict and summary.json in OUT/NAME/ ([`host`]). Not with
+    /// --secure, --plant-cmd, --ros2 or --foxglove
+    #[arg(
+        long,
+        value_name = "A,B,...",
+        value_delimiter = ',',
+        conflicts_with = "robot"
+    )]
+    pub robots: Vec<String>,
+    /// Pace the plant by the controller's answers instead of the wall clock (the plant's
+    /// `--clock lockstep`): each period waits for its torque, so the run is the offline
+    /// sampled loop's bit for bit however loaded the machine; --duration is plant time
+    #[arg(long)]
+    pub lockstep: bool,
     /// The plant's port on 127.0.0.1 [default: a free port]
     #[arg(long, value_name = "PORT")]
     pub port: Option<u16>,
@@ -277,6 +295,34 @@ impl Job<'_> {
         }
     }
 
+    /// The recorder of this robot's run, into its directory.
+    fn recorder(&self) -> anyhow::Result<Recorder> {
+        Recorder::create(
+            &self.dir,
+            &self.keys,
+            self.args.csv,
+            Some(self.rules()),
+            self.ids,
+        )
+        .map_err(Into::into)
+    }
+
+    /// The nominal run the orbit verdict compares with, and the check (said on stderr when
+    /// the law has no orbit to compare with).
+    async fn nominal(&self) -> anyhow::Result<(tilting_sim::Scenario, Option<orbit::OrbitCheck>)> {
+        let (scenario, check) = orbit::nominal(
+            &self.reference,
+            self.nominal_params(),
+            (self.args.rate, self.args.duration),
+            self.args.law.plan.as_deref(),
+        )
+        .await?;
+        if check.is_none() {
+            eprintln!("live: the law has no nominal orbit to compare with (no orbit verdict)");
+        }
+        Ok((scenario, check))
+    }
+
     /// The robot the plant simulates (checked by `check`; the paper's without a file).
     fn plant_params(&self) -> tilting_plant::Params {
         let (plant, _) = self.args.params_files();
@@ -313,24 +359,37 @@ pub(crate) fn describe_io(e: &std::io::Error) -> String {
 /// any; it is written with the flags over it to `OUT/robot.toml`, which the nodes read.
 pub fn run(args: &LiveArgs, robot: Option<&RobotFile>) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
+    if !args.robots.is_empty() {
+        return host::run(args, robot);
+    }
     let job = check(args)?;
     let bins = NodeBinaries::next_to_current_exe().map_err(LiveError::Failed)?;
-    std::fs::create_dir_all(&job.dir)
-        .with_context(|| format!("cannot create the output directory {}", job.dir.display()))
-        .map_err(LiveError::Failed)?;
-    // The run's robot file: the file given (if any) with the flags over it and the law
-    // resolved (`nodes::run_file`); the controller reads it.
-    let robot = nodes::run_file(&job, robot)
-        .map_err(|e| LiveError::Failed(anyhow!("the run's robot file: {e}")))?;
-    std::fs::write(&robot.path, robot.to_toml_string())
-        .with_context(|| format!("cannot write {}", robot.path.display()))
-        .map_err(LiveError::Failed)?;
+    prepare(&job, robot)?;
     let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
     let signals = Signals::start(&rt);
     let ending = rt
         .block_on(live(&job, &bins, signals))
         .map_err(LiveError::Failed)?;
-    let logs = job.dir.display();
+    ending_result(ending, &job.dir)
+}
+
+/// Creates `job`'s directory and writes its robot file there: the file given (`robot`, if
+/// any) with the flags over it and the law resolved (`nodes::run_file`), which the nodes read.
+fn prepare(job: &Job, robot: Option<&RobotFile>) -> Result<(), LiveError> {
+    std::fs::create_dir_all(&job.dir)
+        .with_context(|| format!("cannot create the output directory {}", job.dir.display()))
+        .map_err(LiveError::Failed)?;
+    let file = nodes::run_file(job, robot)
+        .map_err(|e| LiveError::Failed(anyhow!("the run's robot file: {e}")))?;
+    std::fs::write(&file.path, file.to_toml_string())
+        .with_context(|| format!("cannot write {}", file.path.display()))
+        .map_err(LiveError::Failed)?;
+    Ok(())
+}
+
+/// The run's ending as `run` returns it (the exit code's error), naming the logs in `dir`.
+fn ending_result(ending: report::Ending, dir: &Path) -> Result<(), LiveError> {
+    let logs = dir.display();
     match ending {
         report::Ending::Clean => Ok(()),
         report::Ending::Failed => Err(LiveError::Failed(anyhow!(
@@ -395,6 +454,12 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, LiveError> {
             "invalid `--plant-cmd` = \"\": give a command, e.g. \"python3 -m tilting_mujoco\""
         )));
     }
+    if args.lockstep && args.plant_cmd.is_some() {
+        return Err(usage(anyhow!(
+            "`--lockstep` paces tilting-plant by its controller (`--clock lockstep`): not with \
+             `--plant-cmd`, whose plant keeps its own clock"
+        )));
+    }
     if args.port == Some(0) {
         return Err(usage(anyhow!(
             "invalid `--port` = 0: allowed 1 to 65535 (omit it for a free port)"
@@ -440,11 +505,20 @@ fn check(args: &LiveArgs) -> Result<Job<'_>, LiveError> {
 /// What `live` says before it starts.
 fn announce(job: &Job) {
     let args = job.args;
+    let robots = if args.robots.is_empty() {
+        format!("robot {}", job.keys.robot())
+    } else {
+        format!("robots {}", args.robots.join(", "))
+    };
     eprintln!(
-        "live: {} s at {} Hz in real time, robot {}; law: {}",
+        "live: {} s at {} Hz {}, {robots}; law: {}",
         args.duration,
         args.rate,
-        job.keys.robot(),
+        if args.lockstep {
+            "in lockstep"
+        } else {
+            "in real time"
+        },
         job.reference
     );
     eprintln!("live: recording to {}", job.dir.display());
@@ -483,24 +557,9 @@ async fn live(
 ) -> anyhow::Result<report::Ending> {
     let force = signals.force();
     let mut topo = Topology::ports(job)?;
-    let recorder = Recorder::create(
-        &job.dir,
-        &job.keys,
-        job.args.csv,
-        Some(job.rules()),
-        job.ids,
-    )?;
+    let recorder = job.recorder()?;
     announce(job);
-    let (scenario, check) = orbit::nominal(
-        &job.reference,
-        job.nominal_params(),
-        (job.args.rate, job.args.duration),
-        job.args.law.plan.as_deref(),
-    )
-    .await?;
-    if check.is_none() {
-        eprintln!("live: the law has no nominal orbit to compare with (no orbit verdict)");
-    }
+    let (scenario, check) = job.nominal().await?;
 
     // Spawn: the router (--secure), the plant, the planner's session (subscribers first, then
     // the reference), and once the plant's state 0 reaches us, the controller.
@@ -537,13 +596,14 @@ async fn live(
                 check,
                 impaired: job.impairment.is_some(),
                 foxglove: &fox,
+                robot: None,
             };
             let children = monitor::Children {
                 plant: &mut plant,
                 controller: controller.as_mut(),
                 router: topo.router(),
             };
-            monitor::monitor(&watch, children, &signals, job.args.duration).await
+            monitor::monitor(&[watch], children, &signals, job.args.duration).await
         }
     };
 

@@ -50,7 +50,7 @@ impl Signals {
 }
 
 /// Why the monitoring ended.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) enum End {
     /// The plant ended by itself (its `--duration`, or a fault).
     PlantExited(ExitStatus),
@@ -99,6 +99,8 @@ pub(super) struct Watch<'a> {
     pub(super) impaired: bool,
     /// The Foxglove server (its clients, for the viewer warning).
     pub(super) foxglove: &'a crate::foxglove::LiveServer,
+    /// The robot's name in host mode (`--robots`), where each line and alarm names it.
+    pub(super) robot: Option<&'a str>,
 }
 
 /// The children a live run watches.
@@ -119,9 +121,9 @@ pub(super) const STATE_SILENCE_S: f64 = 0.5;
 /// signal arrives or `duration` + [`GRACE_S`] s pass: checks the children, repeats the
 /// reference once a second and refreshes the status line (each tick on a terminal, once a
 /// second otherwise, and at once when an alarm appears: within 200 ms of its cause being
-/// seen).
+/// seen). Host mode watches several robots (`watches`): a line each, named, once a second.
 pub(super) async fn monitor(
-    w: &Watch<'_>,
+    watches: &[Watch<'_>],
     children: Children<'_>,
     signals: &Signals,
     duration: f64,
@@ -132,14 +134,16 @@ pub(super) async fn monitor(
         mut router,
     } = children;
     // The kinds of alarm last announced (a new kind is announced on its own line at once).
-    let mut alarm_kinds: Vec<&str> = Vec::new();
-    let tty = std::io::stderr().is_terminal();
+    let mut alarm_kinds: Vec<String> = Vec::new();
+    // Several robots' lines are printed one under the other, never rewritten in place.
+    let tty = std::io::stderr().is_terminal() && watches.len() == 1;
     let give_up = Instant::now() + Duration::from_secs_f64(duration + GRACE_S);
     let mut ticks: u64 = 0;
     let mut printed = String::new();
-    // Five samples a second, one per tick.
-    let mut lateness = Lateness::new(5);
-    let mut viewer = crate::foxglove::ViewerWatch::default();
+    // Five samples a second, one per tick, per robot.
+    let mut lateness: Vec<Lateness> = watches.iter().map(|_| Lateness::new(5)).collect();
+    let mut viewers: Vec<crate::foxglove::ViewerWatch> =
+        watches.iter().map(|_| Default::default()).collect();
     let end = loop {
         tokio::time::sleep(Duration::from_millis(200)).await;
         // Five ticks a second: `second` marks one of them.
@@ -157,19 +161,37 @@ pub(super) async fn monitor(
             None
         };
         if second {
-            w.tap.repeat();
+            watches.iter().for_each(|w| w.tap.repeat());
         }
         let router_exit = router.as_deref_mut().and_then(Child::try_wait);
-        let alarms = if end.is_some() {
-            Vec::new()
-        } else {
-            w.alarms(router_exit, &mut lateness, &mut viewer)
-        };
-        let kinds: Vec<&str> = alarms.iter().map(|a| a.0).collect();
-        let new_alarm = kinds.iter().any(|k| !alarm_kinds.contains(k));
-        let text = alarms
+        let alarms: Vec<Vec<(&str, String)>> = watches
             .iter()
-            .map(|a| a.1.as_str())
+            .zip(lateness.iter_mut().zip(&mut viewers))
+            .map(|(w, (late, viewer))| match end {
+                Some(_) => Vec::new(),
+                None => w.alarms(router_exit, late, viewer),
+            })
+            .collect();
+        let kinds: Vec<String> = watches
+            .iter()
+            .zip(&alarms)
+            .flat_map(|(w, a)| a.iter().map(|a| format!("{}{}", w.prefix(), a.0)))
+            .collect();
+        let new_alarm = kinds.iter().any(|k| !alarm_kinds.contains(k));
+        let texts: Vec<String> = alarms
+            .iter()
+            .map(|a| {
+                a.iter()
+                    .map(|a| a.1.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            })
+            .collect();
+        let text = watches
+            .iter()
+            .zip(&texts)
+            .filter(|(_, t)| !t.is_empty())
+            .map(|(w, t)| format!("{}{t}", w.prefix()))
             .collect::<Vec<_>>()
             .join("; ");
         if new_alarm {
@@ -183,7 +205,12 @@ pub(super) async fn monitor(
         }
         alarm_kinds = kinds;
         if tty || second || end.is_some() || new_alarm {
-            let line = w.line(&text);
+            let line = watches
+                .iter()
+                .zip(&texts)
+                .map(|(w, t)| format!("{}{}", w.prefix(), w.line(t)))
+                .collect::<Vec<_>>()
+                .join("\n");
             if line != printed {
                 let mut err = std::io::stderr().lock();
                 let _ = if tty {
@@ -206,6 +233,12 @@ pub(super) async fn monitor(
 }
 
 impl Watch<'_> {
+    /// What each line and alarm of this robot starts with: `robot NAME: ` in host mode.
+    fn prefix(&self) -> String {
+        self.robot
+            .map_or_else(String::new, |r| format!("robot {r}: "))
+    }
+
     /// What is wrong now that the user must hear of at once, each as its kind and its text:
     /// the recording failing, the router exited, a node's liveliness token gone, no state for
     /// [`STATE_SILENCE_S`], over an unimpaired link more than [`LATE_SHARE`] of the last

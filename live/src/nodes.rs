@@ -269,6 +269,9 @@ fn plant_args(job: &Job, topo: &Topology) -> anyhow::Result<Vec<String>> {
         v.extend(["--torque-limit".into(), limit.to_string()]);
     }
     v.extend(["--max-age".into(), args.max_age.to_string()]);
+    if args.lockstep {
+        v.extend(["--clock".into(), "lockstep".into()]);
+    }
     if !job.reference.reference.adapts() {
         // The excitation starts from the arm at rest upright on the flat plate, where its ramp
         // starts (as `simulate`'s scenario does), not on the orbit.
@@ -437,17 +440,81 @@ pub(super) fn spawn_plant(
     )
 }
 
+/// Host mode (`live --robots`): a one-robot node's flags `argv` (which start with `--robot
+/// NAME`) serving `robots` (`A,B,...`) instead, and dialling the extra front-door sessions
+/// `peers` (one per robot beyond the first).
+fn hosting(mut argv: Vec<String>, robots: &str, peers: &[u16]) -> Vec<String> {
+    if argv.first().map(String::as_str) == Some("--robot") && argv.len() > 1 {
+        argv[0] = "--robots".into();
+        argv[1] = robots.into();
+    }
+    for p in peers {
+        argv.extend(["--connect".into(), endpoint(*p)]);
+    }
+    argv
+}
+
+/// Host mode: starts one `tilting-plant --robots ROBOTS` with the flags of `job` (every robot
+/// runs them), its output `plant.json` and `plant.log` in `job.dir`.
+pub(super) fn spawn_plant_host(
+    job: &Job,
+    topo: &Topology,
+    bins: &NodeBinaries,
+    robots: &str,
+) -> anyhow::Result<Child> {
+    let args = hosting(plant_args(job, topo)?, robots, &[]);
+    Child::spawn_with("plant", &bins.plant, &args, &job.dir, job.args.realtime)
+}
+
+/// Host mode: starts one `tilting-controller --robots ROBOTS`, dialling the plant, the first
+/// robot's front-door session and the others' (`taps`).
+pub(super) fn spawn_controller_host(
+    job: &Job,
+    topo: &Topology,
+    bins: &NodeBinaries,
+    robots: &str,
+    taps: &[u16],
+) -> anyhow::Result<Child> {
+    let args = hosting(controller_args(job, topo), robots, taps);
+    controller_child(job, bins, &args)
+}
+
+impl Topology {
+    /// Host mode: the front-door session of robot `robot` listening on `port` (the first
+    /// robot's is [`Topology::front_door_sessions`]'), a loopback peer dialling the plant.
+    pub(super) fn tap_session(&self, robot: &str, port: u16) -> ZenohArgs {
+        ZenohArgs::new(robot, &[&endpoint(port)], &[&endpoint(self.plant_port)])
+    }
+
+    /// Host mode: the endpoints as robot `port`'s summary records them (its front door's).
+    pub(super) fn endpoints_of_tap(&self, port: u16) -> Endpoints {
+        Endpoints {
+            planner: endpoint(port),
+            ..self.endpoints()
+        }
+    }
+
+    /// The first robot's front-door port.
+    pub(super) fn front_door_port(&self) -> u16 {
+        self.my_port
+    }
+}
+
 /// Starts the controller; the plant starts its clock when the controller's token appears.
 pub(super) fn spawn_controller(
     job: &Job,
     topo: &Topology,
     bins: &NodeBinaries,
 ) -> anyhow::Result<Child> {
-    let args = controller_args(job, topo);
+    controller_child(job, bins, &controller_args(job, topo))
+}
+
+/// The controller child with flags `args`, its output in `job.dir`.
+fn controller_child(job: &Job, bins: &NodeBinaries, args: &[String]) -> anyhow::Result<Child> {
     Child::spawn_with(
         "controller",
         &bins.controller,
-        &args,
+        args,
         &job.dir,
         job.args.realtime,
     )

@@ -1,0 +1,292 @@
+//! `tilting live --robots A,B,...`: host mode (issue 32) live. ONE plant process
+//! (`tilting-plant --robots A,B,...`) and ONE controller process (`tilting-controller --robots
+//! A,B,...`) serve every robot, each over its own keys `tilting/{name}/...`; the planner's
+//! publisher and the recorder stay in-process, one front-door session per robot (its own
+//! recorder, reference publisher and liveliness watch, as a one-robot run has), so each robot's
+//! recording, status line, orbit verdict, report and `summary.json` are the one-robot run's,
+//! in `OUT/{name}/`. The hosts' own output (`plant.json`, `plant.log`, `controller.json`,
+//! `controller.log`, one summary line per robot) and the run's `robot.toml` (which both hosts
+//! read: every robot runs the same law, model, link and sensors) are in `OUT/`.
+//!
+//! One recorder per robot (not one for all): a robot's recording is then the file a one-robot
+//! run writes (`run.mcap` with that robot's five topics), which every tool reads as it is
+//! (`replay`, `info`, the figures), and a robot whose messages misbehave fills only its own
+//! refusal counters. The cost is a zenoh session per robot in the front door, each dialled by
+//! the controller host; the plant host and the controller host keep one session each.
+//!
+//! The run fails (its exit code) if any robot fails: the worst ending of the robots, a failed
+//! run (1) before a fault (3) before a lost orbit (4).
+//!
+//! Refused at the start, naming the flags: `--secure` (a certificate names one robot and its
+//! access control allows that robot's keys only; a host would need one identity for all its
+//! robots, which `tilting certs` does not make), `--plant-cmd` (an external plant serves one
+//! robot), `--ros2` (one ROS 2 robot per plant process) and `--foxglove` (one robot per
+//! server).
+
+use super::monitor::{self, Signals, Watch};
+use super::nodes::{self, Topology};
+use super::report::{self, Ending};
+use super::shutdown::{self, Stopped};
+use super::tap::Tap;
+use super::{check, Job, LiveArgs};
+use crate::LiveError;
+use anyhow::anyhow;
+use std::time::Duration;
+use tilting_controller::node::ControllerSummary;
+use tilting_launch::{NodeBinaries, PortLease};
+use tilting_net::HostedSummary;
+use tilting_plant::node::PlantSummary;
+use tilting_sim::robot::RobotFile;
+
+/// The flags host mode cannot honour, each as (its name, whether it is given).
+fn unsupported(args: &LiveArgs) -> [(&'static str, bool); 4] {
+    [
+        ("--secure", args.secure),
+        ("--plant-cmd", args.plant_cmd.is_some()),
+        ("--ros2", args.ros2.ros2.is_some()),
+        ("--foxglove", args.foxglove.foxglove.is_some()),
+    ]
+}
+
+/// The robots of `--robots` (1 to [`tilting_net::MAX_HOSTED`] distinct valid names), or a
+/// usage error naming the flag and the range; and a flag host mode cannot honour refused,
+/// naming both flags.
+pub fn check_robots(args: &LiveArgs) -> Result<Vec<tilting_proto::Keys>, LiveError> {
+    // `--robots ""` names no robot (clap reads it as one empty name).
+    let names: Vec<String> = if args.robots.iter().all(String::is_empty) {
+        Vec::new()
+    } else {
+        args.robots.clone()
+    };
+    let keys = tilting_net::hosted_keys(&names)
+        .map_err(|e| LiveError::Usage(anyhow!("{e}").context("live")))?;
+    if let Some((flag, _)) = unsupported(args).into_iter().find(|u| u.1) {
+        let why = match flag {
+            "--secure" => {
+                "a certificate of `tilting certs` names one robot and its access control allows \
+                 that robot's keys only; run each secure robot with its own `tilting live \
+                 --secure`"
+            }
+            "--plant-cmd" => "an external plant serves one robot",
+            "--ros2" => "one ROS 2 robot per plant process",
+            _ => "a Foxglove server shows one robot",
+        };
+        return Err(LiveError::Usage(anyhow!(
+            "`--robots` (host mode) does not take `{flag}`: {why}"
+        )));
+    }
+    Ok(keys)
+}
+
+/// One robot of the run: its flags (its name, its directory) and what they resolve to.
+struct Robot {
+    args: LiveArgs,
+}
+
+/// `tilting live --robots`: checks the flags, runs every robot from one plant host and one
+/// controller host until `--duration` s of plant time (or Ctrl-C), and writes each robot's
+/// recording, report and summary into `OUT/{name}/`; the worst robot's ending.
+pub fn run(args: &LiveArgs, robot: Option<&RobotFile>) -> Result<(), LiveError> {
+    let keys = check_robots(args)?;
+    let base = check(args)?;
+    let robots: Vec<Robot> = keys
+        .iter()
+        .map(|k| Robot {
+            args: LiveArgs {
+                robot: k.robot().to_owned(),
+                robots: Vec::new(),
+                out: Some(base.dir.join(k.robot())),
+                ..args.clone()
+            },
+        })
+        .collect();
+    // Each robot's job: the base's law, link and zenoh ids (the hosts have one session
+    // each), its own keys and directory.
+    let jobs: Vec<Job> = robots
+        .iter()
+        .zip(&keys)
+        .map(|(r, k)| Job {
+            args: &r.args,
+            keys: k.clone(),
+            reference: base.reference,
+            impairment: base.impairment,
+            link_warning: base.link_warning.clone(),
+            dir: base.dir.join(k.robot()),
+            ids: base.ids,
+        })
+        .collect();
+    let bins = NodeBinaries::next_to_current_exe().map_err(LiveError::Failed)?;
+    // The run's directory and robot file, which both hosts read, and each robot's (as a
+    // one-robot run leaves them).
+    for job in std::iter::once(&base).chain(&jobs) {
+        super::prepare(job, robot)?;
+    }
+    let rt = tilting_net::runtime().map_err(LiveError::Failed)?;
+    let signals = Signals::start(&rt);
+    let endings = rt
+        .block_on(live(&base, &jobs, &bins, signals))
+        .map_err(LiveError::Failed)?;
+    let said: Vec<String> = jobs
+        .iter()
+        .zip(&endings)
+        .map(|(j, e)| format!("{} {}", j.keys.robot(), word(*e)))
+        .collect();
+    eprintln!("live: robots: {}", said.join(", "));
+    let worst = [Ending::Failed, Ending::Fault, Ending::OrbitLost]
+        .into_iter()
+        .find(|w| endings.contains(w))
+        .unwrap_or(Ending::Clean);
+    super::ending_result(worst, &base.dir)
+}
+
+/// Runs the hosts and every robot's front door: spawn, record, monitor, shut down,
+/// summarise each robot; each robot's ending.
+async fn live(
+    base: &Job<'_>,
+    jobs: &[Job<'_>],
+    bins: &NodeBinaries,
+    signals: Signals,
+) -> anyhow::Result<Vec<Ending>> {
+    let force = signals.force();
+    let topo = Topology::ports(base)?;
+    // The front-door ports of the robots after the first, reserved for the run.
+    let mut leases: Vec<PortLease> = Vec::new();
+    for _ in 1..jobs.len() {
+        leases.push(tilting_launch::reserve_port()?);
+    }
+    let ports: Vec<u16> = std::iter::once(topo.front_door_port())
+        .chain(leases.iter().map(PortLease::port))
+        .collect();
+    let recorders = jobs
+        .iter()
+        .map(Job::recorder)
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let names: Vec<&str> = jobs.iter().map(|j| j.keys.robot()).collect();
+    let list = names.join(",");
+    super::announce(base);
+    eprintln!(
+        "live: host mode: {} robots ({list}) from one plant and one controller process; each \
+         robot's recording and report in {}/NAME/",
+        jobs.len(),
+        base.dir.display()
+    );
+    let (scenario, check) = base.nominal().await?;
+
+    // Spawn the plant host, each robot's front door, and once every robot's state 0 reached
+    // it, the controller host.
+    let fox =
+        crate::foxglove::LiveServer::start(&base.args.foxglove, &base.keys, base.plant_params())
+            .await;
+    let mut plant = nodes::spawn_plant_host(base, &topo, bins, &list)?;
+    let mut taps = Vec::with_capacity(jobs.len());
+    for ((job, recorder), &port) in jobs.iter().zip(&recorders).zip(&ports) {
+        let session = topo.tap_session(job.keys.robot(), port);
+        taps.push(Tap::open(&session, None, &job.keys, recorder, job.reference.to_wire()).await?);
+    }
+    let mut early_end = None;
+    for recorder in &recorders {
+        early_end = monitor::wait_for_first_state(recorder, &mut plant, &signals).await;
+        if early_end.is_some() {
+            break;
+        }
+    }
+    let mut controller = match early_end {
+        None => Some(nodes::spawn_controller_host(
+            base,
+            &topo,
+            bins,
+            &list,
+            &ports[1..],
+        )?),
+        Some(_) => None,
+    };
+    let end = match early_end {
+        Some(end) => end,
+        None => {
+            let watches: Vec<Watch> = jobs
+                .iter()
+                .zip(&recorders)
+                .zip(&taps)
+                .map(|((job, recorder), tap)| Watch {
+                    recorder,
+                    tap,
+                    check,
+                    impaired: job.impairment.is_some(),
+                    foxglove: &fox,
+                    robot: Some(job.keys.robot()),
+                })
+                .collect();
+            let children = monitor::Children {
+                plant: &mut plant,
+                controller: controller.as_mut(),
+                router: None,
+            };
+            monitor::monitor(&watches, children, &signals, base.args.duration).await
+        }
+    };
+
+    // Shut down the hosts, then each robot's front door and recording; summarise each robot.
+    let mut problems = Vec::new();
+    let stopped = shutdown::stop_children(
+        &end,
+        &mut plant,
+        controller.as_mut(),
+        &force,
+        base.args.duration,
+        &mut problems,
+    );
+    tokio::time::sleep(Duration::from_millis(150)).await;
+    shutdown::show_failed_logs(&plant, controller.as_ref());
+    let plants = HostedSummary::<PlantSummary>::all_from_stdout(&plant.stdout());
+    let ctls = controller.as_ref().map_or_else(Vec::new, |c| {
+        HostedSummary::<ControllerSummary>::all_from_stdout(&c.stdout())
+    });
+    let mut endings = Vec::with_capacity(jobs.len());
+    for (((job, recorder), tap), &port) in jobs.iter().zip(recorders).zip(taps).zip(&ports) {
+        let closed = tap.close().await;
+        let dropped = recorder.dropped();
+        let (view, _) = recorder.close();
+        let last_status = view.last_status.clone();
+        let mut problems = problems.clone();
+        if let Some(e) = &view.error {
+            problems.push(format!("the recording failed: {e}"));
+        }
+        let name = job.keys.robot();
+        let outcome = report::Outcome {
+            end: end.clone(),
+            problems,
+            stopped: Stopped {
+                plant: stopped.plant,
+                controller: stopped.controller,
+            },
+            plant: mine(name, &plants),
+            controller: mine(name, &ctls),
+            view,
+            dropped,
+            invalid: closed.invalid,
+            last_status,
+            planner: closed.planner,
+            endpoints: topo.endpoints_of_tap(port),
+        };
+        eprintln!("live: robot {name}:");
+        endings.push(report::summarise(job, &scenario, check, outcome)?);
+    }
+    Ok(endings)
+}
+
+/// Robot `name`'s summary among a host's lines.
+fn mine<S: Clone>(name: &str, all: &[HostedSummary<S>]) -> Option<S> {
+    all.iter()
+        .find(|s| s.robot == name)
+        .map(|s| s.summary.clone())
+}
+
+/// A robot's ending in a word, for the run's last line.
+fn word(e: Ending) -> &'static str {
+    match e {
+        Ending::Clean => "clean",
+        Ending::Failed => "FAILED",
+        Ending::Fault => "FAULT",
+        Ending::OrbitLost => "ORBIT LOST",
+    }
+}
