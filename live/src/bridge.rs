@@ -53,6 +53,71 @@ pub struct BridgeSummary {
     pub dropped: u64,
 }
 
+/// The bridge's subscriptions to robot `keys`: its states (sent to the mirror `tx` with the
+/// controller's newest torque, N m, for the efforts), events and status (sent as they come),
+/// and the torques (kept for the states); each message that decodes counts in `received`.
+async fn subscribe_robot(
+    session: &zenoh::Session,
+    keys: &tilting_proto::Keys,
+    tx: &tilting_ros2::node::MirrorTx,
+    received: &Arc<AtomicU64>,
+) -> anyhow::Result<Vec<zenoh::pubsub::Subscriber<()>>> {
+    // The newest torque of the controller, for the efforts of joint_states.
+    let tau = Arc::new(Mutex::new(None::<f64>));
+    let mut subs = Vec::new();
+    let (t, n) = (tx.clone(), received.clone());
+    let tau2 = tau.clone();
+    subs.push(
+        tilting_net::subscribe_decoded(
+            session,
+            Arc::new(DropCounter::new(keys.plant_state())),
+            move |s: PlantState| {
+                n.fetch_add(1, Ordering::Relaxed);
+                let tau = *tau2.lock().unwrap_or_else(|e| e.into_inner());
+                t.send(Input::State(s, tau));
+            },
+        )
+        .await?,
+    );
+    let (t, n) = (tx.clone(), received.clone());
+    subs.push(
+        tilting_net::subscribe_decoded(
+            session,
+            Arc::new(DropCounter::new(keys.plant_event())),
+            move |e: ModeEvent| {
+                n.fetch_add(1, Ordering::Relaxed);
+                t.send(Input::Event(e));
+            },
+        )
+        .await?,
+    );
+    let (t, n) = (tx.clone(), received.clone());
+    subs.push(
+        tilting_net::subscribe_decoded(
+            session,
+            Arc::new(DropCounter::new(keys.plant_status())),
+            move |s: Status| {
+                n.fetch_add(1, Ordering::Relaxed);
+                t.send(Input::Status(s));
+            },
+        )
+        .await?,
+    );
+    let n = received.clone();
+    subs.push(
+        tilting_net::subscribe_decoded(
+            session,
+            Arc::new(DropCounter::new(keys.controller_torque())),
+            move |c: TorqueCommand| {
+                n.fetch_add(1, Ordering::Relaxed);
+                *tau.lock().unwrap_or_else(|e| e.into_inner()) = Some(c.tau);
+            },
+        )
+        .await?,
+    );
+    Ok(subs)
+}
+
 /// `tilting ros2 bridge`.
 pub fn bridge(args: &BridgeArgs) -> Result<(), LiveError> {
     tilting_net::init_tracing("warn");
@@ -72,59 +137,7 @@ pub fn bridge(args: &BridgeArgs) -> Result<(), LiveError> {
                 RosNode::declare(&session, domain, &format!("/{robot}"), "tilting_bridge").await?;
             let tx = Mirror::declare(&node, robot).await?.spawn(256)?;
             let received = Arc::new(AtomicU64::new(0));
-            // The newest torque of the controller, for the efforts of joint_states.
-            let tau = Arc::new(Mutex::new(None::<f64>));
-            let mut subs = Vec::new();
-            let (t, n) = (tx.clone(), received.clone());
-            let tau2 = tau.clone();
-            subs.push(
-                tilting_net::subscribe_decoded(
-                    &session,
-                    Arc::new(DropCounter::new(keys.plant_state())),
-                    move |s: PlantState| {
-                        n.fetch_add(1, Ordering::Relaxed);
-                        let tau = *tau2.lock().unwrap_or_else(|e| e.into_inner());
-                        t.send(Input::State(s, tau));
-                    },
-                )
-                .await?,
-            );
-            let (t, n) = (tx.clone(), received.clone());
-            subs.push(
-                tilting_net::subscribe_decoded(
-                    &session,
-                    Arc::new(DropCounter::new(keys.plant_event())),
-                    move |e: ModeEvent| {
-                        n.fetch_add(1, Ordering::Relaxed);
-                        t.send(Input::Event(e));
-                    },
-                )
-                .await?,
-            );
-            let (t, n) = (tx.clone(), received.clone());
-            subs.push(
-                tilting_net::subscribe_decoded(
-                    &session,
-                    Arc::new(DropCounter::new(keys.plant_status())),
-                    move |s: Status| {
-                        n.fetch_add(1, Ordering::Relaxed);
-                        t.send(Input::Status(s));
-                    },
-                )
-                .await?,
-            );
-            let n = received.clone();
-            subs.push(
-                tilting_net::subscribe_decoded(
-                    &session,
-                    Arc::new(DropCounter::new(keys.controller_torque())),
-                    move |c: TorqueCommand| {
-                        n.fetch_add(1, Ordering::Relaxed);
-                        *tau.lock().unwrap_or_else(|e| e.into_inner()) = Some(c.tau);
-                    },
-                )
-                .await?,
-            );
+            let subs = subscribe_robot(&session, &keys, &tx, &received).await?;
             eprintln!(
                 "ros2 bridge: tilting/{robot}/** as /{robot}/joint_states, /{robot}/contact_mode \
                  and /rosout in ROS domain {} (Ctrl-C stops)",

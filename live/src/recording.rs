@@ -292,23 +292,14 @@ fn held(run: &Recording) -> String {
         .join(", ")
 }
 
-async fn replay_async(
-    args: &ReplayArgs,
+/// The liveliness tokens of the nodes whose topics a replay of `topics` publishes as robot
+/// `keys` (the plant for states, events and status, the controller for torques, the planner for
+/// references): the nodes under test see their peers alive.
+async fn declare_roles(
+    session: &zenoh::Session,
     keys: &Keys,
-    run: &Recording,
     topics: &[Topic],
-) -> anyhow::Result<()> {
-    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
-    let mut pubs: Vec<Option<RawPublisher>> = (0..5).map(|_| None).collect();
-    for &t in topics {
-        let qos = match t {
-            // A replay must deliver every message it was asked to (and `--fast` outruns any
-            // queue): it waits on a full link, at the loop's priority.
-            Topic::State | Topic::Torque | Topic::Event | Topic::Status => Qos::Lossless,
-            _ => Qos::Data,
-        };
-        pubs[t.index()] = Some(RawPublisher::declare(&session, t.key(keys), qos).await?);
-    }
+) -> anyhow::Result<Vec<zenoh::liveliness::LivelinessToken>> {
     let mut tokens = Vec::new();
     let roles = [
         (
@@ -331,8 +322,19 @@ async fn replay_async(
             );
         }
     }
+    Ok(tokens)
+}
+
+/// Waits until every publisher of `pubs` has a subscriber (a put before a subscriber's route
+/// exists is lost), at most `wait` s in all; then the error names the first key without one
+/// and robot `keys`.
+async fn wait_for_subscribers(
+    pubs: &[Option<RawPublisher>],
+    wait: f64,
+    keys: &Keys,
+) -> anyhow::Result<()> {
     // A put before a subscriber's route exists is lost: wait for one on every topic.
-    let deadline = Instant::now() + Duration::from_secs_f64(args.wait);
+    let deadline = Instant::now() + Duration::from_secs_f64(wait);
     for p in pubs.iter().flatten() {
         while !p.has_subscribers().await {
             if Instant::now() >= deadline {
@@ -340,13 +342,35 @@ async fn replay_async(
                     "nobody subscribes to {} after {} s: start the node under test first (with \
                      --robot {}), or pass --wait",
                     p.key(),
-                    args.wait,
+                    wait,
                     keys.robot()
                 ));
             }
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
     }
+    Ok(())
+}
+
+async fn replay_async(
+    args: &ReplayArgs,
+    keys: &Keys,
+    run: &Recording,
+    topics: &[Topic],
+) -> anyhow::Result<()> {
+    let session = tilting_net::open_session(&args.zenoh, Role::Peer).await?;
+    let mut pubs: Vec<Option<RawPublisher>> = (0..5).map(|_| None).collect();
+    for &t in topics {
+        let qos = match t {
+            // A replay must deliver every message it was asked to (and `--fast` outruns any
+            // queue): it waits on a full link, at the loop's priority.
+            Topic::State | Topic::Torque | Topic::Event | Topic::Status => Qos::Lossless,
+            _ => Qos::Data,
+        };
+        pubs[t.index()] = Some(RawPublisher::declare(&session, t.key(keys), qos).await?);
+    }
+    let tokens = declare_roles(&session, keys, topics).await?;
+    wait_for_subscribers(&pubs, args.wait, keys).await?;
     // Routes exist; give the remote subscriber's declaration a moment to settle.
     tokio::time::sleep(Duration::from_millis(100)).await;
     let total: u64 = topics.iter().map(|&t| run.count(t)).sum();

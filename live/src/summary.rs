@@ -325,45 +325,7 @@ impl LiveSummary {
                 last.join(" ")
             }
         );
-        if let Some(p) = p {
-            let lat = &p.latency_us;
-            let _ = writeln!(
-                out,
-                "loop latency (state out -> torque back, us, last {} periods): p50 {:.1}, p99 {:.1}, p99.9 {:.1}, max {:.1}",
-                lat.count.unwrap_or(0).min(lat.window.unwrap_or(4096)),
-                lat.p50,
-                lat.p99,
-                lat.p999.unwrap_or(f64::NAN),
-                lat.max,
-            );
-            let _ = writeln!(
-                out,
-                "deadline misses: {}, watchdog trips: {}, overruns: {} (max {:.0} us), jitter p99 {:.1} us",
-                p.deadline_misses, p.watchdog_trips, p.overruns, p.max_overrun_us, p.jitter_us.p99,
-            );
-        } else if let Some(st) = status {
-            let _ = writeln!(
-                out,
-                "loop latency (us, from the last status): p50 {:.1}, p99 {:.1}; deadline misses {}, watchdog trips {}",
-                st.latency_p50_us, st.latency_p99_us, st.deadline_misses, st.watchdog_trips
-            );
-        }
-        if let Some(l) = p.and_then(|p| p.link.as_ref()) {
-            let _ = writeln!(
-                out,
-                "emulated link: states lost {} of {}, torques lost {} of {}; hand-over late p99 {:.0} us",
-                l.states_lost, l.states_sent, l.torques_lost, l.torques_sent, l.delivery_late_us.p99,
-            );
-        }
-        if let Some((p, a)) = p.and_then(|p| p.age_periods.as_ref().map(|a| (p, a))) {
-            if a.max > 0.0 {
-                let _ = writeln!(
-                    out,
-                    "torque age (periods): p50 {:.0}, p99 {:.0}, max {:.0}; late {}, unanswered states {}, reordered {}",
-                    a.p50, a.p99, a.max, p.torques_late, p.torques_lost, p.torques_reordered
-                );
-            }
-        }
+        loop_lines(&mut out, p, status);
         if let Some(o) = &self.orbit {
             let _ = writeln!(out, "orbit: {}", o.describe());
         }
@@ -374,6 +336,14 @@ impl LiveSummary {
         if let Some(ids) = &self.zenoh_ids {
             let _ = writeln!(out, "zenoh ids: {}", ids.describe());
         }
+        self.record_lines(&mut out);
+        out
+    }
+
+    /// Appends the recording's lines of [`LiveSummary::report`] to `out`: the messages refused
+    /// (if any) and the files written with their counts.
+    fn record_lines(&self, out: &mut String) {
+        use std::fmt::Write as _;
         let r = &self.record;
         let refused: u64 = r.refused.iter().sum();
         if refused > 0 || r.invalid > 0 {
@@ -405,6 +375,51 @@ impl LiveSummary {
             r.dropped,
             r.missing_states,
         );
-        out
+    }
+}
+
+/// Appends the loop's timing lines of [`LiveSummary::report`] to `out`: from the plant's summary
+/// `p` (latency percentiles in us, deadline misses, watchdog trips, overruns, the emulated link
+/// and the torques' age in periods), else from its last `status`.
+fn loop_lines(out: &mut String, p: Option<&PlantSummary>, status: Option<&Status>) {
+    use std::fmt::Write as _;
+    if let Some(p) = p {
+        let lat = &p.latency_us;
+        let _ = writeln!(
+            out,
+            "loop latency (state out -> torque back, us, last {} periods): p50 {:.1}, p99 {:.1}, p99.9 {:.1}, max {:.1}",
+            lat.count.unwrap_or(0).min(lat.window.unwrap_or(4096)),
+            lat.p50,
+            lat.p99,
+            lat.p999.unwrap_or(f64::NAN),
+            lat.max,
+        );
+        let _ = writeln!(
+            out,
+            "deadline misses: {}, watchdog trips: {}, overruns: {} (max {:.0} us), jitter p99 {:.1} us",
+            p.deadline_misses, p.watchdog_trips, p.overruns, p.max_overrun_us, p.jitter_us.p99,
+        );
+    } else if let Some(st) = status {
+        let _ = writeln!(
+            out,
+            "loop latency (us, from the last status): p50 {:.1}, p99 {:.1}; deadline misses {}, watchdog trips {}",
+            st.latency_p50_us, st.latency_p99_us, st.deadline_misses, st.watchdog_trips
+        );
+    }
+    if let Some(l) = p.and_then(|p| p.link.as_ref()) {
+        let _ = writeln!(
+            out,
+            "emulated link: states lost {} of {}, torques lost {} of {}; hand-over late p99 {:.0} us",
+            l.states_lost, l.states_sent, l.torques_lost, l.torques_sent, l.delivery_late_us.p99,
+        );
+    }
+    if let Some((p, a)) = p.and_then(|p| p.age_periods.as_ref().map(|a| (p, a))) {
+        if a.max > 0.0 {
+            let _ = writeln!(
+                out,
+                "torque age (periods): p50 {:.0}, p99 {:.0}, max {:.0}; late {}, unanswered states {}, reordered {}",
+                a.p50, a.p99, a.max, p.torques_late, p.torques_lost, p.torques_reordered
+            );
+        }
     }
 }
