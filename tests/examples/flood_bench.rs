@@ -2,7 +2,7 @@
 //! control (a benchmark, not a test):
 //!
 //! ```sh
-//! cargo run --release -p tilting-tests --example flood_bench -- --seconds 5
+//! cargo run --release -p tilting-tests --features bench --example flood_bench -- --seconds 5
 //! ```
 //!
 //! Five real-time runs at 1 kHz of `tilting-plant` and `tilting-controller` as processes, each

@@ -1,7 +1,7 @@
 //! Does serving Foxglove slow the loop? (A benchmark, not a test.)
 //!
 //! ```sh
-//! cargo run --release -p tilting-tests --example foxglove_bench -- --rounds 3 --seconds 10
+//! cargo run --release -p tilting-tests --features bench --example foxglove_bench -- --rounds 3 --seconds 10
 //! ```
 //!
 //! Runs `tilting live --foxglove` for `--seconds` with no client, then the same with one client

@@ -1,8 +1,8 @@
 //! The networked loop benchmark (not a test):
 //!
 //! ```sh
-//! cargo run --release -p tilting-tests --example loop_bench
-//! cargo run --release -p tilting-tests --example loop_bench -- --rounds 3 --b2b-s 5 --paced-s 10 \
+//! cargo run --release -p tilting-tests --features bench --example loop_bench
+//! cargo run --release -p tilting-tests --features bench --example loop_bench -- --rounds 3 --b2b-s 5 --paced-s 10 \
 //!     --realtime-s 10 --lockstep-s 5 --long-s 30
 //! ```
 //!

@@ -2,8 +2,8 @@
 //! tilting wire format, no access control):
 //!
 //! ```sh
-//! cargo run --release -p tilting-tests --example tls_flap -- --seconds 30 --runs 3
-//! RUST_LOG=zenoh_transport=debug cargo run --release -p tilting-tests --example tls_flap
+//! cargo run --release -p tilting-tests --features bench --example tls_flap -- --seconds 30 --runs 3
+//! RUST_LOG=zenoh_transport=debug cargo run --release -p tilting-tests --features bench --example tls_flap
 //! ```
 //!
 //! One process opens a zenoh **router** listening on `tls/127.0.0.1:PORT` with mutual TLS, and

@@ -1,8 +1,7 @@
 //! The front door: the workspace's layout and the docs' facts, the secure deployment (mutual
 //! TLS and access control, `tilting live --secure`) and the front door under attack and
-//! accident (forged and foreign messages, hostile files). One test binary (issue 30: each
-//! binary links zenoh and the workspace, so fewer binaries keep `cargo test` cheap); each
-//! module was a test file of its own.
+//! accident (forged and foreign messages, hostile files). An area of the one process test
+//! binary (`tests/process.rs`, issue 30); each module was a test file of its own.
 //!
 //! They run side by side on threads of one process. Robot names carry their test's tag
 //! (`robot(tag)`, distinct across the modules), ports are reserved per run (`free_port`), and

@@ -1,8 +1,7 @@
 //! The loop's process tests: `tilting live`, the plant, controller and planner nodes over
 //! zenoh, on the wall clock and in lockstep, their faults, watchdog and links (real, emulated,
-//! proxied, across network namespaces and hosts). One test binary (issue 30: each binary links
-//! zenoh and the workspace, so fewer binaries keep `cargo test` cheap); each module was a test
-//! file of its own.
+//! proxied, across network namespaces and hosts). An area of the one process test binary
+//! (`tests/process.rs`, issue 30); each module was a test file of its own.
 //!
 //! They run side by side on threads of one process. Robot names carry their test's tag
 //! (`robot(tag)`, distinct across the modules), ports are reserved per run (`free_port`), and

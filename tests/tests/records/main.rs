@@ -1,6 +1,6 @@
 //! The recording tests (recordings, their sources, animations of them, the imperfect sensors
-//! recorded), one test binary (issue 30: each binary links zenoh and the workspace, so fewer
-//! binaries keep `cargo test` cheap). Each module was a test file of its own. They run side by
+//! recorded), an area of the one process test binary (`tests/process.rs`, issue 30). Each
+//! module was a test file of its own. They run side by
 //! side on threads of one process: robot names carry the tag of their test (`robot(tag)`, tags
 //! distinct across modules) and ports are reserved per run (`free_port`), so no two clash.
 
