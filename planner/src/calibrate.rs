@@ -24,7 +24,6 @@ use crate::orbit::OrbitProblem;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tilting_controller::{LawSpec, Trajectory};
-use tilting_plant::Mode;
 use tilting_record::{trace::RUN_MCAP, Window};
 
 /// Tilts of a recorded run left out before its peaks are averaged (the start's transient).
@@ -224,28 +223,16 @@ fn counted(peaks: Vec<f64>) -> Vec<f64> {
         .collect()
 }
 
-/// The largest |alpha| of each tilt (a run of samples in a tilted mode; a tilt cut by the end of
-/// the recording is left out), in time order.
+/// The largest |alpha| (rad) of each tilt (a run of samples in a tilted mode,
+/// [`tilting_record::peaks::PeakTracker`]; a tilt cut by the end of the recording is left out,
+/// unlike the recorder's summary, which keeps it once |alpha| has come back down), in time order.
 pub fn tilt_peaks(samples: &[tilting_record::Sample]) -> Vec<f64> {
-    let mut peaks = Vec::new();
-    let mut current: Option<(Mode, f64)> = None;
-    for s in samples {
-        match (current, s.mode) {
-            (_, Mode::Flat) => {
-                if let Some((_, p)) = current.take() {
-                    peaks.push(p);
-                }
-            }
-            (Some((m, p)), mode) if m == mode => current = Some((m, p.max(s.x[0].abs()))),
-            (prev, mode) => {
-                if let Some((_, p)) = prev {
-                    peaks.push(p);
-                }
-                current = Some((mode, s.x[0].abs()));
-            }
-        }
-    }
-    peaks
+    let mut tracker = tilting_record::peaks::PeakTracker::default();
+    samples
+        .iter()
+        .filter_map(|s| tracker.push(s.mode.as_u8(), s.t, s.x[0]))
+        .map(|p| p.alpha.abs())
+        .collect()
 }
 
 /// The calibration of the model `pb` (the plan's gains) on `runs` for the wanted `peak` (rad):

@@ -45,6 +45,7 @@
 
 pub mod csv;
 pub mod guard;
+pub mod peaks;
 pub mod reader;
 pub mod recorder;
 pub mod schema;

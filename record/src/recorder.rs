@@ -21,6 +21,7 @@
 
 use crate::csv::RowWriter;
 use crate::guard::{Guard, Rules, Sources};
+use crate::peaks::PeakTracker;
 use crate::sink::{Drain, Panicked, Sink, SinkSender};
 use crate::trace::{
     EVENTS_CSV, EVENTS_HEADER, RUN_MCAP, STATE_CSV, STATE_HEADER, TORQUE_CSV, TORQUE_HEADER,
@@ -243,7 +244,7 @@ impl Recorder {
             pending: 0,
             last_state: None,
             last_torque: None,
-            tilt: None,
+            tilt: PeakTracker::default(),
             result: Ok(()),
         };
         let sink = Sink::spawn("record", QUEUE, VIEW_INTERVAL, writer)
@@ -339,16 +340,6 @@ impl CsvFiles {
     }
 }
 
-/// The current tilt, for peak tracking: its mode and extreme alpha so far.
-struct Tilt {
-    mode: u8,
-    /// Time and `alpha` of the sample of largest `|alpha|` so far.
-    t: f64,
-    alpha: f64,
-    /// `alpha` of the latest sample of the tilt.
-    last: f64,
-}
-
 /// The writer thread's state.
 struct Writer {
     mcap: McapWriter,
@@ -361,7 +352,7 @@ struct Writer {
     pending: u32,
     last_state: Option<u64>,
     last_torque: Option<u64>,
-    tilt: Option<Tilt>,
+    tilt: PeakTracker,
     /// The first error; the thread keeps draining after it so senders never block.
     result: Result<(), RecordError>,
 }
@@ -624,37 +615,20 @@ fn push_peak(peaks: &mut VecDeque<(f64, f64)>, peak: (f64, f64)) {
     peaks.push_back(peak);
 }
 
-fn track_peak(tilt: &mut Option<Tilt>, s: &PlantState, peaks: &mut VecDeque<(f64, f64)>) {
-    let same = tilt.as_ref().is_some_and(|c| c.mode == s.mode);
-    if !same {
-        if let Some(done) = tilt.take() {
-            push_peak(peaks, (done.t, done.alpha));
-        }
-        if s.mode != 0 {
-            *tilt = Some(Tilt {
-                mode: s.mode,
-                t: s.time,
-                alpha: s.alpha,
-                last: s.alpha,
-            });
-        }
-    } else if let Some(c) = tilt {
-        c.last = s.alpha;
-        if s.alpha.abs() > c.alpha.abs() {
-            c.alpha = s.alpha;
-            c.t = s.time;
-        }
+/// Feeds the state `s` to the tilt tracker; a tilt it ends goes into `peaks` as `(t, alpha)`.
+fn track_peak(tilt: &mut PeakTracker, s: &PlantState, peaks: &mut VecDeque<(f64, f64)>) {
+    if let Some(p) = tilt.push(s.mode, s.time, s.alpha) {
+        push_peak(peaks, (p.t, p.alpha));
     }
 }
 
 /// At the end of a recording: the tilt still in progress has reached its peak if `|alpha|` has
 /// come back down since its largest sample; that peak belongs to the run although the tilt has
-/// not landed. (A tilt whose `|alpha|` is still growing at the last sample has no peak yet.)
-fn finish_peak(tilt: &Option<Tilt>, peaks: &mut VecDeque<(f64, f64)>) {
-    if let Some(c) = tilt {
-        if c.last.abs() < c.alpha.abs() {
-            push_peak(peaks, (c.t, c.alpha));
-        }
+/// not landed (a tilt whose `|alpha|` is still growing at the last sample has no peak yet:
+/// [`PeakTracker::settled_peak`]).
+fn finish_peak(tilt: &PeakTracker, peaks: &mut VecDeque<(f64, f64)>) {
+    if let Some(p) = tilt.settled_peak() {
+        push_peak(peaks, (p.t, p.alpha));
     }
 }
 

@@ -204,3 +204,39 @@ fn a_trimmed_run_is_refused_naming_the_key() {
         .to_string();
     assert!(e.contains("law.k = 0"), "{e}");
 }
+
+#[test]
+fn a_tilt_cut_past_its_peak_is_left_out_where_the_recorder_keeps_it() {
+    // One whole left tilt 0.01 sin, then a right tilt -0.03 sin cut by the end two thirds in
+    // (past its peak at mid-tilt): a calibration counts whole tilts only, while the recorder's
+    // summary keeps the cut tilt's peak once |alpha| came back down (one tracker serves both).
+    let arc = |amp: f64, n: usize| {
+        (0..=300)
+            .take(n)
+            .map(move |i| amp * (std::f64::consts::PI * i as f64 / 300.0).sin())
+    };
+    let modes = std::iter::once((Mode::Flat, 0.0))
+        .chain(arc(0.01, 301).map(|a| (Mode::Left, a)))
+        .chain(std::iter::once((Mode::Flat, 0.0)))
+        .chain(arc(-0.03, 200).map(|a| (Mode::Right, a)));
+    let samples: Vec<tilting_record::Sample> = modes
+        .enumerate()
+        .map(|(i, (mode, a))| tilting_record::Sample {
+            t: i as f64 * 1e-3,
+            mode,
+            x: [a, 1.57, 0.0, 0.0],
+        })
+        .collect();
+    let peaks = calibrate::tilt_peaks(&samples);
+    assert_eq!(peaks.len(), 1, "{peaks:?}");
+    assert!((peaks[0] - 0.01).abs() < 1e-15, "{peaks:?}");
+    let mut tracker = tilting_record::peaks::PeakTracker::default();
+    for s in &samples {
+        tracker.push(s.mode.as_u8(), s.t, s.x[0]);
+    }
+    let cut = tracker.settled_peak().expect("past its peak");
+    assert_eq!(cut.mode, Mode::Right.as_u8());
+    assert!((cut.alpha + 0.03).abs() < 1e-15, "{cut:?}");
+    // The right tilt starts at sample 303; its peak is 150 samples in.
+    assert!((cut.t - 453e-3).abs() < 1e-12, "{cut:?}");
+}
