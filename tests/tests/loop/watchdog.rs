@@ -122,11 +122,16 @@ async fn controller_loss_trips_safe_mode_and_its_return_resumes_the_loop() {
 /// Lockstep with a controller that dies (SIGKILL, token gone) or freezes (SIGSTOP, token kept):
 /// the plant enters the safe mode at once (token gone) or after one `--lockstep-timeout-ms`
 /// (frozen), then keeps running deterministically under the safe-mode torque, waiting at most
-/// 1 ms per period for an answer. A 10 s run therefore ends in about 10 s of wall time or less,
-/// not 10,000 timeouts (2.8 h at the default 1 s). Bound asserted: 60 s of wall time after the
-/// controller stopped (6x the plant time, for a loaded 2-core machine).
+/// 1 ms per period for an answer. A 6 s run therefore ends in about 6 s of wall time or less
+/// (measured: 0.13 s killed, 20 s frozen for the 7.7 s left of a 10 s run on a loaded machine),
+/// not 6,000 timeouts (1.7 h at the default 1 s). Bound asserted: 60 s of wall time after the
+/// controller stopped (10x the plant time, for a loaded 2-core machine). The run was 10 s
+/// (issue 30's test time): 6 s still leaves the frozen case about 3,500 periods in safe mode
+/// (stopped at t = 1.5 to 2.4 s), over the 1,000 asserted, and a crawl still fails by hours.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
+    /// Plant time of each run (s).
+    const DURATION: f64 = 6.0;
     let _turn = realtime_turn();
     let plant_bin = bin("tilting-plant");
     let ctl_bin = bin("tilting-controller");
@@ -144,7 +149,7 @@ async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
                     "--clock",
                     "lockstep",
                     "--duration",
-                    "10",
+                    &DURATION.to_string(),
                     "--lockstep-timeout-ms",
                     "1000",
                 ],
@@ -174,11 +179,11 @@ async fn lockstep_without_a_controller_runs_on_in_safe_mode_and_never_crawls() {
         eprintln!("{case}: safe mode after {:?} at t = {} s", t1 - t0, s.time);
         let exit = plant.expect_exit(Duration::from_secs(60));
         let wall = t0.elapsed();
-        eprintln!("{case}: the 10 s run ended {wall:?} after the controller stopped");
+        eprintln!("{case}: the {DURATION} s run ended {wall:?} after the controller stopped");
         assert!(exit.success(), "{case}: {}", plant.logs());
         let summary = plant.plant_summary();
         assert_eq!(summary.result, RunResult::Completed, "{case}: {summary:?}");
-        assert_eq!(summary.time, 10.0);
+        assert_eq!(summary.time, DURATION);
         assert_eq!(summary.watchdog_trips, 1, "{case}: {summary:?}");
         assert!(summary.safe_periods > 1000, "{case}: {summary:?}");
         if sig == libc::SIGSTOP {
