@@ -1,8 +1,8 @@
 //! Our nodes with other peers: the Python controller and plant of `examples/python`, the
 //! MuJoCo plant, ROS 2 (raw zenoh, rosbags, rclpy over DDS, pyzeros over rmw_zenoh), Foxglove
-//! clients (Python and npm), `tilting echo`/`hz`, and an outside peer publishing garbage. An
-//! area of the one process test binary (`tests/process.rs`, issue 30); each module was a test
-//! file of its own.
+//! clients (Python and npm), `tilting echo`/`hz`, an outside peer publishing garbage, and a
+//! subscriber that stops reading. An area of the one process test binary (`tests/process.rs`,
+//! issue 30); each module was a test file of its own.
 //!
 //! They run side by side on threads of one process. Robot names carry their test's tag
 //! (`robot(tag)`, distinct across the modules), ports are reserved per run (`free_port`), the
@@ -18,4 +18,5 @@ mod python_peer;
 mod python_plant;
 mod ros2;
 mod ros2_clients;
+mod slow_subscriber;
 mod topics;

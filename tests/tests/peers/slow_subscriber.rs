@@ -11,10 +11,14 @@
 //! assertion, the slowest put under 2.5 s, separates the two outcomes by five orders of
 //! magnitude, so a loaded machine cannot flip it. Then B reads again and A's next message
 //! still arrives over the same link.
+//!
+//! Moved here from `net/tests/` (issue 30: its own test binary linked zenoh for one test). It
+//! takes a real-time turn: 48 MB over loopback would load the machine under another test's loop.
 
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 use tilting_net::{open_session, Qos, RawPublisher, Role, ZenohArgs};
+use tilting_tests::realtime_turn;
 
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -26,6 +30,7 @@ fn free_port() -> u16 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stalled_subscriber_does_not_block_a_control_publisher() {
+    let _turn = realtime_turn();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let a = open_session(&ZenohArgs::new("slow", &[&endpoint], &[]), Role::Plant)
         .await
