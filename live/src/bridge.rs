@@ -13,10 +13,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tilting_net::{DropCounter, Role, ZenohArgs};
-use tilting_plant::{Params, ParamsArgs};
+use tilting_plant::ParamsArgs;
 use tilting_proto::{ModeEvent, PlantState, Status, TorqueCommand};
 use tilting_ros2::node::{Input, Mirror, RosNode};
-use tilting_ros2::urdf::Geometry;
 
 /// `tilting ros2 ...`.
 #[derive(Debug, Subcommand)]
@@ -188,18 +187,9 @@ pub struct UrdfArgs {
     pub out: Option<PathBuf>,
 }
 
-/// The URDF's geometry from the model's parameters (`l_c` resolved, the plant's torque bound).
-pub fn geometry(p: &Params, max_torque: f64) -> Geometry {
-    Geometry {
-        f: p.f,
-        l: p.l,
-        l_c: p.lc(),
-        m_f: p.m_f,
-        m_l: p.m_l,
-        i_l: p.i_l,
-        max_torque,
-    }
-}
+/// The URDF's geometry from the model's parameters (`l_c` resolved, the plant's torque bound):
+/// the plant's `--ros2` and `tilting ros2 urdf` describe one robot alike.
+pub use tilting_plant::node::urdf_geometry as geometry;
 
 /// `tilting ros2 urdf`.
 pub fn urdf(args: &UrdfArgs) -> Result<(), LiveError> {

@@ -111,7 +111,7 @@ pub use args::{
 use control_loop::{Loop, Obs, Outcome, Publishers, TIMING_LOG_INTERVAL};
 use inbox::Shared;
 use recording::Recording;
-pub use ros2::Ros2Summary;
+pub use ros2::{urdf_geometry, Ros2Summary};
 use stats::Ring;
 pub use summary::{LinkEmulation, PlantSummary, RunResult, SafeModeEntry, Window};
 

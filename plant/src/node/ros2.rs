@@ -161,12 +161,25 @@ impl Ros2 {
     }
 }
 
+/// The URDF's geometry of a robot with parameters `p` (lengths in m, masses in kg, inertia in
+/// kg m^2, `l_c` resolved) and the arm joint's effort limit `max_torque` (N m).
+pub fn urdf_geometry(p: &crate::Params, max_torque: f64) -> tilting_ros2::urdf::Geometry {
+    tilting_ros2::urdf::Geometry {
+        f: p.f,
+        l: p.l,
+        l_c: p.lc(),
+        m_f: p.m_f,
+        m_l: p.m_l,
+        i_l: p.i_l,
+        max_torque,
+    }
+}
+
 /// The DDS route (feature `dds`).
 #[cfg(feature = "dds")]
 mod dds {
     use super::*;
     use tilting_ros2::dds::{DdsEffortInput, DdsMirror, DdsNode, DiscoveryRange};
-    use tilting_ros2::urdf::Geometry;
 
     /// The DDS node and its `effort_command` (the mirror is one of the mirror thread's sinks).
     pub(super) struct Dds {
@@ -189,15 +202,7 @@ mod dds {
             let mut node =
                 DdsNode::new(domain as u16, range, &format!("/{robot}"), "tilting_plant")?;
             let p = args.sim_config()?.params;
-            let geometry = Geometry {
-                f: p.f,
-                l: p.l,
-                l_c: p.lc(),
-                m_f: p.m_f,
-                m_l: p.m_l,
-                i_l: p.i_l,
-                max_torque: args.max_torque(),
-            };
+            let geometry = super::urdf_geometry(&p, args.max_torque());
             let urdf = tilting_ros2::urdf::urdf(robot, &geometry);
             sinks.push(Box::new(DdsMirror::declare(&mut node, robot, &urdf)?));
             let (limits, gate) = effort_rules(args);
