@@ -23,17 +23,18 @@
 //! robot), `--ros2` (one ROS 2 robot per plant process) and `--foxglove` (one robot per
 //! server).
 
-use super::monitor::{self, Signals, Watch};
+use super::monitor::{self, End, Signals, Watch};
 use super::nodes::{self, Topology};
 use super::report::{self, Ending};
 use super::shutdown::{self, Stopped};
 use super::tap::Tap;
 use super::{check, Job, LiveArgs};
+use crate::record::Recorder;
 use crate::LiveError;
 use anyhow::anyhow;
 use std::time::Duration;
 use tilting_controller::node::ControllerSummary;
-use tilting_launch::{NodeBinaries, PortLease};
+use tilting_launch::{Child, NodeBinaries, PortLease};
 use tilting_net::HostedSummary;
 use tilting_plant::node::PlantSummary;
 use tilting_sim::robot::RobotFile;
@@ -139,6 +140,43 @@ pub fn run(args: &LiveArgs, robot: Option<&RobotFile>) -> Result<(), LiveError> 
     super::ending_result(worst, &base.dir)
 }
 
+/// The front-door ports: the first robot's is the topology's, the others' reserved here
+/// (held by the leases for the run).
+fn tap_ports(topo: &Topology, n: usize) -> anyhow::Result<(Vec<u16>, Vec<PortLease>)> {
+    let leases = (1..n)
+        .map(|_| tilting_launch::reserve_port())
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let ports = std::iter::once(topo.front_door_port())
+        .chain(leases.iter().map(PortLease::port))
+        .collect();
+    Ok((ports, leases))
+}
+
+/// Opens each robot's front door (its session on its port, its recorder's subscribers, its
+/// reference publisher) and waits for every robot's state 0; `Some(end)` if the run ended
+/// first.
+async fn open_front_doors(
+    jobs: &[Job<'_>],
+    recorders: &[Recorder],
+    ports: &[u16],
+    topo: &Topology,
+    plant: &mut Child,
+    signals: &Signals,
+) -> anyhow::Result<(Vec<Tap>, Option<End>)> {
+    let mut taps = Vec::with_capacity(jobs.len());
+    for ((job, recorder), &port) in jobs.iter().zip(recorders).zip(ports) {
+        let session = topo.tap_session(job.keys.robot(), port);
+        taps.push(Tap::open(&session, None, &job.keys, recorder, job.reference.to_wire()).await?);
+    }
+    for recorder in recorders {
+        let end = monitor::wait_for_first_state(recorder, plant, signals).await;
+        if end.is_some() {
+            return Ok((taps, end));
+        }
+    }
+    Ok((taps, None))
+}
+
 /// Runs the hosts and every robot's front door: spawn, record, monitor, shut down,
 /// summarise each robot; each robot's ending.
 async fn live(
@@ -149,20 +187,16 @@ async fn live(
 ) -> anyhow::Result<Vec<Ending>> {
     let force = signals.force();
     let topo = Topology::ports(base)?;
-    // The front-door ports of the robots after the first, reserved for the run.
-    let mut leases: Vec<PortLease> = Vec::new();
-    for _ in 1..jobs.len() {
-        leases.push(tilting_launch::reserve_port()?);
-    }
-    let ports: Vec<u16> = std::iter::once(topo.front_door_port())
-        .chain(leases.iter().map(PortLease::port))
-        .collect();
+    let (ports, _leases) = tap_ports(&topo, jobs.len())?;
     let recorders = jobs
         .iter()
         .map(Job::recorder)
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let names: Vec<&str> = jobs.iter().map(|j| j.keys.robot()).collect();
-    let list = names.join(",");
+    let list = jobs
+        .iter()
+        .map(|j| j.keys.robot())
+        .collect::<Vec<_>>()
+        .join(",");
     super::announce(base);
     eprintln!(
         "live: host mode: {} robots ({list}) from one plant and one controller process; each \
@@ -178,18 +212,8 @@ async fn live(
         crate::foxglove::LiveServer::start(&base.args.foxglove, &base.keys, base.plant_params())
             .await;
     let mut plant = nodes::spawn_plant_host(base, &topo, bins, &list)?;
-    let mut taps = Vec::with_capacity(jobs.len());
-    for ((job, recorder), &port) in jobs.iter().zip(&recorders).zip(&ports) {
-        let session = topo.tap_session(job.keys.robot(), port);
-        taps.push(Tap::open(&session, None, &job.keys, recorder, job.reference.to_wire()).await?);
-    }
-    let mut early_end = None;
-    for recorder in &recorders {
-        early_end = monitor::wait_for_first_state(recorder, &mut plant, &signals).await;
-        if early_end.is_some() {
-            break;
-        }
-    }
+    let (taps, early_end) =
+        open_front_doors(jobs, &recorders, &ports, &topo, &mut plant, &signals).await?;
     let mut controller = match early_end {
         None => Some(nodes::spawn_controller_host(
             base,
@@ -203,19 +227,7 @@ async fn live(
     let end = match early_end {
         Some(end) => end,
         None => {
-            let watches: Vec<Watch> = jobs
-                .iter()
-                .zip(&recorders)
-                .zip(&taps)
-                .map(|((job, recorder), tap)| Watch {
-                    recorder,
-                    tap,
-                    check,
-                    impaired: job.impairment.is_some(),
-                    foxglove: &fox,
-                    robot: Some(job.keys.robot()),
-                })
-                .collect();
+            let watches = watches(jobs, &recorders, &taps, check, &fox);
             let children = monitor::Children {
                 plant: &mut plant,
                 controller: controller.as_mut(),
@@ -226,52 +238,132 @@ async fn live(
     };
 
     // Shut down the hosts, then each robot's front door and recording; summarise each robot.
+    let (problems, stopped) = stop_hosts(base, &end, &mut plant, controller.as_mut(), &force).await;
+    let ended = Ended {
+        end,
+        problems,
+        stopped,
+        plants: HostedSummary::all_from_stdout(&plant.stdout()),
+        controllers: controller
+            .as_ref()
+            .map_or_else(Vec::new, |c| HostedSummary::all_from_stdout(&c.stdout())),
+        scenario,
+        check,
+    };
+    let mut endings = Vec::with_capacity(jobs.len());
+    for (((job, recorder), tap), &port) in jobs.iter().zip(recorders).zip(taps).zip(&ports) {
+        let closed = tap.close().await;
+        let outcome = ended.outcome(
+            job.keys.robot(),
+            recorder,
+            closed,
+            topo.endpoints_of_tap(port),
+        );
+        eprintln!("live: robot {}:", job.keys.robot());
+        endings.push(report::summarise(
+            job,
+            &ended.scenario,
+            ended.check,
+            outcome,
+        )?);
+    }
+    Ok(endings)
+}
+
+/// What the status lines watch: each robot's recording and front door, named.
+fn watches<'a>(
+    jobs: &'a [Job<'_>],
+    recorders: &'a [Recorder],
+    taps: &'a [Tap],
+    check: Option<super::orbit::OrbitCheck>,
+    fox: &'a crate::foxglove::LiveServer,
+) -> Vec<Watch<'a>> {
+    jobs.iter()
+        .zip(recorders)
+        .zip(taps)
+        .map(|((job, recorder), tap)| Watch {
+            recorder,
+            tap,
+            check,
+            impaired: job.impairment.is_some(),
+            foxglove: fox,
+            robot: Some(job.keys.robot()),
+        })
+        .collect()
+}
+
+/// Stops the plant host, then the controller host (`force()`: kill at once), shows the logs
+/// of one that failed; the run's problems and the exit statuses.
+async fn stop_hosts(
+    base: &Job<'_>,
+    end: &End,
+    plant: &mut Child,
+    mut controller: Option<&mut Child>,
+    force: &dyn Fn() -> bool,
+) -> (Vec<String>, Stopped) {
     let mut problems = Vec::new();
     let stopped = shutdown::stop_children(
-        &end,
-        &mut plant,
-        controller.as_mut(),
-        &force,
+        end,
+        plant,
+        controller.as_deref_mut(),
+        force,
         base.args.duration,
         &mut problems,
     );
     tokio::time::sleep(Duration::from_millis(150)).await;
-    shutdown::show_failed_logs(&plant, controller.as_ref());
-    let plants = HostedSummary::<PlantSummary>::all_from_stdout(&plant.stdout());
-    let ctls = controller.as_ref().map_or_else(Vec::new, |c| {
-        HostedSummary::<ControllerSummary>::all_from_stdout(&c.stdout())
-    });
-    let mut endings = Vec::with_capacity(jobs.len());
-    for (((job, recorder), tap), &port) in jobs.iter().zip(recorders).zip(taps).zip(&ports) {
-        let closed = tap.close().await;
-        let dropped = recorder.dropped();
-        let (view, _) = recorder.close();
-        let last_status = view.last_status.clone();
-        let mut problems = problems.clone();
-        if let Some(e) = &view.error {
-            problems.push(format!("the recording failed: {e}"));
-        }
-        let name = job.keys.robot();
-        let outcome = report::Outcome {
-            end: end.clone(),
+    let controller = controller.map(|c| &*c);
+    shutdown::show_failed_logs(plant, controller);
+    problems.extend(shutdown::fallback_problems(&base.dir, plant, controller));
+    (problems, stopped)
+}
+
+/// How the hosts ended, shared by every robot's summary.
+struct Ended {
+    /// Why the monitoring ended.
+    end: End,
+    /// The run's problems (the hosts'), one sentence each.
+    problems: Vec<String>,
+    /// The hosts' exit statuses.
+    stopped: Stopped,
+    /// The plant host's summary lines, one per robot.
+    plants: Vec<HostedSummary<PlantSummary>>,
+    /// The controller host's.
+    controllers: Vec<HostedSummary<ControllerSummary>>,
+    /// The nominal run.
+    scenario: tilting_sim::Scenario,
+    /// The orbit check, if the law has an orbit.
+    check: Option<super::orbit::OrbitCheck>,
+}
+
+impl Ended {
+    /// Robot `name`'s outcome: the hosts' ending with its own summaries, its closed
+    /// recording (a failed recording is a problem of this robot) and front door.
+    fn outcome(
+        &self,
+        name: &str,
+        recorder: Recorder,
+        closed: super::tap::Closed,
+        endpoints: super::summary::Endpoints,
+    ) -> report::Outcome {
+        let mut problems = self.problems.clone();
+        let (dropped, view) = super::close_recorder(recorder, &mut problems);
+        report::Outcome {
+            end: self.end.clone(),
             problems,
             stopped: Stopped {
-                plant: stopped.plant,
-                controller: stopped.controller,
+                plant: self.stopped.plant,
+                controller: self.stopped.controller,
             },
-            plant: mine(name, &plants),
-            controller: mine(name, &ctls),
+            plant: mine(name, &self.plants),
+            controller: mine(name, &self.controllers),
+            last_status: view.last_status.clone(),
             view,
             dropped,
             invalid: closed.invalid,
-            last_status,
             planner: closed.planner,
-            endpoints: topo.endpoints_of_tap(port),
-        };
-        eprintln!("live: robot {name}:");
-        endings.push(report::summarise(job, &scenario, check, outcome)?);
+            endpoints,
+        }
     }
-    Ok(endings)
 }
 
 /// Robot `name`'s summary among a host's lines.

@@ -548,6 +548,18 @@ fn announce(job: &Job) {
     }
 }
 
+/// Closes a robot's recording: the messages it dropped and its view (whatever happened to
+/// the files, the view comes back: the report and the summary are written in any case); a
+/// failed recording is added to `problems`.
+fn close_recorder(recorder: Recorder, problems: &mut Vec<String>) -> (u64, record::RecordView) {
+    let dropped = recorder.dropped();
+    let (view, _) = recorder.close();
+    if let Some(e) = &view.error {
+        problems.push(format!("the recording failed: {e}"));
+    }
+    (dropped, view)
+}
+
 /// Runs the live job: spawn, record, monitor, shut down, summarise; how it ended (the
 /// recording and the summary are written whatever happened).
 async fn live(
@@ -622,26 +634,14 @@ async fn live(
     fox.close().await;
     let closed = tap.close().await;
     problems.extend(topo.stop_router(&force));
-    let dropped = recorder.dropped();
-    // Whatever happened to the files, the view comes back: the report and the summary are
-    // written in any case.
-    let (view, _) = recorder.close();
+    let (dropped, view) = close_recorder(recorder, &mut problems);
     let last_status = view.last_status.clone();
-    if let Some(e) = &view.error {
-        problems.push(format!("the recording failed: {e}"));
-    }
     shutdown::show_failed_logs(&plant, controller.as_ref());
-    // A node whose stdout failed (a full disk) put its summary in a fallback file: say where.
-    for child in std::iter::once(&plant).chain(controller.as_ref()) {
-        if let Some(f) = child.fallback_summary() {
-            problems.push(format!(
-                "the {} could not print its summary into {} (see its log); it is in {}",
-                child.name(),
-                job.dir.join(format!("{}.json", child.name())).display(),
-                f.display()
-            ));
-        }
-    }
+    problems.extend(shutdown::fallback_problems(
+        &job.dir,
+        &plant,
+        controller.as_ref(),
+    ));
 
     let outcome = report::Outcome {
         end,

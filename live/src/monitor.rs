@@ -164,29 +164,14 @@ pub(super) async fn monitor(
             watches.iter().for_each(|w| w.tap.repeat());
         }
         let router_exit = router.as_deref_mut().and_then(Child::try_wait);
-        let alarms: Vec<Vec<(&str, String)>> = watches
-            .iter()
-            .zip(lateness.iter_mut().zip(&mut viewers))
-            .map(|(w, (late, viewer))| match end {
-                Some(_) => Vec::new(),
-                None => w.alarms(router_exit, late, viewer),
-            })
-            .collect();
-        let kinds: Vec<String> = watches
-            .iter()
-            .zip(&alarms)
-            .flat_map(|(w, a)| a.iter().map(|a| format!("{}{}", w.prefix(), a.0)))
-            .collect();
+        let (kinds, texts) = alarms_now(
+            watches,
+            end.is_some(),
+            router_exit,
+            &mut lateness,
+            &mut viewers,
+        );
         let new_alarm = kinds.iter().any(|k| !alarm_kinds.contains(k));
-        let texts: Vec<String> = alarms
-            .iter()
-            .map(|a| {
-                a.iter()
-                    .map(|a| a.1.as_str())
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            })
-            .collect();
         let text = watches
             .iter()
             .zip(&texts)
@@ -230,6 +215,30 @@ pub(super) async fn monitor(
         eprintln!();
     }
     end
+}
+
+/// Each robot's alarms now (none once the run ended, `ended`): their kinds, named by robot
+/// in host mode, and each robot's alarm text (empty without one).
+fn alarms_now(
+    watches: &[Watch<'_>],
+    ended: bool,
+    router_exit: Option<ExitStatus>,
+    lateness: &mut [Lateness],
+    viewers: &mut [crate::foxglove::ViewerWatch],
+) -> (Vec<String>, Vec<String>) {
+    let mut kinds = Vec::new();
+    let mut texts = Vec::new();
+    for ((w, late), viewer) in watches.iter().zip(lateness).zip(viewers) {
+        let alarms = if ended {
+            Vec::new()
+        } else {
+            w.alarms(router_exit, late, viewer)
+        };
+        kinds.extend(alarms.iter().map(|a| format!("{}{}", w.prefix(), a.0)));
+        let text: Vec<&str> = alarms.iter().map(|a| a.1.as_str()).collect();
+        texts.push(text.join("; "));
+    }
+    (kinds, texts)
 }
 
 impl Watch<'_> {

@@ -86,3 +86,24 @@ pub(super) fn show_failed_logs(plant: &Child, controller: Option<&Child>) {
         }
     }
 }
+
+/// A node whose stdout failed (a full disk) put its summary in a fallback file: where, one
+/// problem each (`dir`, the run's directory, where `{name}.json` was to be).
+pub(super) fn fallback_problems(
+    dir: &std::path::Path,
+    plant: &Child,
+    controller: Option<&Child>,
+) -> Vec<String> {
+    std::iter::once(plant)
+        .chain(controller)
+        .filter_map(|child| {
+            let f = child.fallback_summary()?;
+            Some(format!(
+                "the {} could not print its summary into {} (see its log); it is in {}",
+                child.name(),
+                dir.join(format!("{}.json", child.name())).display(),
+                f.display()
+            ))
+        })
+        .collect()
+}
