@@ -120,11 +120,11 @@ pub struct LiveArgs {
     /// Robot name: keys are tilting/{robot}/...
     #[arg(long, default_value = tilting_proto::keys::DEFAULT_ROBOT, value_name = "NAME")]
     pub robot: String,
-    /// Host mode (issue 32): these robots (1 to 32 distinct names, comma-separated, each with
-    /// its keys tilting/NAME/...) from ONE plant process (`tilting-plant --robots`) and ONE
-    /// controller process (`tilting-controller --robots`); each robot gets its own recording,
-    /// status line, report, orbit verdict and summary.json in OUT/NAME/ ([`host`]). Not with
-    /// --secure, --plant-cmd, --ros2 or --foxglove
+    /// Host mode: these robots (1 to 32 distinct names, comma-separated, each with its keys
+    /// tilting/NAME/...) from ONE plant process (`tilting-plant --robots`) and ONE controller
+    /// process (`tilting-controller --robots`); each robot gets its own recording, status
+    /// line, report, orbit verdict and summary.json in OUT/NAME/. Not with --secure,
+    /// --plant-cmd, --ros2 or --foxglove
     #[arg(
         long,
         value_name = "A,B,...",
@@ -133,8 +133,8 @@ pub struct LiveArgs {
     )]
     pub robots: Vec<String>,
     /// Pace the plant by the controller's answers instead of the wall clock (the plant's
-    /// `--clock lockstep`): each period waits for its torque, so the run is the offline
-    /// sampled loop's bit for bit however loaded the machine; --duration is plant time
+    /// `--clock lockstep`): each period waits for its torque, so the run is the same bit for
+    /// bit however loaded the machine; --duration is plant time. Not with --plant-cmd
     #[arg(long)]
     pub lockstep: bool,
     /// The plant's port on 127.0.0.1 [default: a free port]
