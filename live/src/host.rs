@@ -133,11 +133,16 @@ pub fn run(args: &LiveArgs, robot: Option<&RobotFile>) -> Result<(), LiveError> 
         .map(|(j, e)| format!("{} {}", j.keys.robot(), word(*e)))
         .collect();
     eprintln!("live: robots: {}", said.join(", "));
-    let worst = [Ending::Failed, Ending::Fault, Ending::OrbitLost]
+    super::ending_result(worst(&endings), &base.dir)
+}
+
+/// The run's ending: the worst of the robots' (a failed run, then a fault, then a lost orbit;
+/// clean only when every robot's is).
+fn worst(endings: &[Ending]) -> Ending {
+    [Ending::Failed, Ending::Fault, Ending::OrbitLost]
         .into_iter()
         .find(|w| endings.contains(w))
-        .unwrap_or(Ending::Clean);
-    super::ending_result(worst, &base.dir)
+        .unwrap_or(Ending::Clean)
 }
 
 /// The front-door ports: the first robot's is the topology's, the others' reserved here
@@ -380,5 +385,47 @@ fn word(e: Ending) -> &'static str {
         Ending::Failed => "FAILED",
         Ending::Fault => "FAULT",
         Ending::OrbitLost => "ORBIT LOST",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Ending::*;
+
+    /// One robot's failure fails the run whatever the others did, in the order of the exit
+    /// codes' severity (1 failed, 3 fault, 4 orbit lost); clean only when all are.
+    #[test]
+    fn the_run_ends_as_its_worst_robot() {
+        assert_eq!(worst(&[Clean, Clean, Clean]), Clean);
+        assert_eq!(worst(&[Clean, OrbitLost, Clean]), OrbitLost);
+        assert_eq!(worst(&[OrbitLost, Fault, Clean]), Fault);
+        assert_eq!(worst(&[Fault, Clean, Failed, OrbitLost]), Failed);
+        // Order of the robots does not matter.
+        assert_eq!(worst(&[Clean, Clean, Fault]), worst(&[Fault, Clean, Clean]));
+    }
+
+    /// `--robots ""` names no robot; a flag host mode cannot serve is refused naming both.
+    #[test]
+    fn no_robot_and_unservable_flags_are_refused() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            live: LiveArgs,
+        }
+        let live = |argv: &[&str]| <Cli as clap::Parser>::try_parse_from(argv).unwrap().live;
+        let e = check_robots(&live(&["x", "--robots", ""]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--robots") && e.contains("0 names"), "{e}");
+        let e = check_robots(&live(&["x", "--robots", "a,b", "--ros2"]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`--robots`") && e.contains("`--ros2`"), "{e}");
+        let keys = check_robots(&live(&["x", "--robots", "a,b"])).unwrap();
+        assert_eq!(
+            keys.iter().map(|k| k.robot()).collect::<Vec<_>>(),
+            ["a", "b"]
+        );
     }
 }
