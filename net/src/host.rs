@@ -57,6 +57,32 @@ pub fn hosted_keys(names: &[String]) -> anyhow::Result<Vec<Keys>> {
     Ok(keys)
 }
 
+/// Host mode's check of `--zenoh-config` (`zenoh`): a configuration with a TLS identity (a
+/// `connect_certificate` or `listen_certificate`, as `tilting certs` writes for the secure
+/// deployment) is one robot's node, its certificate named `{robot}-{node}` and the access
+/// control allowing that robot's keys only, so the other robots' messages would be denied:
+/// refused, naming both flags. A configuration without one (or none) passes.
+pub fn check_hosted_config(zenoh: &crate::ZenohArgs) -> anyhow::Result<()> {
+    let Some(path) = &zenoh.zenoh_config else {
+        return Ok(());
+    };
+    let config = crate::config_from_file(path)
+        .map_err(|e| anyhow::anyhow!("--zenoh-config {}: {e}", path.display()))?;
+    for field in ["connect_certificate", "listen_certificate"] {
+        let key = format!("transport/link/tls/{field}");
+        let json = config.get_json(&key).unwrap_or_default();
+        let named = serde_json::from_str::<Option<String>>(&json).is_ok_and(|f| f.is_some());
+        anyhow::ensure!(
+            !named,
+            "`--robots` (host mode) does not take `--zenoh-config` {} with a TLS identity \
+             ({key}): a certificate of `tilting certs` is one robot's node and its access \
+             control allows that robot's keys only; run one node per secure robot",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 /// One hosted robot's summary line: the robot's name and its node's summary.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HostedSummary<S> {

@@ -68,7 +68,7 @@ pub use tilting_proto;
 pub use zenoh;
 
 mod host;
-pub use host::{hosted_keys, HostArgs, HostedSummary, MAX_HOSTED};
+pub use host::{check_hosted_config, hosted_keys, HostArgs, HostedSummary, MAX_HOSTED};
 
 /// Where the plant listens, and the others connect, by default.
 pub const DEFAULT_PLANT_ENDPOINT: &str = "tcp/127.0.0.1:7447";

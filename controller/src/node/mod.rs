@@ -489,6 +489,7 @@ pub fn run(args: ControllerArgs) -> anyhow::Result<ExitCode> {
     let cfg = args.control_config()?;
     let hosted = args.host.hosting();
     let all_keys = if hosted {
+        tilting_net::check_hosted_config(&args.zenoh)?;
         args.host.keys()?
     } else {
         vec![args.zenoh.keys()?]

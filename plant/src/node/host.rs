@@ -24,7 +24,7 @@ pub fn check(args: &PlantArgs) -> anyhow::Result<()> {
         args.ros2.is_none(),
         "--robots (host mode) does not take --ros2: one ROS 2 robot per tilting-plant"
     );
-    Ok(())
+    tilting_net::check_hosted_config(&args.zenoh)
 }
 
 /// Robot `robot`'s `--record` file in host mode: `name` with `-{robot}` before its extension

@@ -132,6 +132,43 @@ fn three_hosted_robots_in_lockstep_each_equal_one_robot_alone() {
     }
 }
 
+/// The secure deployment's node configurations (`tilting certs`: a TLS identity of one
+/// robot's node, access control for its keys) are refused by both nodes in host mode before
+/// anything starts, naming both flags.
+#[test]
+fn host_mode_refuses_a_secure_nodes_configuration() {
+    let dir = Scratch::new("host-mode-secure");
+    let certs = dir.path().join("certs");
+    let o = std::process::Command::new(bin("tilting"))
+        .args(["certs", "--robot", "a", "--out"])
+        .arg(&certs)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (node, config) in [
+        ("tilting-plant", "plant-direct.json5"),
+        ("tilting-plant", "plant.json5"),
+        ("tilting-controller", "controller.json5"),
+    ] {
+        let file = certs.join(config).display().to_string();
+        let argv: Vec<String> = ["--robots", "a,b", "--zenoh-config", &file]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let mut p = Proc::spawn(node, &bin(node), &argv, dir.path());
+        let status = p.expect_exit(Duration::from_secs(20));
+        assert!(
+            !status.success(),
+            "{node} {config} was accepted\n{}",
+            p.logs()
+        );
+        let err = p.stderr();
+        for w in ["`--robots` (host mode)", "`--zenoh-config`", "TLS identity"] {
+            assert!(err.contains(w), "{node} {config}: no {w:?} in\n{err}");
+        }
+    }
+}
+
 /// `--robots` out of 1 to 32, with a name twice or a bad name, and `--host-pacing one` in
 /// lockstep: refused by both nodes before anything starts, naming the flag and the range.
 #[test]
