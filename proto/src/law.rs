@@ -37,7 +37,9 @@
 //! assert!(long.validate().unwrap_err().to_string().contains("count"));
 //! ```
 
-use crate::msg::{at_most, finite, range, Reference, ValidationError};
+use crate::msg::{
+    at_most, deserialize_dual, finite, moving_omega, serialize_dual, Reference, ValidationError,
+};
 use serde::de::{Error as _, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 
@@ -136,15 +138,7 @@ impl LawReference {
         )?;
         finite(M, "amplitude", self.amplitude)?;
         finite(M, "omega", self.omega)?;
-        if self.trajectory != Reference::HOLD {
-            range(
-                M,
-                "omega",
-                self.omega,
-                self.omega > 0.0,
-                "> 0 rad/s for a sinusoid or an excitation",
-            )?;
-        }
+        moving_omega(M, self.omega, self.trajectory != Reference::HOLD)?;
         self.fits_the_layout()?;
         let alphabet = |c: u8| c.is_ascii_lowercase() || c.is_ascii_digit() || c == b'-';
         if self.law.is_empty() || !self.law.bytes().all(alphabet) {
@@ -286,38 +280,33 @@ impl From<&Reference> for LawReference {
 
 impl Serialize for LawReference {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        if s.is_human_readable() {
-            LawReferenceJson {
+        serialize_dual(
+            s,
+            || LawReferenceJson {
                 trajectory: self.trajectory,
                 amplitude: self.amplitude,
                 omega: self.omega,
                 law: self.law.clone(),
                 parameters: self.parameters.clone(),
-            }
-            .serialize(s)
-        } else {
-            self.to_wire()
-                .map_err(serde::ser::Error::custom)?
-                .serialize(s)
-        }
+            },
+            || self.to_wire(),
+        )
     }
 }
 
 impl<'de> Deserialize<'de> for LawReference {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        if d.is_human_readable() {
-            let j = LawReferenceJson::deserialize(d)?;
-            Ok(Self {
+        deserialize_dual(
+            d,
+            |j: LawReferenceJson| Self {
                 trajectory: j.trajectory,
                 amplitude: j.amplitude,
                 omega: j.omega,
                 law: j.law,
                 parameters: j.parameters,
-            })
-        } else {
-            let w = LawReferenceWire::deserialize(d)?;
-            LawReference::from_wire(&w).map_err(D::Error::custom)
-        }
+            },
+            LawReference::from_wire,
+        )
     }
 }
 

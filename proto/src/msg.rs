@@ -104,6 +104,25 @@ pub(crate) fn at_most(
     }
 }
 
+/// The angular frequency `omega` (rad/s) of a reference of `message`: `> 0` where its
+/// trajectory `moves` (a sinusoid or an excitation), anything for a hold.
+pub(crate) fn moving_omega(
+    message: &'static str,
+    omega: f64,
+    moves: bool,
+) -> Result<(), ValidationError> {
+    if !moves {
+        return Ok(());
+    }
+    range(
+        message,
+        "omega",
+        omega,
+        omega > 0.0,
+        "> 0 rad/s for a sinusoid or an excitation",
+    )
+}
+
 /// Checks `ok(value)` for an already finite float.
 pub(crate) fn range(
     message: &'static str,
@@ -181,10 +200,54 @@ struct PlantStateJson {
     mode: u8,
 }
 
+/// Serializes a message with two serde forms: its JSON form `json()` for a human-readable format
+/// (JSON, TOML: the recordings' and the tools' form), its wire form `wire()` otherwise (bincode:
+/// the bytes on the wire), whose error (a field out of its range) becomes the format's.
+pub(crate) fn serialize_dual<S, J, W, E>(
+    s: S,
+    json: impl FnOnce() -> J,
+    wire: impl FnOnce() -> Result<W, E>,
+) -> Result<S::Ok, S::Error>
+where
+    S: serde::Serializer,
+    J: Serialize,
+    W: Serialize,
+    E: std::fmt::Display,
+{
+    if s.is_human_readable() {
+        json().serialize(s)
+    } else {
+        wire().map_err(serde::ser::Error::custom)?.serialize(s)
+    }
+}
+
+/// Deserializes a message with two serde forms ([`serialize_dual`]): from its JSON form `J`
+/// through `json` for a human-readable format, else from its wire form `W` through `wire`, whose
+/// refusal (a field named with its range) becomes the format's error.
+pub(crate) fn deserialize_dual<'de, D, J, W, T, E>(
+    d: D,
+    json: impl FnOnce(J) -> T,
+    wire: impl FnOnce(&W) -> Result<T, E>,
+) -> Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    J: Deserialize<'de>,
+    W: Deserialize<'de>,
+    E: std::fmt::Display,
+{
+    if d.is_human_readable() {
+        Ok(json(J::deserialize(d)?))
+    } else {
+        let w = W::deserialize(d)?;
+        wire(&w).map_err(serde::de::Error::custom)
+    }
+}
+
 impl Serialize for PlantState {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        if s.is_human_readable() {
-            PlantStateJson {
+        serialize_dual(
+            s,
+            || PlantStateJson {
                 seq: self.seq,
                 time: self.time,
                 alpha: self.alpha,
@@ -192,29 +255,28 @@ impl Serialize for PlantState {
                 alpha_dot: self.alpha_dot,
                 beta_dot: self.beta_dot,
                 mode: self.mode,
-            }
-            .serialize(s)
-        } else {
-            PlantStateWire {
-                seq: self.seq,
-                time: self.time,
-                alpha: self.alpha,
-                beta: self.beta,
-                alpha_dot: self.alpha_dot.unwrap_or(0.0),
-                beta_dot: self.beta_dot.unwrap_or(0.0),
-                mode: self.mode,
-                measured: self.measured(),
-            }
-            .serialize(s)
-        }
+            },
+            || {
+                Ok::<_, std::convert::Infallible>(PlantStateWire {
+                    seq: self.seq,
+                    time: self.time,
+                    alpha: self.alpha,
+                    beta: self.beta,
+                    alpha_dot: self.alpha_dot.unwrap_or(0.0),
+                    beta_dot: self.beta_dot.unwrap_or(0.0),
+                    mode: self.mode,
+                    measured: self.measured(),
+                })
+            },
+        )
     }
 }
 
 impl<'de> Deserialize<'de> for PlantState {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        if d.is_human_readable() {
-            let j = PlantStateJson::deserialize(d)?;
-            Ok(PlantState {
+        deserialize_dual(
+            d,
+            |j: PlantStateJson| PlantState {
                 seq: j.seq,
                 time: j.time,
                 alpha: j.alpha,
@@ -222,11 +284,9 @@ impl<'de> Deserialize<'de> for PlantState {
                 alpha_dot: j.alpha_dot,
                 beta_dot: j.beta_dot,
                 mode: j.mode,
-            })
-        } else {
-            let w = PlantStateWire::deserialize(d)?;
-            PlantState::from_wire(&w).map_err(serde::de::Error::custom)
-        }
+            },
+            PlantState::from_wire,
+        )
     }
 }
 
@@ -631,15 +691,11 @@ impl Reference {
         finite(M, "k", self.k)?;
         finite(M, "energy_avg", self.energy_avg)?;
         finite(M, "torque_limit", self.torque_limit)?;
-        if self.kind == Self::SINUSOID || self.kind == Self::EXCITATION {
-            range(
-                M,
-                "omega",
-                self.omega,
-                self.omega > 0.0,
-                "> 0 rad/s for a sinusoid or an excitation",
-            )?;
-        }
+        moving_omega(
+            M,
+            self.omega,
+            self.kind == Self::SINUSOID || self.kind == Self::EXCITATION,
+        )?;
         range(M, "kp", self.kp, self.kp >= 0.0, ">= 0 1/s^2")?;
         range(M, "kd", self.kd, self.kd >= 0.0, ">= 0 1/s")?;
         range(M, "k", self.k, self.k >= 0.0, ">= 0 1/(J s^2)")?;
