@@ -18,6 +18,12 @@
 //!      echo's arrival time (stamped by the subscriber callback) at the next deadline (the
 //!      real-time pattern). Round trips paced at 1 kHz are slower than back-to-back ones (the
 //!      threads sleep between messages), so the real-time loop is compared with this one.
+//!    - a bare pacing thread at `--rate` for `--paced-s` (the plant's clock, no message; under
+//!      SCHED_FIFO with `--fifo`): its wake-ups later than a period are the machine's own stalls,
+//!      the floor under any loop's misses.
+//!
+//!    `LOOP_BENCH_LINK=unix` runs the raw ping-pong over zenoh's Unix-socket link instead of
+//!    loopback TCP.
 //! 2. **The plant-controller loop** (`tilting-plant` and `tilting-controller` as processes, the
 //!    paper's orbit): real time at `--rate` Hz for `--realtime-s`, and lockstep as fast as it goes for
 //!    `--lockstep-s` (steps per second between two plant statuses that far apart). Latencies
@@ -111,7 +117,52 @@ fn last_window(v: &[f64]) -> &[f64] {
     &v[v.len().saturating_sub(4096)..]
 }
 
+// ------------------------------------------------------------------ the machine's own floor
+
+/// A thread that only wakes at each deadline, paced at `rate` Hz for `secs` as the plant's
+/// pacing thread is (its clock, a 50 µs spin, 1 ns timer slack; under SCHED_FIFO at `fifo` if
+/// given), with no message at all: its wake-ups later than one period are the stalls the
+/// machine itself inflicts (hypervisor steal, kernel work), a floor under any loop's misses.
+/// Returns (wake-ups later than a period, wake-ups, the latest in µs).
+fn pacing_floor(secs: f64, rate: f64, fifo: Option<i32>) -> (u64, u64, f64) {
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            if let Some(p) = fifo {
+                let _ = set_fifo_priority(p);
+            }
+            set_min_timer_slack();
+            let h = (1e9 / rate).round() as u64;
+            let n = (secs * rate) as u64;
+            let start = now_ns() + h;
+            let (mut late, mut worst) = (0, 0);
+            for k in 0..n {
+                let deadline = start + k * h;
+                let woke = sleep_until(deadline, 50_000);
+                let l = woke.saturating_sub(deadline);
+                worst = worst.max(l);
+                if l > h {
+                    late += 1;
+                }
+            }
+            (late, n, worst as f64 * 1e-3)
+        })
+        .join()
+        .expect("the pacing thread")
+    })
+}
+
 // ------------------------------------------------------------------ the pong process
+
+/// The raw ping-pong's endpoint for `port`: loopback TCP (`tcp/127.0.0.1:PORT`, the nodes'
+/// link), or with `LOOP_BENCH_LINK=unix` a Unix socket (`unixsock-stream//tmp/...PORT.sock`,
+/// zenoh's transport for processes on one host), the port then only naming the socket.
+fn ping_endpoint(port: u16) -> String {
+    if std::env::var("LOOP_BENCH_LINK").as_deref() == Ok("unix") {
+        format!("unixsock-stream//tmp/loop-bench-{port}.sock")
+    } else {
+        endpoint(port)
+    }
+}
 
 fn keys(robot: &str) -> (String, String) {
     (format!("bench/{robot}/ping"), format!("bench/{robot}/pong"))
@@ -121,7 +172,7 @@ fn keys(robot: &str) -> (String, String) {
 fn pong(robot: &str, listen: u16, connect: u16) -> anyhow::Result<()> {
     let rt = tilting_net::runtime()?;
     rt.block_on(async {
-        let args = ZenohArgs::new(robot, &[&endpoint(listen)], &[&endpoint(connect)]);
+        let args = ZenohArgs::new(robot, &[&ping_endpoint(listen)], &[&ping_endpoint(connect)]);
         let session = tilting_net::open_session(&args, Role::Peer).await?;
         let (ping_key, pong_key) = keys(robot);
         let publisher =
@@ -185,7 +236,7 @@ impl PingPong {
         });
         let (ping_key, pong_key) = keys(&robot);
         let (session, publisher, sub) = rt.block_on(async {
-            let args = ZenohArgs::new(&robot, &[&endpoint(port)], &[]);
+            let args = ZenohArgs::new(&robot, &[&ping_endpoint(port)], &[]);
             let session = tilting_net::open_session(&args, Role::Plant).await?;
             let publisher =
                 TypedPublisher::<TorqueCommand>::declare(&session, &ping_key, Qos::Control).await?;
@@ -592,6 +643,8 @@ struct Round {
     b2b_rate: f64,
     paced: Vec<f64>,
     late: u64,
+    /// [`pacing_floor`]: (late wake-ups, wake-ups, latest in µs).
+    floor: (u64, u64, f64),
     rt: LoopRun,
     ls: LoopRun,
     /// `--ros2 1|2`: the real-time loop with the mirror and a subscriber.
@@ -676,6 +729,7 @@ fn main() -> anyhow::Result<()> {
         );
         let (b2b, b2b_rate) = pp.back_to_back(o.b2b_s)?;
         let (paced, late) = pp.paced(o.paced_s, o.rate, o.fifo);
+        let floor = pacing_floor(o.paced_s, o.rate, o.fifo);
         let rt = real_loop(
             &bins,
             &dir,
@@ -711,6 +765,7 @@ fn main() -> anyhow::Result<()> {
             b2b_rate,
             paced,
             late,
+            floor,
             rt,
             ls,
             ros,
@@ -767,6 +822,13 @@ fn main() -> anyhow::Result<()> {
                 pct(&r.paced).p99,
                 r.late
             ),
+        );
+        let (fl, fnum, fmax) = r.floor;
+        println!(
+            "| {:<50} | {:>6} | wake-ups later than a period: {fl} ({:.3} %), the latest {fmax:.0} us: the machine's own floor",
+            format!("{i}: a bare pacing thread, {} Hz", o.rate),
+            fnum,
+            100.0 * fl as f64 / fnum.max(1) as f64
         );
         let q = lat(&r.rt.summary);
         let x = q.p99 / paced.p99;
